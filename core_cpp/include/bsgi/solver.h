@@ -1,0 +1,56 @@
+// The gathering solver of paper section 4.2 (Algorithm 1).
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bsgi/progress.h"
+#include "bsgi/scene.h"
+#include "bsgi/tensor_spline.h"
+
+namespace bsgi {
+
+struct SolverSettings {
+    // Radiance representation: 2D spline per diffuse surface, knots (19) on [eps, 1 - eps].
+    int spatial_coeffs = 16;
+    int spatial_degree = 2;
+    double epsilon = 1e-3;
+    // Surface integral (8)/(35) over emitters: B-spline quadrature (11) with at least
+    // emitter_nodes nodes per direction, more (up to emitter_nodes_max) when the receiver point
+    // is close to the emitter relative to its size, where the kernel 1/r^4 peaks.
+    int emitter_nodes = 8;
+    int emitter_nodes_max = 48;
+    int emitter_degree = 2;
+    // Hemispherical integral (26)-(32): nodes in (cos^2 theta, phi), cosine-weighted.
+    int hemisphere_nodes_theta = 12;
+    int hemisphere_nodes_phi = 24;
+    // Indirect phase: stop after max_bounces or when the largest increment is below
+    // tolerance times the largest cumulative radiance.
+    int max_bounces = 4;
+    double tolerance = 1e-3;
+    int threads = 0;  // 0: all hardware threads
+    double memory_budget_mb = 4096;
+};
+
+struct SolveStats {
+    double seconds_direct = 0, seconds_indirect = 0;
+    int bounces = 0;
+    double last_increment = 0;  // relative, of the last bounce
+    size_t coefficients = 0;
+    size_t rays = 0;
+};
+
+struct Solution {
+    // Outgoing radiance (emission + reflected) per scene surface; empty for pure emitters.
+    std::vector<std::optional<TensorSpline>> radiance;
+    SolveStats stats;
+};
+
+// Bytes the solve will allocate for the given scene and settings.
+size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings);
+
+// Throws std::invalid_argument on unusable input (naming the surface), Cancelled if progress is
+// cancelled, std::runtime_error when the memory estimate exceeds the budget.
+Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress);
+
+}  // namespace bsgi

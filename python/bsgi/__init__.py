@@ -1,0 +1,38 @@
+"""bsgi: global illumination with tensor-product B-spline radiance.
+
+The numpy-level API of the compiled core (no Blender needed)::
+
+    import bsgi
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", corners, albedo=(0.8, 0.8, 0.8), emission=(0, 0, 0))
+    scene.add_bilinear_patch("lamp", lamp_corners, albedo=(0, 0, 0), emission=(10, 10, 10),
+                             receiver=False, occluder=False)
+    solution = bsgi.solve(scene, bsgi.SolverSettings())
+    radiance = solution.radiance[0].evaluate(uv)     # (N, 3) outgoing radiance at (u, v)
+"""
+from __future__ import annotations
+
+from ._core import (
+    KnotVector,
+    Progress,
+    Scene,
+    SolveCancelled,
+    Solution,
+    SolverSettings,
+    TensorSpline,
+    estimate_solve_bytes,
+)
+from .solve import solve
+
+__all__ = [
+    "KnotVector",
+    "Progress",
+    "Scene",
+    "SolveCancelled",
+    "Solution",
+    "SolverSettings",
+    "TensorSpline",
+    "estimate_solve_bytes",
+    "solve",
+]
+__version__ = "0.1.0"
