@@ -1,6 +1,7 @@
 // Progress of a long computation, readable and cancellable from any thread without locks on the
 // hot path: the solver advances it, a UI polls it.
 #pragma once
+#include <algorithm>
 #include <atomic>
 #include <mutex>
 #include <stdexcept>
@@ -28,7 +29,7 @@ public:
     void advance(size_t units) { done_.fetch_add(units, std::memory_order_relaxed); }
     double fraction() const {
         const double within = double(done_.load(std::memory_order_relaxed)) / double(total_.load());
-        return (stage_index_.load() + std::min(within, 1.0)) / std::max(1, stage_count_.load());
+        return std::min(1.0, (stage_index_.load() + std::min(within, 1.0)) / std::max(1, stage_count_.load()));
     }
     std::string stage() const {
         std::lock_guard<std::mutex> lock(mutex_);

@@ -1,0 +1,19 @@
+"""B-spline GI: solve global illumination as tensor-product B-spline radiance (Stark et al.) and
+bake it into the scene for Material Preview and renders.
+
+Thin Blender layer over the `bsgi` core: export.py reads the scene, pipeline.py runs the solve,
+bake.py writes images and materials, operators.py/ui.py/properties.py are the interface."""
+
+from . import operators, properties, ui
+
+_modules = (properties, operators, ui)
+
+
+def register():
+    for m in _modules:
+        m.register()
+
+
+def unregister():
+    for m in reversed(_modules):
+        m.unregister()

@@ -1,0 +1,178 @@
+"""Solved radiance splines -> what Blender shows: per object a float image atlas (one tile per
+face), a UV map laying the faces on their tiles, and an emission material showing it.
+
+The user's materials stay on the mesh untouched: the baked material is linked to the object's
+material slots (slot.link = 'OBJECT'), and switching the slots back to 'DATA' shows the originals."""
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+
+UV_NAME = "BSGI Radiance"
+PROP_SLOTS = "bsgi_slot_links"  # the slots' links before the bake, to restore them
+PROP_ADDED_SLOT = "bsgi_added_slot"
+PROP_MATERIAL = "bsgi_baked_material"
+
+
+def tile_size(spline) -> int:
+    """Texels per face side: two per coefficient, so the image resolves the spline's knots."""
+    return max(8, 2 * max(axis.num_coeffs for axis in spline.axes))
+
+
+def _tile_parameters(kind: str, t: int) -> np.ndarray:
+    """(u, v) of the surface at the tile's texel centres, shape (t*t, 2), rows of constant y.
+
+    The face's UV corners sit on the centres of the tile's corner texels, so texel (i, j) is at
+    x = i / (t - 1), y = j / (t - 1) in the face's UV square. Quads are bilinear: (u, v) = (x, y).
+    Triangles lie in the half y <= x of the square with corners (0, 0), (1, 0), (1, 1); the
+    collapsed-square parameterization gives u = x, v = y / x (texels above the diagonal repeat
+    the diagonal, so texture filtering never mixes in another face)."""
+    x, y = np.meshgrid(np.linspace(0, 1, t), np.linspace(0, 1, t))
+    if kind == "quad":
+        u, v = x, y
+    else:
+        u = x
+        v = np.divide(y, x, out=np.full_like(y, 0.5), where=x > 0)
+        v = np.clip(v, 0, 1)
+    return np.stack([u.ravel(), v.ravel()], axis=1)
+
+
+def _face_uvs(kind: str, tile_origin, t: int, size: int, corners: int):
+    """UV coordinates of a face's loops on its tile, matching _tile_parameters."""
+    if kind == "quad":
+        square = [(0, 0), (1, 0), (1, 1), (0, 1)]
+    else:
+        square = [(0, 0), (1, 0), (1, 1)]
+    ox, oy = tile_origin
+    return [((ox + 0.5 + sx * (t - 1)) / size, (oy + 0.5 + sy * (t - 1)) / size) for sx, sy in square[:corners]]
+
+
+def bake_object(obj, exported, radiance) -> None:
+    """Bake one object's solved splines (radiance: list indexed by scene surface)."""
+    faces = exported.patches
+    mesh = obj.data
+    if len(mesh.polygons) != exported.polygon_count:
+        raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
+    t = tile_size(radiance[faces[0][1]])
+    grid = math.ceil(math.sqrt(len(faces)))
+    size = grid * t
+    pixels = np.zeros((size, size, 4), np.float32)
+    pixels[..., 3] = 1
+    uvs = np.zeros((len(mesh.loops), 2), np.float32)
+    for index, (kind, first, count) in enumerate(faces):
+        ox, oy = (index % grid) * t, (index // grid) * t
+        poly = mesh.polygons[index]
+        if kind == "ngon":
+            # N-gons are solved as triangle fans; show their mean radiance until charts land.
+            value = np.mean([radiance[first + k].coefficients.reshape(-1, 3).mean(axis=0) for k in range(count)], axis=0)
+            pixels[oy:oy + t, ox:ox + t, :3] = value
+            for k, loop in enumerate(poly.loop_indices):
+                uvs[loop] = ((ox + t / 2) / size, (oy + t / 2) / size)
+            continue
+        values = radiance[first].evaluate(_tile_parameters(kind, t))
+        pixels[oy:oy + t, ox:ox + t, :3] = values.reshape(t, t, 3)
+        for loop, uv in zip(poly.loop_indices, _face_uvs(kind, (ox, oy), t, size, poly.loop_total)):
+            uvs[loop] = uv
+
+    uv_layer = mesh.uv_layers.get(UV_NAME) or mesh.uv_layers.new(name=UV_NAME, do_init=False)
+    mesh.uv_layers[UV_NAME].data.foreach_set("uv", uvs.ravel())
+    del uv_layer  # look layers up by name again after creating one
+
+    image = _radiance_image(f"BSGI {obj.name}", size, pixels)
+    material = _baked_material(f"BSGI {obj.name}", image)
+    _link_baked_material(obj, material)
+
+
+def _radiance_image(name: str, size: int, pixels: np.ndarray):
+    image = bpy.data.images.get(name)
+    if image is not None and (image.size[0] != size or image.size[1] != size):
+        bpy.data.images.remove(image)
+        image = None
+    if image is None:
+        image = bpy.data.images.new(name, size, size, alpha=False, float_buffer=True)
+    # Radiance is scene-linear data: the colour space is set before the pixels, since
+    # changing it afterwards discards them.
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(pixels.ravel())
+    image.pack()
+    return image
+
+
+def _baked_material(name: str, image):
+    material = bpy.data.materials.get(name) or bpy.data.materials.new(name)
+    material.use_fake_user = True  # kept in the .blend while the originals are shown
+    tree = material.node_tree
+    if tree is None:
+        material.use_nodes = True
+        tree = material.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    uv = tree.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = UV_NAME
+    tex.image = image
+    tex.interpolation = "Linear"
+    tex.extension = "EXTEND"
+    tree.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    tree.links.new(tex.outputs["Color"], emission.inputs["Color"])
+    tree.links.new(emission.outputs["Emission"], out.inputs["Surface"])
+    uv.location, tex.location, emission.location, out.location = (-600, 0), (-350, 0), (-50, 0), (200, 0)
+    return material
+
+
+def _link_baked_material(obj, material) -> None:
+    if PROP_SLOTS not in obj:
+        if not obj.material_slots:
+            obj.data.materials.append(None)
+            obj[PROP_ADDED_SLOT] = True
+        # Each slot's link and its object-level material, which the bake's link replaces.
+        saved = []
+        for slot in obj.material_slots:
+            link = slot.link
+            slot.link = "OBJECT"
+            saved.append([link, slot.material.name if slot.material else ""])
+            slot.link = link
+        obj[PROP_SLOTS] = saved
+    obj[PROP_MATERIAL] = material.name
+    show_baked(obj, True)
+
+
+def is_baked(obj) -> bool:
+    return PROP_SLOTS in obj
+
+
+def show_baked(obj, baked: bool) -> None:
+    """Switch an object between its baked radiance and the user's own materials."""
+    if not is_baked(obj):
+        return
+    material = bpy.data.materials.get(obj[PROP_MATERIAL])
+    for slot, (link, object_material) in zip(obj.material_slots, obj[PROP_SLOTS]):
+        slot.link = "OBJECT"
+        slot.material = material if baked else bpy.data.materials.get(object_material)
+        if not baked:
+            slot.link = link
+
+
+def clear_bake(obj) -> None:
+    """Remove the bake from an object: its slots, UV maps and materials as before the bake."""
+    if not is_baked(obj):
+        return
+    show_baked(obj, False)
+    if obj.get(PROP_ADDED_SLOT):
+        obj.data.materials.pop()
+        del obj[PROP_ADDED_SLOT]
+    name = obj[PROP_MATERIAL]
+    del obj[PROP_SLOTS]
+    del obj[PROP_MATERIAL]
+    uv = obj.data.uv_layers.get(UV_NAME)
+    if uv is not None:
+        obj.data.uv_layers.remove(uv)
+    material = bpy.data.materials.get(name)
+    if material is not None:
+        image = next((n.image for n in material.node_tree.nodes if n.type == "TEX_IMAGE"), None)
+        bpy.data.materials.remove(material)
+        if image is not None:
+            bpy.data.images.remove(image)

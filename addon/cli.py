@@ -1,0 +1,100 @@
+"""Headless solve and bake, for farms, scripts and users of the `bpy` module.
+
+    python addon/cli.py scene.blend --out solved.blend [--render image.png]     (bpy module)
+    blender --background scene.blend --python addon/cli.py -- --out solved.blend (Blender)
+
+Prints progress as lines; exits with status 1 and a message naming the problem on failure."""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import pathlib
+import sys
+import time
+
+PACKAGE = "bsgi_addon"
+
+
+def load_addon():
+    """The add-on as a package, whether this file runs as a script or inside the package."""
+    if PACKAGE in sys.modules:
+        return sys.modules[PACKAGE]
+    here = pathlib.Path(__file__).resolve().parent
+    spec = importlib.util.spec_from_file_location(PACKAGE, here / "__init__.py", submodule_search_locations=[str(here)])
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[PACKAGE] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def render_view(scene, path: str, resolution=(512, 512), samples=16) -> None:
+    """Cycles render of the camera view of a baked scene. Baked materials are pure emission, so
+    no bounces are needed: the samples only anti-alias."""
+    import bpy
+
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.cycles.max_bounces = 0
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    scene.render.filepath = str(pathlib.Path(path).resolve())
+    scene.render.image_settings.file_format = "PNG" if path.endswith(".png") else "OPEN_EXR"
+    if path.endswith(".exr"):
+        scene.render.image_settings.color_depth = "32"
+    bpy.ops.render.render(write_still=True)
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[sys.argv.index("--") + 1:] if argv is None and "--" in sys.argv else (argv or sys.argv[1:])
+    parser = argparse.ArgumentParser(description="Solve B-spline GI headless and bake it into the scene.")
+    parser.add_argument("blend", nargs="?", help="scene to open (omit inside `blender scene.blend --background`)")
+    parser.add_argument("--out", help="where to save the solved scene (default: overwrite the opened file)")
+    parser.add_argument("--render", help="also render the camera view of the baked scene to this image")
+    parser.add_argument("--resolution", type=int, nargs=2, default=(512, 512))
+    args = parser.parse_args(argv)
+
+    import bpy
+
+    addon = load_addon()
+    try:
+        addon.register()
+    except ValueError:
+        pass  # already registered in this session
+    from bsgi_addon import pipeline
+    from bsgi_addon.export import ExportError
+
+    if args.blend:
+        bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(args.blend).resolve()))
+    context = bpy.context
+
+    def on_progress(fraction, stage):
+        print(f"bsgi: {fraction * 100:5.1f}% {stage}", flush=True)
+
+    try:
+        rep = pipeline.solve_and_bake(context, on_progress=on_progress)
+    except (ExportError, ValueError, RuntimeError) as error:
+        print(f"bsgi: error: {error}", file=sys.stderr)
+        return 1
+    for warning in rep["warnings"]:
+        print(f"bsgi: warning: {warning}")
+    print(f"bsgi: solved {rep['surfaces']} surfaces, {rep['coefficients']} coefficients, {rep['bounces']} bounces "
+          f"in {rep['solve_seconds']:.2f} s (bake {rep['bake_seconds']:.2f} s)")
+    out = pathlib.Path(args.out).resolve() if args.out else None
+    if out:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        bpy.ops.wm.save_as_mainfile(filepath=str(out), copy=False)
+    else:
+        bpy.ops.wm.save_mainfile()
+    print(f"bsgi: saved {out or bpy.data.filepath}")
+    if args.render:
+        t0 = time.perf_counter()
+        pathlib.Path(args.render).parent.mkdir(parents=True, exist_ok=True)
+        render_view(context.scene, args.render, tuple(args.resolution))
+        print(f"bsgi: rendered {pathlib.Path(args.render).resolve()} in {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

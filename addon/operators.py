@@ -1,0 +1,122 @@
+"""Operators: solve (modal with a worker thread in the UI, direct in scripts), clear."""
+from __future__ import annotations
+
+import threading
+import time
+
+import bpy
+
+import bsgi
+
+from . import bake, pipeline
+from .export import ExportError
+
+
+class BSGI_OT_solve(bpy.types.Operator):
+    """Solve the scene's global illumination as B-spline radiance and bake it onto the objects"""
+
+    bl_idname = "bsgi.solve"
+    bl_label = "Solve B-spline GI"
+    bl_options = {"REGISTER"}
+
+    _timer = None
+    _thread = None
+    _job = None
+    _result = None
+    _t0 = 0.0
+
+    def execute(self, context):
+        # Scripts and `blender --background`: run to the end here, progress as lines.
+        def on_progress(fraction, stage):
+            print(f"bsgi: {fraction * 100:5.1f}% {stage}", flush=True)
+
+        try:
+            rep = pipeline.solve_and_bake(context, on_progress=on_progress)
+        except (ExportError, ValueError, RuntimeError) as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self._report_done(rep)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background:
+            return self.execute(context)
+        try:
+            self._job = pipeline.prepare(context)
+        except (ExportError, ValueError) as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self._result = {}
+        self._t0 = time.perf_counter()
+
+        def work():
+            try:
+                self._result["solution"] = pipeline.run(self._job)
+            except BaseException as error:  # carried to the main thread
+                self._result["error"] = error
+
+        self._thread = threading.Thread(target=work, name="bsgi-solve", daemon=True)
+        self._thread.start()
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._job.progress.cancel()
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        wm = context.window_manager
+        progress = self._job.progress
+        wm.progress_update(int(progress.fraction * 100))
+        context.workspace.status_text_set(f"B-spline GI: {progress.stage} {progress.fraction * 100:.0f}% (Esc cancels)")
+        if self._thread.is_alive():
+            return {"RUNNING_MODAL"}
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        context.workspace.status_text_set(None)
+        error = self._result.get("error")
+        if isinstance(error, bsgi.SolveCancelled):
+            self.report({"WARNING"}, "B-spline GI: solve cancelled; the scene is unchanged")
+            return {"CANCELLED"}
+        if error is not None:
+            self.report({"ERROR"}, f"B-spline GI: {error}")
+            return {"CANCELLED"}
+        t1 = time.perf_counter()
+        pipeline.finish(context, self._job, self._result["solution"])
+        self._report_done(pipeline.report(self._job, self._result["solution"], t1 - self._t0, time.perf_counter() - t1))
+        return {"FINISHED"}
+
+    def _report_done(self, rep):
+        for warning in rep["warnings"]:
+            self.report({"WARNING"}, warning)
+        self.report({"INFO"}, f"B-spline GI: solved {rep['surfaces']} surfaces ({rep['coefficients']} coefficients, "
+                    f"{rep['bounces']} bounces) in {rep['solve_seconds']:.2f} s, baked in {rep['bake_seconds']:.2f} s")
+
+
+class BSGI_OT_clear(bpy.types.Operator):
+    """Remove the baked radiance and show the objects' own materials"""
+
+    bl_idname = "bsgi.clear"
+    bl_label = "Clear B-spline GI"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        for obj in context.scene.objects:
+            bake.clear_bake(obj)
+        return {"FINISHED"}
+
+
+classes = (BSGI_OT_solve, BSGI_OT_clear)
+
+
+def register():
+    for c in classes:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(classes):
+        bpy.utils.unregister_class(c)

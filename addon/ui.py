@@ -1,0 +1,51 @@
+"""Panels: Render Properties and the 3D view sidebar show the same controls."""
+from __future__ import annotations
+
+import bpy
+
+
+def draw_controls(layout, scene):
+    settings = scene.bsgi
+    layout.operator("bsgi.solve", icon="LIGHT_AREA")
+    col = layout.column(align=True)
+    col.prop(settings, "spatial_coeffs")
+    col.prop(settings, "spatial_degree")
+    col.prop(settings, "max_bounces")
+    col.prop(settings, "tolerance")
+    col.prop(settings, "hemisphere_nodes")
+    row = layout.row(align=True)
+    row.prop(settings, "show_baked", toggle=True)
+    row.operator("bsgi.clear", text="", icon="X")
+
+
+class BSGI_PT_render(bpy.types.Panel):
+    bl_label = "B-spline GI"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+
+    def draw(self, context):
+        draw_controls(self.layout, context.scene)
+
+
+class BSGI_PT_sidebar(bpy.types.Panel):
+    bl_label = "B-spline GI"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "B-spline GI"
+
+    def draw(self, context):
+        draw_controls(self.layout, context.scene)
+
+
+classes = (BSGI_PT_render, BSGI_PT_sidebar)
+
+
+def register():
+    for c in classes:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(classes):
+        bpy.utils.unregister_class(c)

@@ -1,0 +1,155 @@
+"""Export -> solve -> bake on whole scenes (addon/pipeline.py, export.py, bake.py)."""
+import math
+import pathlib
+
+import bpy
+import numpy as np
+import OpenEXR
+import pytest
+
+import scenes
+from bsgi_addon import bake, pipeline
+from bsgi_addon.export import ExportError
+
+
+def render_exr(scene, path, samples, bounces):
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.max_bounces = bounces
+    scene.cycles.diffuse_bounces = bounces
+    scene.cycles.sample_clamp_direct = 0
+    scene.cycles.sample_clamp_indirect = 0
+    scene.cycles.seed = 1
+    scene.render.resolution_x = scene.render.resolution_y = 96
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    return OpenEXR.File(str(path)).channels()["RGBA"].pixels[..., :3].astype(np.float64)
+
+
+@pytest.mark.slow
+def test_baked_cornell_box_matches_cycles_path_tracing(context, tmp_path):
+    scene = scenes.cornell_box()
+    bounces = scene.bsgi.max_bounces
+    scene.bsgi.tolerance = 0  # exactly max_bounces, like Cycles
+    reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=bounces)
+    pipeline.solve_and_bake(context)
+    baked = render_exr(scene, tmp_path / "baked.exr", samples=16, bounces=0)
+    luminance = reference.mean(axis=2)
+    lit = luminance > 0.02 * np.percentile(luminance, 99)
+    rel = np.abs(baked - reference).sum(axis=2) / reference.sum(axis=2)
+    mean_rel = rel[lit].mean()
+    print(f"\nCornell box, baked vs Cycles ({bounces} bounces, 1024 spp): mean relative difference "
+          f"{mean_rel:.4f} over {lit.sum()} lit pixels; median {np.median(rel[lit]):.4f}")
+    assert lit.sum() > 0.5 * lit.size
+    assert mean_rel <= 0.10
+
+
+def test_saved_blend_reopens_with_the_baked_result(context, tmp_path):
+    floor = scenes.floor_under_lamp()
+    pipeline.solve_and_bake(context)
+    image = bpy.data.images[f"BSGI {floor.name}"]
+    before = np.array(image.pixels[:], np.float32)
+    assert before.reshape(-1, 4)[:, :3].max() > 0
+    path = tmp_path / "solved.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    assert "Floor" not in bpy.data.objects
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    floor = bpy.data.objects["Floor"]
+    image = bpy.data.images[f"BSGI Floor"]
+    after = np.array(image.pixels[:], np.float32)
+    np.testing.assert_array_equal(before, after)
+    slot = floor.material_slots[0]
+    assert slot.link == "OBJECT" and slot.material.name == "BSGI Floor"
+    assert floor.data.materials[0].name == "Grey"  # the user's material is still on the mesh
+    assert bake.UV_NAME in floor.data.uv_layers
+
+
+def test_baked_values_are_the_solved_radiance(context):
+    floor = scenes.floor_under_lamp()
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    pipeline.finish(context, job, solution)
+    image = bpy.data.images[f"BSGI {floor.name}"]
+    size = image.size[0]
+    pixels = np.array(image.pixels[:], np.float32).reshape(size, size, 4)
+    spline = solution.radiance[job.export.objects[0].patches[0][1]]
+    # Corner texels of the tile are the face's corners: (u, v) = (0, 0) and (1, 1).
+    t = bake.tile_size(spline)
+    ends = spline.evaluate(np.array([[0.0, 0.0], [1.0, 1.0], [0.5, 0.5]]))
+    np.testing.assert_allclose(pixels[0, 0, :3], ends[0], rtol=1e-6)
+    np.testing.assert_allclose(pixels[t - 1, t - 1, :3], ends[1], rtol=1e-6)
+    # The floor under a centred lamp is brightest in its middle.
+    assert pixels[t // 2, t // 2, 0] > pixels[0, 0, 0]
+
+
+def test_show_baked_toggles_back_to_the_users_materials(context):
+    floor = scenes.floor_under_lamp()
+    grey = floor.data.materials[0]
+    pipeline.solve_and_bake(context)
+    assert floor.active_material.name == "BSGI Floor"
+    context.scene.bsgi.show_baked = False
+    assert floor.material_slots[0].link == "DATA"
+    assert floor.active_material == grey
+    context.scene.bsgi.show_baked = True
+    assert floor.active_material.name == "BSGI Floor"
+    bpy.ops.bsgi.clear()
+    assert floor.active_material == grey
+    assert bake.UV_NAME not in floor.data.uv_layers
+    assert "BSGI Floor" not in bpy.data.materials
+
+
+def _coordinates(mesh):
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    return co
+
+
+def _scene_state():
+    """What a failed solve must leave as it was."""
+    return {
+        obj.name: (
+            [(s.link, s.material.name if s.material else None) for s in obj.material_slots],
+            [uv.name for uv in obj.data.uv_layers] if obj.type == "MESH" else None,
+            _coordinates(obj.data).tobytes() if obj.type == "MESH" else None,  # bytes: NaN equals itself
+        )
+        for obj in bpy.data.objects
+    } | {"materials": sorted(m.name for m in bpy.data.materials), "images": sorted(i.name for i in bpy.data.images)}
+
+
+def _assert_clear_error(context, *words):
+    before = _scene_state()
+    with pytest.raises((ExportError, ValueError)) as info:
+        pipeline.solve_and_bake(context)
+    for w in words:
+        assert w in str(info.value), str(info.value)
+    assert _scene_state() == before
+    # The operator reports the same error; called from Python, Blender raises the report.
+    with pytest.raises(RuntimeError) as info:
+        bpy.ops.bsgi.solve()
+    assert words[-1] in str(info.value)
+    assert _scene_state() == before
+
+
+def test_scene_without_emitter_is_refused(context):
+    scenes.add_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    _assert_clear_error(context, "no emitter")
+
+
+def test_zero_area_face_is_refused_by_name(context):
+    scenes.floor_under_lamp()
+    scenes.add_quad("Sliver", [(0, 0, 0.5), (1, 0, 0.5), (1, 0, 0.5), (0, 0, 0.5)])
+    _assert_clear_error(context, "Sliver", "zero area")
+
+
+def test_nan_vertex_is_refused_by_name(context):
+    scenes.floor_under_lamp()
+    bad = scenes.add_quad("Broken", [(0, 0, 0.5), (0.2, 0, 0.5), (0.2, 0.2, 0.5), (0, 0.2, 0.5)])
+    bad.data.vertices[2].co.x = math.nan
+    _assert_clear_error(context, "Broken", "NaN")

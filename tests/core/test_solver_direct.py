@@ -1,0 +1,110 @@
+"""Direct light by the surface integral (8)/(35) against closed forms (solver.cpp, direct phase)."""
+import numpy as np
+import pytest
+
+import bsgi
+from closed_forms import polygon_irradiance
+
+ALBEDO = 0.6
+
+
+def rect(center, half_u, half_v):
+    """Corners of a rectangle, counter-clockwise seen from the side its normal u x v points to."""
+    c, a, b = (np.asarray(x, float) for x in (center, half_u, half_v))
+    return np.array([c - a - b, c + a - b, c + a + b, c - a + b])
+
+
+def solve_direct(receiver, emitter, occluders=(), **settings):
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("receiver", receiver, albedo=[ALBEDO] * 3, emission=[0, 0, 0])
+    scene.add_bilinear_patch("lamp", emitter, albedo=[0, 0, 0], emission=[1.0, 2.0, 3.0], receiver=False, occluder=False)
+    for i, occ in enumerate(occluders):
+        scene.add_bilinear_patch(f"occluder{i}", occ, albedo=[0.5] * 3, emission=[0, 0, 0])
+    s = bsgi.SolverSettings()
+    s.max_bounces = 0
+    for k, v in settings.items():
+        setattr(s, k, v)
+    return scene, bsgi.solve(scene, s)
+
+
+def expected_radiance(point, normal, emitter):
+    """Lambertian reflection of the emitter's radiance (1, 2, 3): albedo/pi * E."""
+    e = polygon_irradiance(point, normal, list(emitter))
+    return ALBEDO / np.pi * e * np.array([1.0, 2.0, 3.0])
+
+
+def points_on(corners, uv):
+    p00, p10, p11, p01 = corners
+    u, v = uv[:, :1], uv[:, 1:]
+    return (1 - u) * (1 - v) * p00 + u * (1 - v) * p10 + u * v * p11 + (1 - u) * v * p01
+
+
+def max_rel_error(solution, receiver, emitter, normal, uv):
+    got = solution.radiance[0].evaluate(uv)
+    want = np.array([expected_radiance(p, normal, emitter) for p in points_on(receiver, uv)])
+    return np.abs(got / want - 1).max()
+
+
+UV = np.random.default_rng(7).uniform(0, 1, (200, 2))
+UV_EDGES = np.array([[0, 0], [1, 1], [0, 1], [1, 0], [0.5, 0], [0.5, 1], [0, 0.5], [1, 0.5]], float)
+
+
+def test_parallel_emitter_matches_rectangle_form_factor():
+    receiver = rect([0, 0, 0], [0.1, 0, 0], [0, 0.1, 0])  # small patch, normal +z
+    emitter = rect([0.15, -0.1, 0.5], [0, 0.5, 0], [0.4, 0, 0])  # 1 x 0.8 at z = 0.5, normal -z
+    _, sol = solve_direct(receiver, emitter)
+    err = max_rel_error(sol, receiver, emitter, [0, 0, 1], np.vstack([UV, UV_EDGES]))
+    print(f"parallel emitter: max relative error {err:.2e}")
+    assert err <= 0.01
+
+
+def test_perpendicular_emitter_matches_rectangle_form_factor():
+    receiver = rect([0.3, 0.5, 0], [0.1, 0, 0], [0, 0.1, 0])  # on the floor, beside the wall
+    emitter = rect([0, 0.5, 0.5], [0, 0.5, 0], [0, 0, 0.5])  # wall x = 0, normal +x
+    _, sol = solve_direct(receiver, emitter)
+    err = max_rel_error(sol, receiver, emitter, [0, 0, 1], np.vstack([UV, UV_EDGES]))
+    print(f"perpendicular emitter: max relative error {err:.2e}")
+    assert err <= 0.01
+
+
+def test_close_emitter_uses_finer_quadrature():
+    # Emitter 10x larger than its height above the patch: the kernel 1/r^4 is sharply peaked.
+    receiver = rect([0, 0, 0], [0.05, 0, 0], [0, 0.05, 0])
+    emitter = rect([0, 0, 0.1], [0, 1, 0], [1, 0, 0])
+    _, sol = solve_direct(receiver, emitter)
+    assert max_rel_error(sol, receiver, emitter, [0, 0, 1], UV) <= 0.01
+
+
+def test_occluder_casts_umbra_and_leaves_the_rest_lit():
+    # Emitter 0.2 wide at height 2, occluder 0.6 wide at height 1: umbra |x|, |y| <= 0.5,
+    # penumbra out to 0.7, fully lit beyond.
+    receiver = rect([0, 0, 0], [1, 0, 0], [0, 1, 0])
+    emitter = rect([0, 0, 2], [0, 0.1, 0], [0.1, 0, 0])
+    occluder = rect([0, 0, 1], [0.3, 0, 0], [0, 0.3, 0])
+    _, sol = solve_direct(receiver, emitter, [occluder], spatial_coeffs=24)
+    spline = sol.radiance[0]
+    nodes = spline.axes[0].schoenberg_nodes()
+    x = 2 * nodes - 1
+    coeff = spline.coefficients
+    umbra = np.abs(x) <= 0.49
+    assert np.all(coeff[np.ix_(umbra, umbra)] == 0)
+    # Spline values well inside the umbra: only umbra nodes contribute.
+    uv = np.random.default_rng(1).uniform(0.5 - 0.15, 0.5 + 0.15, (100, 2))
+    assert np.abs(spline.evaluate(uv)).max() == 0
+    # Outside the penumbra the light is the unoccluded closed form.
+    lit = np.abs(x) >= 0.71
+    for i in np.nonzero(lit)[0]:
+        for j in (0, len(x) // 2, len(x) - 1):
+            p = np.array([x[i], x[j], 0])
+            want = expected_radiance(p, [0, 0, 1], emitter)
+            assert coeff[i, j] == pytest.approx(want, rel=2e-3)
+    # The unoccluded receiver sees more light at its centre than the occluded one.
+    _, free = solve_direct(receiver, emitter, spatial_coeffs=24)
+    assert free.radiance[0].evaluate(np.array([[0.5, 0.5]]))[0, 0] > 0
+
+
+def test_back_facing_receiver_gets_no_light():
+    receiver = rect([0, 0, 0], [0, 0.1, 0], [0.1, 0, 0])  # normal -z, away from the emitter
+    emitter = rect([0, 0, 1], [0, 0.5, 0], [0.5, 0, 0])
+    _, sol = solve_direct(receiver, emitter)
+    assert np.all(sol.radiance[0].coefficients == 0)
