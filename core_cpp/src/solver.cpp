@@ -33,9 +33,9 @@ TensorSpline make_spatial_spline(const SolverSettings& s) {
 }
 
 // B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
-// (order h^3) for degree 2, of Schoenberg's approximation otherwise.
+// for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
 QuadratureRule emitter_quadrature(int n, int degree) {
-    const KnotVector k = KnotVector::clamped_uniform(n, std::min(degree, n - 1), 0.0, 1.0);
+    const KnotVector k = KnotVector::clamped_uniform(n, degree, 0.0, 1.0);
     return k.degree() == 2 ? quasi_interpolant_quadrature(k) : schoenberg_quadrature(k);
 }
 
@@ -61,51 +61,56 @@ public:
         offset_ = 2e-5 * magnitude;
         for (size_t i = 0; i < scene.size(); ++i) {
             if (!scene[i].material.emits()) continue;
-            Emitter e;
-            e.surface = int(i);
-            const Tessellation t = scene[i].surface->tessellate();
-            Vec3 c{0, 0, 0};
-            const size_t nv = t.positions.size() / 3;
-            for (size_t k = 0; k < nv; ++k) c += Vec3(t.positions[3 * k], t.positions[3 * k + 1], t.positions[3 * k + 2]);
-            e.center = c / double(nv);
-            e.radius = 0;
-            for (size_t k = 0; k < nv; ++k)
-                e.radius = std::max(e.radius, length(Vec3(t.positions[3 * k], t.positions[3 * k + 1], t.positions[3 * k + 2]) - e.center));
-            emitters_.push_back(e);
+            emitters_.push_back({int(i)});
         }
-        for (int n = settings.emitter_nodes; n <= settings.emitter_nodes_max; n *= 2) rules_.push_back(emitter_quadrature(n, settings.emitter_degree));
-        if (rules_.empty()) rules_.push_back(emitter_quadrature(std::max(1, settings.emitter_nodes), settings.emitter_degree));
+        cell_rule_ = emitter_quadrature(settings.emitter_coeffs, settings.emitter_degree);
     }
 
-    // Irradiance-weighted direct light at a receiver point: the surface integral (8)/(35) over
-    // every emitter but the receiver itself, returned as reflected radiance for a Lambertian albedo.
+    // Direct light at a receiver point: the surface integral (8)/(35) over every emitter but the
+    // receiver itself, returned as reflected radiance for a Lambertian albedo.
     Vec3 direct(int receiver, const SurfacePoint& r, const Vec3& albedo, size_t& rays) const {
         Vec3 irradiance{0, 0, 0};
         const Vec3 origin = r.p + r.frame.z * offset_;
         for (const Emitter& e : emitters_) {
             if (e.surface == receiver) continue;
             const SceneSurface& es = scene_[e.surface];
-            // Closer than a few emitter sizes: the integrand peaks, use a finer rule.
-            const double dist = std::max(length(e.center - r.p) - e.radius, 1e-12);
-            size_t level = 0;
-            while (level + 1 < rules_.size() && 2 * e.radius / rules_[level].nodes.size() > 0.5 * dist) ++level;
-            const QuadratureRule& q = rules_[level];
-            Vec3 sum{0, 0, 0};
-            for (size_t p = 0; p < q.nodes.size(); ++p)
-                for (size_t k = 0; k < q.nodes.size(); ++k) {
-                    const SurfacePoint ep = es.surface->evaluate(q.nodes[p], q.nodes[k]);
-                    const Vec3 d = ep.p - r.p;
-                    const double cos_r = dot(d, r.frame.z), cos_e = -dot(d, ep.frame.z);
-                    if (cos_r <= 0 || cos_e <= 0) continue;  // emitters radiate from their front
-                    const double d2 = dot(d, d);
-                    const double len = std::sqrt(d2);
-                    ++rays;
-                    if (rays_.occluded(origin, d, 0.0, std::max(0.0, 1.0 - 2 * offset_ / len))) continue;
-                    sum += es.material.emission * (q.weights[p] * q.weights[k] * cos_r * cos_e / (d2 * d2) * ep.jacobian);
-                }
-            irradiance += sum;
+            irradiance += es.material.emission * emitter_cell(r, origin, *es.surface, 0, 1, 0, 1, 0, rays);
         }
         return albedo * irradiance / kPi;
+    }
+
+    // The geometric part of (8) over the parameter cell [s0, s1] x [t0, t1] of an emitter: the
+    // cell's B-spline quadrature rule where the cell is small seen from the receiver, else the sum
+    // over its four quarters. The kernel 1/r^4 peaks where the receiver is close (contact edges,
+    // a lamp just above a surface): cells shrink geometrically towards it.
+    double emitter_cell(const SurfacePoint& r, const Vec3& origin, const Surface& emitter, double s0, double s1,
+                        double t0, double t1, int depth, size_t& rays) const {
+        const Vec3 c = emitter.evaluate(0.5 * (s0 + s1), 0.5 * (t0 + t1)).p;
+        double radius = 0;
+        for (double s : {s0, s1})
+            for (double t : {t0, t1}) radius = std::max(radius, length(emitter.evaluate(s, t).p - c));
+        const double dist = length(c - r.p) - radius;
+        if (depth < settings_.emitter_max_depth && 2 * radius > settings_.emitter_cell_ratio * dist) {
+            const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
+            return emitter_cell(r, origin, emitter, s0, sm, t0, tm, depth + 1, rays) +
+                   emitter_cell(r, origin, emitter, sm, s1, t0, tm, depth + 1, rays) +
+                   emitter_cell(r, origin, emitter, s0, sm, tm, t1, depth + 1, rays) +
+                   emitter_cell(r, origin, emitter, sm, s1, tm, t1, depth + 1, rays);
+        }
+        const double ds = s1 - s0, dt = t1 - t0;
+        double sum = 0;
+        for (size_t p = 0; p < cell_rule_.nodes.size(); ++p)
+            for (size_t k = 0; k < cell_rule_.nodes.size(); ++k) {
+                const SurfacePoint ep = emitter.evaluate(s0 + ds * cell_rule_.nodes[p], t0 + dt * cell_rule_.nodes[k]);
+                const Vec3 d = ep.p - r.p;
+                const double cos_r = dot(d, r.frame.z), cos_e = -dot(d, ep.frame.z);
+                if (cos_r <= 0 || cos_e <= 0) continue;  // emitters radiate from their front
+                const double d2 = dot(d, d);
+                ++rays;
+                if (rays_.occluded(origin, d, 0.0, std::max(0.0, 1.0 - 2 * offset_ / std::sqrt(d2)))) continue;
+                sum += cell_rule_.weights[p] * cell_rule_.weights[k] * cos_r * cos_e / (d2 * d2) * ep.jacobian;
+            }
+        return sum * ds * dt;
     }
 
     // Hemispherical integral (26)-(32) of the incremental radiance of the other surfaces, with
@@ -141,15 +146,13 @@ public:
 private:
     struct Emitter {
         int surface;
-        Vec3 center;
-        double radius;
     };
     const Scene& scene_;
     const SolverSettings& settings_;
     RayScene rays_;
     double offset_ = 0;
     std::vector<Emitter> emitters_;
-    std::vector<QuadratureRule> rules_;  // emitter rules, finer and finer
+    QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell
 };
 
 void validate(const SolverSettings& s) {
@@ -159,7 +162,9 @@ void validate(const SolverSettings& s) {
     need(s.spatial_degree >= 0 && s.spatial_degree <= kMaxDegree, "spatial_degree must be in 0..15");
     need(s.spatial_coeffs >= s.spatial_degree + 1, "spatial_coeffs must be at least spatial_degree + 1");
     need(s.epsilon >= 0 && s.epsilon < 0.5, "epsilon must be in [0, 0.5)");
-    need(s.emitter_nodes >= 1 && s.emitter_nodes_max >= s.emitter_nodes, "emitter_nodes must be >= 1 and <= emitter_nodes_max");
+    need(s.emitter_coeffs >= s.emitter_degree + 1, "emitter_coeffs must be at least emitter_degree + 1");
+    need(s.emitter_max_depth >= 0 && s.emitter_max_depth <= 20, "emitter_max_depth must be in 0..20");
+    need(s.emitter_cell_ratio > 0, "emitter_cell_ratio must be > 0");
     need(s.emitter_degree >= 0 && s.emitter_degree <= 3, "emitter_degree must be in 0..3");
     need(s.hemisphere_nodes_theta >= 1 && s.hemisphere_nodes_phi >= 1, "hemisphere nodes must be >= 1");
     need(s.max_bounces >= 0, "max_bounces must be >= 0");

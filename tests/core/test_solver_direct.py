@@ -108,3 +108,22 @@ def test_back_facing_receiver_gets_no_light():
     emitter = rect([0, 0, 1], [0, 0.5, 0], [0.5, 0, 0])
     _, sol = solve_direct(receiver, emitter)
     assert np.all(sol.radiance[0].coefficients == 0)
+
+
+def test_emitter_touching_the_receiver_along_an_edge():
+    # A wall emitter standing on the floor: floor nodes at epsilon from the contact edge see a
+    # nearly singular kernel; the emitter's cells must shrink towards them.
+    receiver = rect([0.5, 0.5, 0], [0.5, 0, 0], [0, 0.5, 0])
+    emitter = rect([0, 0.5, 0.5], [0, 0.5, 0], [0, 0, 0.5])
+    _, sol = solve_direct(receiver, emitter)
+    spline = sol.radiance[0]
+    nodes = spline.axes[0].schoenberg_nodes()
+    assert nodes[0] < 0.01  # the test reaches the contact edge
+    coeff = spline.coefficients
+    worst = 0.0
+    for i, u in enumerate(nodes):
+        for j, v in enumerate(nodes):
+            want = expected_radiance([u, v, 0], [0, 0, 1], emitter)
+            worst = max(worst, np.abs(coeff[i, j] / want - 1).max())
+    print(f"contact edge: max relative error at the nodes {worst:.2e}")
+    assert worst <= 0.01

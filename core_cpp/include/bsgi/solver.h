@@ -15,12 +15,14 @@ struct SolverSettings {
     int spatial_coeffs = 16;
     int spatial_degree = 2;
     double epsilon = 1e-3;
-    // Surface integral (8)/(35) over emitters: B-spline quadrature (11) with at least
-    // emitter_nodes nodes per direction, more (up to emitter_nodes_max) when the receiver point
-    // is close to the emitter relative to its size, where the kernel 1/r^4 peaks.
-    int emitter_nodes = 8;
-    int emitter_nodes_max = 48;
+    // Surface integral (8)/(35) over emitters: B-spline quadrature (11) with emitter_coeffs
+    // coefficients per direction on each cell of the emitter's parameter domain; a cell wider
+    // than emitter_cell_ratio times its distance from the receiver is split in four, at most
+    // emitter_max_depth times.
+    int emitter_coeffs = 3;
     int emitter_degree = 2;
+    double emitter_cell_ratio = 1.0;
+    int emitter_max_depth = 16;
     // Hemispherical integral (26)-(32): nodes in (cos^2 theta, phi), cosine-weighted.
     int hemisphere_nodes_theta = 12;
     int hemisphere_nodes_phi = 24;
