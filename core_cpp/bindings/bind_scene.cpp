@@ -83,6 +83,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("hemisphere_nodes_phi", &SolverSettings::hemisphere_nodes_phi)
         .def_readwrite("max_bounces", &SolverSettings::max_bounces)
         .def_readwrite("tolerance", &SolverSettings::tolerance)
+        .def_readwrite("extrapolate", &SolverSettings::extrapolate)
         .def_readwrite("threads", &SolverSettings::threads)
         .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb);
 
@@ -105,6 +106,8 @@ void bind_scene(py::module_& m) {
             d["seconds_indirect"] = s.stats.seconds_indirect;
             d["bounces"] = s.stats.bounces;
             d["last_increment"] = s.stats.last_increment;
+            d["estimated_error"] = s.stats.estimated_error;
+            d["extrapolated"] = s.stats.extrapolated;
             d["coefficients"] = s.stats.coefficients;
             d["rays"] = s.stats.rays;
             return d;

@@ -107,7 +107,11 @@ public:
                 if (cos_r <= 0 || cos_e <= 0) continue;  // emitters radiate from their front
                 const double d2 = dot(d, d);
                 ++rays;
-                if (rays_.occluded(origin, d, 0.0, std::max(0.0, 1.0 - 2 * offset_ / std::sqrt(d2)))) continue;
+                // Both ends lifted off their surfaces, and the segment stopped short of the emitter,
+                // so neither surface, nor one meeting the emitter along its edge, shadows it.
+                const Vec3 segment = ep.p + ep.frame.z * offset_ - origin;
+                const double stop = 1.0 - 2 * offset_ / length(segment);
+                if (stop > 0 && rays_.occluded(origin, segment, 0.0, stop)) continue;
                 sum += cell_rule_.weights[p] * cell_rule_.weights[k] * cos_r * cos_e / (d2 * d2) * ep.jacobian;
             }
         return sum * ds * dt;
@@ -248,6 +252,8 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     std::vector<const TensorSpline*> incident(scene.size(), nullptr);
     for (size_t i = 0; i < scene.size(); ++i)
         if (receiver_of[i] >= 0) incident[i] = &receivers[receiver_of[i]].L;
+    double previous[3] = {0, 0, 0}, previous_rho[3] = {2, 2, 2}, tail[3] = {0, 0, 0};
+    bool converged = false;
     for (int bounce = 0; bounce < settings.max_bounces; ++bounce) {
         progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 1 + bounce, stages, items.size());
         parallel_for(items.size(), 16, settings.threads, [&](size_t begin, size_t end) {
@@ -263,19 +269,51 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
             progress.advance(end - begin);
         }, progress.cancel_flag());
         progress.throw_if_cancelled();
-        double max_increment = 0, max_total = 0;
+        // Per channel: the largest increment and cumulative coefficient.
+        double increment[3] = {0, 0, 0}, total[3] = {0, 0, 0};
         for (auto& r : receivers) {
             for (size_t c = 0; c < r.Le.coeffs().size(); ++c) {
                 r.Le.coeffs()[c] += r.Ltmp.coeffs()[c];
-                max_increment = std::max(max_increment, std::abs(r.Ltmp.coeffs()[c]));
-                max_total = std::max(max_total, std::abs(r.Le.coeffs()[c]));
+                increment[c % 3] = std::max(increment[c % 3], std::abs(r.Ltmp.coeffs()[c]));
+                total[c % 3] = std::max(total[c % 3], std::abs(r.Le.coeffs()[c]));
             }
             std::swap(r.L, r.Ltmp);
         }
         // incident[] points at the L members, which swap() exchanged in place: still valid.
         solution.stats.bounces = bounce + 1;
-        solution.stats.last_increment = max_total > 0 ? max_increment / max_total : 0;
-        if (solution.stats.last_increment < settings.tolerance) break;
+        // Increments shrink geometrically, by the ratio rho of the transport's dominant mode, so
+        // what the remaining bounces add is about increment * rho / (1 - rho). Without
+        // extrapolation, stop when that tail is below tolerance; with it, add the tail and stop
+        // when its uncertainty (from the change of rho between bounces) is below tolerance.
+        double error = 0;
+        for (int c = 0; c < 3; ++c) {
+            if (total[c] == 0) continue;
+            const double rho = previous[c] > 0 ? increment[c] / previous[c] : 1.0;
+            double channel_error = 1e300;
+            if (rho < 1) {
+                tail[c] = rho / (1 - rho);
+                channel_error = increment[c] * (settings.extrapolate
+                                                    ? std::abs(rho - previous_rho[c]) / ((1 - rho) * (1 - rho))
+                                                    : tail[c]) / total[c];
+            }
+            previous_rho[c] = rho;
+            previous[c] = increment[c];
+            error = std::max(error, channel_error);
+        }
+        solution.stats.last_increment = std::max({increment[0] / std::max(total[0], 1e-300),
+                                                  increment[1] / std::max(total[1], 1e-300),
+                                                  increment[2] / std::max(total[2], 1e-300)});
+        solution.stats.estimated_error = error;
+        if (error < settings.tolerance || solution.stats.last_increment == 0) {
+            converged = true;
+            break;
+        }
+    }
+    if (settings.extrapolate && converged) {
+        // The geometric tail of the last increment (now in L) over the bounces not taken.
+        for (auto& r : receivers)
+            for (size_t c = 0; c < r.Le.coeffs().size(); ++c) r.Le.coeffs()[c] += tail[c % 3] * r.L.coeffs()[c];
+        solution.stats.extrapolated = true;
     }
     solution.stats.seconds_indirect = seconds_since(t1);
     solution.stats.rays = rays;

@@ -26,10 +26,13 @@ struct SolverSettings {
     // Hemispherical integral (26)-(32): nodes in (cos^2 theta, phi), cosine-weighted.
     int hemisphere_nodes_theta = 12;
     int hemisphere_nodes_phi = 24;
-    // Indirect phase: stop after max_bounces or when the largest increment is below
-    // tolerance times the largest cumulative radiance.
+    // Indirect phase: stop after max_bounces, or when the radiance still missing (estimated
+    // from the geometric decay of the increments) is below tolerance times the radiance. With
+    // extrapolate, that missing geometric tail is added instead of bounced, which makes albedos
+    // near 1 converge in a few bounces.
     int max_bounces = 4;
     double tolerance = 1e-3;
+    bool extrapolate = true;
     int threads = 0;  // 0: all hardware threads
     double memory_budget_mb = 4096;
 };
@@ -37,7 +40,9 @@ struct SolverSettings {
 struct SolveStats {
     double seconds_direct = 0, seconds_indirect = 0;
     int bounces = 0;
-    double last_increment = 0;  // relative, of the last bounce
+    double last_increment = 0;   // largest increment of the last bounce, relative to the radiance
+    double estimated_error = 0;  // relative radiance still missing (or its uncertainty, if extrapolated)
+    bool extrapolated = false;
     size_t coefficients = 0;
     size_t rays = 0;
 };
