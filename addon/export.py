@@ -41,45 +41,121 @@ class Export:
 
 @dataclass
 class SurfaceMaterial:
-    albedo: tuple
-    emission: tuple
+    """What the solver needs of a material: a diffuse albedo, a glossy part, emission."""
+
+    albedo: tuple = (0.0, 0.0, 0.0)  # Lambertian reflectance
+    specular: tuple = (0.0, 0.0, 0.0)  # glossy (microfacet) reflectance
+    roughness: float = 0.5
+    anisotropy: float = 0.0
+    transmission: float = 0.0
+    ior: float = 1.5
+    emission: tuple = (0.0, 0.0, 0.0)  # radiance
+
+    def scaled(self, k: float) -> "SurfaceMaterial":
+        return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.anisotropy,
+                               self.transmission * k, self.ior, _scale(self.emission, k))
+
+    def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
+        """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
+        glossy = sum(self.specular) >= sum(other.specular)
+        dominant = self if glossy else other
+        return SurfaceMaterial(_add(self.albedo, other.albedo), _add(self.specular, other.specular), dominant.roughness,
+                               dominant.anisotropy, self.transmission + other.transmission, dominant.ior,
+                               _add(self.emission, other.emission))
 
 
-def _socket_color(node, name):
+def _scale(c, k):
+    return tuple(x * k for x in c)
+
+
+def _add(a, b):
+    return tuple(x + y for x, y in zip(a, b))
+
+
+def _socket_color(node, name, default=(0.0, 0.0, 0.0)):
     sock = node.inputs.get(name)
     if sock is None:
-        return None
+        return default
     value = sock.default_value
     return tuple(value[:3]) if hasattr(value, "__len__") else (float(value),) * 3
 
 
-def material_for(material, warnings) -> SurfaceMaterial:
-    """Lambertian albedo and emitted radiance of a material's surface shader."""
+def _socket_value(node, name, default=0.0):
+    sock = node.inputs.get(name)
+    return float(sock.default_value) if sock is not None else default
+
+
+def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
+    """The material description of a shader node (recursing through Mix and Add shaders)."""
+    if node is None or depth > 16:
+        return SurfaceMaterial()
+    linked = [s.name for s in node.inputs if s.is_linked and s.type != "SHADER" and s.name not in {"Normal", "Tangent"}]
+    if linked:
+        warnings.append(f"material '{material.name}': {node.name} inputs {', '.join(linked)} are driven by nodes; "
+                        "their own values are used instead")
+    kind = node.type
+    if kind == "BSDF_DIFFUSE":
+        return SurfaceMaterial(albedo=_socket_color(node, "Color"))
+    if kind == "EMISSION":
+        return SurfaceMaterial(emission=_scale(_socket_color(node, "Color"), _socket_value(node, "Strength", 1.0)))
+    if kind in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC"}:
+        return SurfaceMaterial(specular=_socket_color(node, "Color"), roughness=_socket_value(node, "Roughness", 0.5),
+                               anisotropy=_socket_value(node, "Anisotropy", 0.0))
+    if kind == "BSDF_PRINCIPLED":
+        base = _socket_color(node, "Base Color")
+        metallic = _socket_value(node, "Metallic")
+        transmission = _socket_value(node, "Transmission Weight", _socket_value(node, "Transmission"))
+        specular_level = _socket_value(node, "Specular IOR Level", 0.5)
+        ior = _socket_value(node, "IOR", 1.5)
+        # Dielectric specular reflectance at normal incidence, ((ior-1)/(ior+1))^2, scaled by
+        # the specular level (0.5 is the physical value); metals reflect their base colour.
+        f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * specular_level
+        diffuse_weight = (1 - metallic) * (1 - transmission)
+        specular = tuple(metallic * c + (1 - metallic) * f0 for c in base)
+        emission = _scale(_socket_color(node, "Emission Color"), _socket_value(node, "Emission Strength"))
+        return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
+                               roughness=_socket_value(node, "Roughness", 0.5),
+                               anisotropy=_socket_value(node, "Anisotropic"), transmission=transmission, ior=ior,
+                               emission=emission)
+    if kind == "ADD_SHADER":
+        return _shader(_from(node.inputs[0]), material, warnings, depth + 1).plus(
+            _shader(_from(node.inputs[1]), material, warnings, depth + 1))
+    if kind == "MIX_SHADER":
+        fac = min(max(_socket_value(node, "Fac", 0.5), 0.0), 1.0)
+        return _shader(_from(node.inputs[1]), material, warnings, depth + 1).scaled(1 - fac).plus(
+            _shader(_from(node.inputs[2]), material, warnings, depth + 1).scaled(fac))
+    warnings.append(f"material '{material.name}': shader '{node.bl_idname}' is approximated by the material's "
+                    "viewport colour")
+    return SurfaceMaterial(albedo=tuple(material.diffuse_color[:3]))
+
+
+def _from(socket):
+    return socket.links[0].from_node if socket.is_linked else None
+
+
+def describe_material(material, warnings) -> SurfaceMaterial:
+    """A Blender material as the solver sees it."""
     if material is None:
-        return SurfaceMaterial(DEFAULT_ALBEDO, (0.0, 0.0, 0.0))
+        return SurfaceMaterial(albedo=DEFAULT_ALBEDO)
     tree = material.node_tree
     output = None
     if tree is not None:
-        output = next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output), None)
-        output = output or next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"), None)
+        outputs = [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]
+        output = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
     if output is None or not output.inputs["Surface"].is_linked:
-        return SurfaceMaterial(tuple(material.diffuse_color[:3]), (0.0, 0.0, 0.0))
-    shader = output.inputs["Surface"].links[0].from_node
-    textured = [s.name for s in shader.inputs if s.is_linked]
-    if textured:
-        warnings.append(f"material '{material.name}': inputs {', '.join(textured)} are linked to nodes; "
-                        "their unlinked values are used")
-    if shader.type == "BSDF_DIFFUSE":
-        return SurfaceMaterial(_socket_color(shader, "Color"), (0.0, 0.0, 0.0))
-    if shader.type == "EMISSION":
-        strength = shader.inputs["Strength"].default_value
-        return SurfaceMaterial((0.0, 0.0, 0.0), tuple(c * strength for c in _socket_color(shader, "Color")))
-    if shader.type == "BSDF_PRINCIPLED":
-        strength = shader.inputs["Emission Strength"].default_value
-        emission = tuple(c * strength for c in _socket_color(shader, "Emission Color"))
-        return SurfaceMaterial(_socket_color(shader, "Base Color"), emission)
-    warnings.append(f"material '{material.name}': shader '{shader.bl_idname}' is approximated by its viewport colour")
-    return SurfaceMaterial(tuple(material.diffuse_color[:3]), (0.0, 0.0, 0.0))
+        return SurfaceMaterial(albedo=tuple(material.diffuse_color[:3]))
+    return _shader(_from(output.inputs["Surface"]), material, warnings)
+
+
+def lambertian(material, described: SurfaceMaterial, warnings) -> tuple:
+    """(albedo, emission) for the diffuse solver; what it cannot represent is named in a warning."""
+    name = material.name if material is not None else "(none)"
+    if max(described.specular) > 0.05:
+        warnings.append(f"material '{name}': glossy reflection is solved as diffuse until glossy surfaces are supported")
+    if described.transmission > 0:
+        warnings.append(f"material '{name}': transmission is not solved yet; the surface is treated as opaque")
+    albedo = tuple(min(1.0, max(0.0, a + s)) for a, s in zip(described.albedo, described.specular))
+    return albedo, described.emission
 
 
 def _area_light(scene, obj, warnings):
@@ -113,9 +189,8 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObje
     co = co.reshape(-1, 3)
     m = np.array(matrix, float)
     world = co @ m[:3, :3].T + m[:3, 3]
-    materials = [SurfaceMaterial(DEFAULT_ALBEDO, (0.0, 0.0, 0.0))]
-    if obj.material_slots:
-        materials = [material_for(slot.material, warnings) for slot in obj.material_slots]
+    slots = [slot.material for slot in obj.material_slots] or [None]
+    materials = [lambertian(m, describe_material(m, warnings), warnings) for m in slots]
     exported = ExportedObject(obj.name, len(mesh.polygons))
     ngon_tris = {}
     if any(p.loop_total > 4 for p in mesh.polygons):
@@ -123,20 +198,20 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObje
         for tri in mesh.loop_triangles:
             ngon_tris.setdefault(tri.polygon_index, []).append(tuple(tri.vertices))
     for poly in mesh.polygons:
-        mat = materials[min(poly.material_index, len(materials) - 1)]
+        albedo, emission = materials[min(poly.material_index, len(materials) - 1)]
         name = f"{obj.name}: face {poly.index}"
         verts = list(poly.vertices)
         first = len(scene)
         try:
             if len(verts) == 4:
-                scene.add_bilinear_patch(name, world[verts], albedo=mat.albedo, emission=mat.emission)
+                scene.add_bilinear_patch(name, world[verts], albedo=albedo, emission=emission)
                 exported.patches.append(("quad", first, 1))
             elif len(verts) == 3:
-                scene.add_triangle(name, world[verts], albedo=mat.albedo, emission=mat.emission)
+                scene.add_triangle(name, world[verts], albedo=albedo, emission=emission)
                 exported.patches.append(("triangle", first, 1))
             else:
                 for k, tri in enumerate(ngon_tris[poly.index]):
-                    scene.add_triangle(f"{name} triangle {k}", world[list(tri)], albedo=mat.albedo, emission=mat.emission)
+                    scene.add_triangle(f"{name} triangle {k}", world[list(tri)], albedo=albedo, emission=emission)
                 exported.patches.append(("ngon", first, len(ngon_tris[poly.index])))
         except ValueError as error:
             raise ExportError(str(error)) from None
@@ -167,4 +242,23 @@ def export_scene(depsgraph) -> Export:
             objects.append(_add_mesh_object(scene, obj, mesh, inst.matrix_world, warnings))
         finally:
             obj.to_mesh_clear()
-    return Export(scene, objects, warnings)
+    _world_warning(depsgraph.scene, warnings)
+    return Export(scene, objects, list(dict.fromkeys(warnings)))
+
+
+def _world_warning(scene, warnings):
+    world = scene.world
+    if world is None:
+        return
+    color, strength = tuple(world.color), 1.0
+    if world.node_tree is not None:
+        output = next((n for n in world.node_tree.nodes if n.type == "OUTPUT_WORLD"), None)
+        background = _from(output.inputs["Surface"]) if output is not None else None
+        if background is None:
+            return
+        if background.type != "BACKGROUND" or any(s.is_linked for s in background.inputs):
+            warnings.append(f"world '{world.name}': only a constant background can be solved; its light is ignored")
+            return
+        color, strength = _socket_color(background, "Color"), _socket_value(background, "Strength", 1.0)
+    if max(color) * strength > 0:
+        warnings.append(f"world '{world.name}': world light is not solved yet; it is ignored (set it to black to match)")

@@ -1,0 +1,158 @@
+"""Blender scene -> bsgi.Scene (addon/export.py): materials, lights, and the user's data untouched."""
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from bsgi_addon import export
+
+
+def principled(name, **inputs):
+    m = bpy.data.materials.new(name)
+    if m.node_tree is None:
+        m.use_nodes = True
+    node = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    return m
+
+
+def shader_material(name, kind, **inputs):
+    m = bpy.data.materials.new(name)
+    if m.node_tree is None:
+        m.use_nodes = True
+    nodes = m.node_tree.nodes
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    node = nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    m.node_tree.links.new(node.outputs[0], out.inputs["Surface"])
+    return m, node
+
+
+def describe(material):
+    warnings = []
+    return export.describe_material(material, warnings), warnings
+
+
+def test_diffuse_and_emission_shaders(context):
+    m, _ = shader_material("D", "ShaderNodeBsdfDiffuse", Color=(0.2, 0.4, 0.6, 1))
+    d, w = describe(m)
+    assert d.albedo == pytest.approx((0.2, 0.4, 0.6)) and not w
+    m, _ = shader_material("E", "ShaderNodeEmission", Color=(1, 0.5, 0.25, 1), Strength=4.0)
+    d, _ = describe(m)
+    assert d.emission == pytest.approx((4, 2, 1)) and d.albedo == (0, 0, 0)
+
+
+def test_principled_base_colour_metallic_and_emission(context):
+    d, _ = describe(principled("P", **{"Base Color": (0.5, 0.25, 0.125, 1), "Emission Color": (1, 1, 1, 1),
+                                     "Emission Strength": 2.0}))
+    assert d.albedo == pytest.approx((0.5, 0.25, 0.125))
+    assert d.emission == pytest.approx((2, 2, 2))
+    assert d.specular[0] == pytest.approx(0.04, abs=1e-3)  # IOR 1.5, specular level 0.5
+    metal, _ = describe(principled("M", **{"Base Color": (0.9, 0.6, 0.3, 1), "Metallic": 1.0, "Roughness": 0.3}))
+    assert metal.albedo == pytest.approx((0, 0, 0))
+    assert metal.specular == pytest.approx((0.9, 0.6, 0.3)) and metal.roughness == pytest.approx(0.3)
+
+
+def test_mix_shader_blends_its_inputs(context):
+    m = bpy.data.materials.new("Mix")
+    if m.node_tree is None:
+        m.use_nodes = True
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    mix = nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.25
+    a = nodes.new("ShaderNodeBsdfDiffuse")
+    a.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
+    b = nodes.new("ShaderNodeEmission")
+    b.inputs["Color"].default_value = (1, 1, 1, 1)
+    b.inputs["Strength"].default_value = 8.0
+    links.new(a.outputs[0], mix.inputs[1])
+    links.new(b.outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], out.inputs["Surface"])
+    d, _ = describe(m)
+    assert d.albedo == pytest.approx((0.6, 0.6, 0.6))
+    assert d.emission == pytest.approx((2, 2, 2))
+
+
+def test_glossy_and_textures_are_named_in_warnings(context):
+    m, node = shader_material("Shiny", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9, 1))
+    floor = scenes.floor_under_lamp()
+    floor.data.materials[0] = m
+    tex = m.node_tree.nodes.new("ShaderNodeTexChecker")
+    m.node_tree.links.new(tex.outputs["Color"], node.inputs["Color"])
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    text = "\n".join(result.warnings)
+    assert "material 'Shiny'" in text and "glossy" in text and "driven by nodes" in text
+    assert len(result.warnings) == len(set(result.warnings))
+
+
+def test_unsupported_lights_and_world_are_warned_about(context):
+    scenes.floor_under_lamp()
+    for kind in ("POINT", "SUN"):
+        light = bpy.data.objects.new(kind, bpy.data.lights.new(kind, kind))
+        context.scene.collection.objects.link(light)
+    disk = scenes.add_area_light("Disk", location=(0, 0, 2))
+    disk.data.shape = "DISK"
+    world = bpy.data.worlds.new("Sky")
+    world.color = (0.1, 0.2, 0.3)
+    if world.node_tree is not None:
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.1, 0.2, 0.3, 1)
+    context.scene.world = world
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    text = "\n".join(result.warnings)
+    for name in ("light 'POINT'", "light 'SUN'", "light 'Disk'", "world 'Sky'"):
+        assert name in text
+    assert len(result.scene) == 2  # the floor and the square lamp
+
+
+def test_area_light_radiance_follows_cycles(context):
+    # Radiance = power / (pi * area), emitted downwards: seen from below at (0, 0, 0).
+    lamp = scenes.add_area_light(size=0.5, energy=10.0, location=(0, 0, 1))
+    lamp.data.color = (1.0, 0.5, 0.25)
+    lamp.rotation_euler = (0, 0, math.radians(30))
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    scene = result.scene
+    assert len(scene) == 1 and scene.area(0) == pytest.approx(0.25)
+    p = scene.evaluate_surface(0, 0.5, 0.5)
+    np.testing.assert_allclose(p["normal"], [0, 0, -1], atol=1e-12)
+    np.testing.assert_allclose(p["position"], [0, 0, 1], atol=1e-12)
+
+
+def test_export_does_not_change_the_users_data(context):
+    scene = scenes.cornell_box()
+    before = {o.name: (o.data.copy() if o.type == "MESH" else None) for o in scene.objects}
+    uv_counts = {o.name: len(o.data.uv_layers) for o in scene.objects if o.type == "MESH"}
+    export.export_scene(context.evaluated_depsgraph_get())
+    for obj in scene.objects:
+        if obj.type == "MESH":
+            assert len(obj.data.uv_layers) == uv_counts[obj.name]
+            a = np.array([v.co[:] for v in obj.data.vertices])
+            b = np.array([v.co[:] for v in before[obj.name].vertices])
+            np.testing.assert_array_equal(a, b)
+
+
+def test_area_light_lights_a_floor_as_cycles_does(context):
+    import sys
+
+    sys.path.insert(0, str(scenes.ROOT / "tests" / "core"))
+    from closed_forms import polygon_irradiance
+
+    from bsgi_addon import pipeline
+
+    floor = scenes.floor_under_lamp()  # grey 0.5 under a 1 x 1 lamp of 50 W at height 1
+    context.scene.bsgi.max_bounces = 0
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    spline = solution.radiance[job.export.objects[0].patches[0][1]]
+    lamp = [(-0.5, -0.5, 1), (0.5, -0.5, 1), (0.5, 0.5, 1), (-0.5, 0.5, 1)]
+    radiance = 50.0 / (math.pi * 1.0)  # Cycles' convention, checked against a Cycles render
+    for u, v in [(0.5, 0.5), (0.2, 0.7)]:
+        e = polygon_irradiance([2 * u - 1, 2 * v - 1, 0], [0, 0, 1], lamp, radiance)
+        assert spline.evaluate(np.array([[u, v]]))[0, 0] == pytest.approx(0.5 / math.pi * e, rel=0.01)
+    assert floor.name == "Floor"
