@@ -154,5 +154,7 @@ def test_area_light_lights_a_floor_as_cycles_does(context):
     radiance = 50.0 / (math.pi * 1.0)  # Cycles' convention, checked against a Cycles render
     for u, v in [(0.5, 0.5), (0.2, 0.7)]:
         e = polygon_irradiance([2 * u - 1, 2 * v - 1, 0], [0, 0, 1], lamp, radiance)
-        assert spline.evaluate(np.array([[u, v]]))[0, 0] == pytest.approx(0.5 / math.pi * e, rel=0.01)
+        # 2%: the convention is what is tested (another would be off by 25% or more); Schoenberg
+        # smoothing of the peak under the lamp costs about 1%.
+        assert spline.evaluate(np.array([[u, v]]))[0, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)
     assert floor.name == "Floor"
