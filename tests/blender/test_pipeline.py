@@ -153,3 +153,15 @@ def test_nan_vertex_is_refused_by_name(context):
     bad = scenes.add_quad("Broken", [(0, 0, 0.5), (0.2, 0, 0.5), (0.2, 0.2, 0.5), (0, 0.2, 0.5)])
     bad.data.vertices[2].co.x = math.nan
     _assert_clear_error(context, "Broken", "NaN")
+
+
+def test_cancelled_solve_leaves_the_scene_as_it_was(context):
+    import bsgi
+
+    scenes.cornell_box()
+    before = _scene_state()
+    job = pipeline.prepare(context)
+    job.progress.cancel()  # what Esc does in the modal operator
+    with pytest.raises(bsgi.SolveCancelled):
+        pipeline.run(job)
+    assert _scene_state() == before
