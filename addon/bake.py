@@ -10,10 +10,13 @@ import math
 import bpy
 import numpy as np
 
+import bsgi
+
 UV_NAME = "BSGI Radiance"
 PROP_SLOTS = "bsgi_slot_links"  # the slots' links before the bake, to restore them
 PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
+PROP_RADIANCE = "bsgi_radiance"  # the faces' splines, for re-baking and solution export
 
 
 def tile_size(spline) -> int:
@@ -49,29 +52,32 @@ def _face_uvs(kind: str, tile_origin, t: int, size: int, corners: int):
     return [((ox + 0.5 + sx * (t - 1)) / size, (oy + 0.5 + sy * (t - 1)) / size) for sx, sy in square[:corners]]
 
 
-def bake_object(obj, exported, radiance) -> None:
-    """Bake one object's solved splines (radiance: list indexed by scene surface)."""
-    faces = exported.patches
+def face_splines(exported, radiance) -> list:
+    """Per polygon of an exported object: (kind, its splines) from a solution's radiance list."""
+    return [(kind, [radiance[first + k] for k in range(count)]) for kind, first, count in exported.patches]
+
+
+def bake_object(obj, faces) -> None:
+    """Bake one object: faces is, per polygon, (kind, splines) as face_splines gives. The
+    splines are also stored on the object, so the bake can be redone without a solve."""
     mesh = obj.data
-    if len(mesh.polygons) != exported.polygon_count:
+    if len(mesh.polygons) != len(faces):
         raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
-    t = tile_size(radiance[faces[0][1]])
+    t = tile_size(faces[0][1][0])
     grid = math.ceil(math.sqrt(len(faces)))
     size = grid * t
     pixels = np.zeros((size, size, 4), np.float32)
     pixels[..., 3] = 1
     uvs = np.zeros((len(mesh.loops), 2), np.float32)
-    for index, (kind, first, count) in enumerate(faces):
+    for index, (kind, splines) in enumerate(faces):
         ox, oy = (index % grid) * t, (index // grid) * t
         poly = mesh.polygons[index]
         if kind == "ngon":
             # N-gons are solved as triangle fans; show their mean radiance until charts land.
-            value = np.mean([radiance[first + k].coefficients.reshape(-1, 3).mean(axis=0) for k in range(count)], axis=0)
-            pixels[oy:oy + t, ox:ox + t, :3] = value
-            for k, loop in enumerate(poly.loop_indices):
-                uvs[loop] = ((ox + t / 2) / size, (oy + t / 2) / size)
+            pixels[oy:oy + t, ox:ox + t, :3] = np.mean([s.coefficients.reshape(-1, 3).mean(axis=0) for s in splines], axis=0)
+            uvs[list(poly.loop_indices)] = ((ox + t / 2) / size, (oy + t / 2) / size)
             continue
-        values = radiance[first].evaluate(_tile_parameters(kind, t))
+        values = splines[0].evaluate(_tile_parameters(kind, t))
         pixels[oy:oy + t, ox:ox + t, :3] = values.reshape(t, t, 3)
         for loop, uv in zip(poly.loop_indices, _face_uvs(kind, (ox, oy), t, size, poly.loop_total)):
             uvs[loop] = uv
@@ -83,6 +89,52 @@ def bake_object(obj, exported, radiance) -> None:
     image = _radiance_image(f"BSGI {obj.name}", size, pixels)
     material = _baked_material(f"BSGI {obj.name}", image)
     _link_baked_material(obj, material)
+    _store_splines(obj, faces)
+
+
+def _store_splines(obj, faces) -> None:
+    # ID properties from float64 arrays: exact, and saved in the .blend.
+    group = {"kinds": ",".join(kind for kind, _ in faces)}
+    for i, (_, splines) in enumerate(faces):
+        for k, spline in enumerate(splines):
+            arrays = bsgi.spline_to_arrays(spline)
+            arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
+            group[f"{i}.{k}"] = arrays
+    obj[PROP_RADIANCE] = group
+
+
+def stored_faces(obj) -> list:
+    """The faces' splines stored by the last bake, as bake_object takes them."""
+    group = obj.get(PROP_RADIANCE)
+    if group is None:
+        raise ValueError(f"object '{obj.name}': no stored radiance; solve first")
+    faces = []
+    for i, kind in enumerate(group["kinds"].split(",")):
+        splines, k = [], 0
+        while f"{i}.{k}" in group:
+            arrays = {name: np.frombuffer(memoryview(value), _dtype(value)) if hasattr(value, "typecode") else value
+                      for name, value in group[f"{i}.{k}"].items()}
+            splines.append(bsgi.spline_from_arrays(_shaped(arrays)))
+            k += 1
+        faces.append((kind, splines))
+    return faces
+
+
+def _dtype(value):
+    return np.float64 if memoryview(value).format == "d" else np.int32
+
+
+def _shaped(arrays):
+    """ID property arrays are flat: give the coefficients back their (n_0, ..., channels) shape."""
+    degrees = arrays["degrees"].astype(int)
+    shape = [len(arrays[f"knots{k}"]) - d - 1 for k, d in enumerate(degrees)]
+    arrays["coefficients"] = arrays["coefficients"].reshape(*shape, -1)
+    return arrays
+
+
+def rebake(obj) -> None:
+    """Regenerate an object's image from its stored splines (no solve)."""
+    bake_object(obj, stored_faces(obj))
 
 
 def _radiance_image(name: str, size: int, pixels: np.ndarray):
@@ -167,6 +219,8 @@ def clear_bake(obj) -> None:
     name = obj[PROP_MATERIAL]
     del obj[PROP_SLOTS]
     del obj[PROP_MATERIAL]
+    if PROP_RADIANCE in obj:
+        del obj[PROP_RADIANCE]
     uv = obj.data.uv_layers.get(UV_NAME)
     if uv is not None:
         obj.data.uv_layers.remove(uv)

@@ -8,7 +8,9 @@ import bpy
 
 import bsgi
 
-from . import bake, pipeline
+from bpy_extras.io_utils import ExportHelper, ImportHelper
+
+from . import bake, pipeline, solution_file
 from .export import ExportError
 
 
@@ -109,7 +111,61 @@ class BSGI_OT_clear(bpy.types.Operator):
         return {"FINISHED"}
 
 
-classes = (BSGI_OT_solve, BSGI_OT_clear)
+class BSGI_OT_rebake(bpy.types.Operator):
+    """Regenerate the baked images from the splines stored in the scene, without solving"""
+
+    bl_idname = "bsgi.rebake"
+    bl_label = "Re-bake B-spline GI"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        objects = [o for o in context.scene.objects if bake.PROP_RADIANCE in o]
+        if not objects:
+            self.report({"ERROR"}, "B-spline GI: nothing to re-bake; solve first")
+            return {"CANCELLED"}
+        for obj in objects:
+            bake.rebake(obj)
+        context.scene.bsgi.show_baked = True
+        return {"FINISHED"}
+
+
+class BSGI_OT_export_solution(bpy.types.Operator, ExportHelper):
+    """Write the solved splines to a solution file (bsgi.load_solution reads it)"""
+
+    bl_idname = "bsgi.export_solution"
+    bl_label = "Export B-spline Solution"
+    filename_ext = ".npz"
+
+    def execute(self, context):
+        try:
+            count = solution_file.export_solution(context.scene, self.filepath)
+        except ValueError as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"B-spline GI: wrote {count} surfaces to {self.filepath}")
+        return {"FINISHED"}
+
+
+class BSGI_OT_import_solution(bpy.types.Operator, ImportHelper):
+    """Bake the splines of a solution file onto the objects it names"""
+
+    bl_idname = "bsgi.import_solution"
+    bl_label = "Import B-spline Solution"
+    bl_options = {"REGISTER", "UNDO"}
+    filename_ext = ".npz"
+
+    def execute(self, context):
+        try:
+            objects = solution_file.import_solution(context.scene, self.filepath)
+        except (ValueError, OSError) as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        context.scene.bsgi.show_baked = True
+        self.report({"INFO"}, f"B-spline GI: baked {len(objects)} objects from {self.filepath}")
+        return {"FINISHED"}
+
+
+classes = (BSGI_OT_solve, BSGI_OT_clear, BSGI_OT_rebake, BSGI_OT_export_solution, BSGI_OT_import_solution)
 
 
 def register():

@@ -41,7 +41,7 @@ def run(job: Job) -> bsgi.Solution:
 def finish(context, job: Job, solution: bsgi.Solution) -> None:
     """Main thread: bake the solution into the scene."""
     for exported in job.export.objects:
-        bake.bake_object(bpy.data.objects[exported.name], exported, solution.radiance)
+        bake.bake_object(bpy.data.objects[exported.name], bake.face_splines(exported, solution.radiance))
     context.scene.bsgi.show_baked = True
 
 

@@ -15,7 +15,11 @@ def draw_controls(layout, scene):
     col.prop(settings, "hemisphere_nodes")
     row = layout.row(align=True)
     row.prop(settings, "show_baked", toggle=True)
+    row.operator("bsgi.rebake", text="", icon="FILE_REFRESH")
     row.operator("bsgi.clear", text="", icon="X")
+    row = layout.row(align=True)
+    row.operator("bsgi.export_solution", text="Export", icon="EXPORT")
+    row.operator("bsgi.import_solution", text="Import", icon="IMPORT")
 
 
 class BSGI_PT_render(bpy.types.Panel):

@@ -22,6 +22,7 @@ from ._core import (
     TensorSpline,
     estimate_solve_bytes,
 )
+from .solution_io import StoredSolution, load_solution, save_solution, spline_from_arrays, spline_to_arrays
 from .solve import solve
 
 __all__ = [
@@ -33,6 +34,11 @@ __all__ = [
     "SolverSettings",
     "TensorSpline",
     "estimate_solve_bytes",
+    "load_solution",
+    "save_solution",
     "solve",
+    "spline_from_arrays",
+    "spline_to_arrays",
+    "StoredSolution",
 ]
 __version__ = "0.1.0"

@@ -1,0 +1,51 @@
+"""The baked objects' splines to and from the core's solution file (bsgi.save_solution)."""
+from __future__ import annotations
+
+import re
+
+import bpy
+
+import bsgi
+
+from . import bake
+
+_FACE = re.compile(r"^(?P<object>.*): face (?P<face>\d+)(?: triangle (?P<k>\d+))?$")
+
+
+def export_solution(scene, path) -> int:
+    """Write every baked object's splines; returns the number of surfaces written."""
+    radiance, names = [], []
+    for obj in scene.objects:
+        if bake.PROP_RADIANCE not in obj:
+            continue
+        for i, (kind, splines) in enumerate(bake.stored_faces(obj)):
+            for k, spline in enumerate(splines):
+                names.append(f"{obj.name}: face {i}" + (f" triangle {k}" if kind == "ngon" else ""))
+                radiance.append(spline)
+    if not radiance:
+        raise ValueError("no baked objects: solve first")
+    bsgi.save_solution(path, radiance, names, scene.bsgi.solver_settings())
+    return len(radiance)
+
+
+def import_solution(scene, path) -> list:
+    """Bake the splines of a solution file onto the objects they name; returns the objects."""
+    stored = bsgi.load_solution(path)
+    per_object: dict = {}
+    for name, spline in zip(stored.names, stored.radiance):
+        match = _FACE.match(name)
+        if spline is None or match is None:
+            continue  # lights and surfaces that are not object faces
+        per_object.setdefault(match["object"], {}).setdefault(int(match["face"]), []).append(spline)
+    baked = []
+    for obj_name, faces in per_object.items():
+        obj = bpy.data.objects.get(obj_name)
+        if obj is None or obj.type != "MESH":
+            raise ValueError(f"solution file names object '{obj_name}', which is not a mesh in this scene")
+        mesh = obj.data
+        if sorted(faces) != list(range(len(mesh.polygons))):
+            raise ValueError(f"object '{obj_name}': the solution has {len(faces)} faces, the mesh {len(mesh.polygons)}")
+        kinds = {3: "triangle", 4: "quad"}
+        bake.bake_object(obj, [(kinds.get(p.loop_total, "ngon"), faces[p.index]) for p in mesh.polygons])
+        baked.append(obj)
+    return baked

@@ -1,0 +1,85 @@
+"""Solutions on disk: knots, degrees and coefficients of every surface's radiance splines and the
+settings used, in one numpy .npz file. Loading gives back bit-identical splines."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+
+from . import _core
+
+FORMAT = "bsgi-solution-1"
+
+
+def spline_to_arrays(spline: _core.TensorSpline) -> dict:
+    """A spline as plain arrays: 'knots<k>' per axis, 'degrees', 'coefficients' (shape n_0..n_{D-1}, channels)."""
+    out = {f"knots{k}": np.array(axis.knots, np.float64) for k, axis in enumerate(spline.axes)}
+    out["degrees"] = np.array([axis.degree for axis in spline.axes], np.int64)
+    out["coefficients"] = np.array(spline.coefficients, np.float64)
+    return out
+
+
+def spline_from_arrays(arrays) -> _core.TensorSpline:
+    """Inverse of spline_to_arrays (any mapping of name -> array-like)."""
+    degrees = [int(d) for d in np.asarray(arrays["degrees"])]
+    axes = [_core.KnotVector(np.asarray(arrays[f"knots{k}"], np.float64), d) for k, d in enumerate(degrees)]
+    coefficients = np.asarray(arrays["coefficients"], np.float64)
+    spline = _core.TensorSpline(axes, coefficients.shape[-1])
+    spline.coefficients = coefficients.reshape(spline.coefficients.shape)
+    return spline
+
+
+def settings_to_dict(settings: _core.SolverSettings) -> dict:
+    return {k: getattr(settings, k) for k in dir(settings) if not k.startswith("_") and not callable(getattr(settings, k))}
+
+
+def settings_from_dict(values: dict) -> _core.SolverSettings:
+    settings = _core.SolverSettings()
+    for k, v in values.items():
+        if hasattr(settings, k):
+            setattr(settings, k, v)
+    return settings
+
+
+@dataclass
+class StoredSolution:
+    """What a solution file holds: per surface its radiance spline (None for pure emitters)."""
+
+    radiance: list
+    names: list
+    settings: _core.SolverSettings
+    stats: dict = field(default_factory=dict)
+
+
+def save_solution(path, radiance: Sequence[Optional[_core.TensorSpline]], names: Sequence[str],
+                  settings: _core.SolverSettings, stats: Optional[dict] = None) -> None:
+    """Write a solution (e.g. ``solution.radiance`` with the scene's surface names)."""
+    if len(radiance) != len(names):
+        raise ValueError(f"save_solution: {len(radiance)} splines but {len(names)} names")
+    arrays = {}
+    for i, spline in enumerate(radiance):
+        if spline is not None:
+            for key, value in spline_to_arrays(spline).items():
+                arrays[f"surface{i}/{key}"] = value
+    meta = {"format": FORMAT, "names": list(names), "settings": settings_to_dict(settings),
+            "stats": dict(stats or {}), "solved": [s is not None for s in radiance]}
+    with open(path, "wb") as f:
+        np.savez_compressed(f, meta=np.frombuffer(json.dumps(meta).encode(), np.uint8), **arrays)
+
+
+def load_solution(path) -> StoredSolution:
+    """Read a file written by save_solution."""
+    with np.load(path) as data:
+        meta = json.loads(bytes(data["meta"]).decode())
+        if meta.get("format") != FORMAT:
+            raise ValueError(f"{path}: not a bsgi solution file (format {meta.get('format')!r})")
+        radiance = []
+        for i, solved in enumerate(meta["solved"]):
+            if not solved:
+                radiance.append(None)
+                continue
+            prefix = f"surface{i}/"
+            radiance.append(spline_from_arrays({k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}))
+    return StoredSolution(radiance, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])

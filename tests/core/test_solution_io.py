@@ -1,0 +1,53 @@
+"""Solution files (python/bsgi/solution_io.py): exact round trip of splines and settings."""
+import numpy as np
+import pytest
+
+import bsgi
+
+
+def solved_scene():
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), albedo=[0.5, 0.6, 0.7],
+                             emission=[0] * 3)
+    scene.add_triangle("wedge", np.array([[0, 0, 0.2], [0, 1, 0.2], [0, 0.5, 0.8]], float), albedo=[0.3] * 3, emission=[0] * 3)
+    scene.add_bilinear_patch("lamp", np.array([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]], float), albedo=[0] * 3,
+                             emission=[4] * 3, receiver=False, occluder=False)
+    settings = bsgi.SolverSettings()
+    settings.spatial_coeffs = 9
+    settings.max_bounces = 2
+    return scene, settings, bsgi.solve(scene, settings)
+
+
+def test_round_trip_is_exact(tmp_path):
+    scene, settings, sol = solved_scene()
+    names = [scene.name(i) for i in range(len(scene))]
+    path = tmp_path / "solution.npz"
+    bsgi.save_solution(path, sol.radiance, names, settings, sol.stats)
+    stored = bsgi.load_solution(path)
+    assert stored.names == names
+    assert stored.radiance[2] is None  # the lamp emits only
+    for a, b in zip(sol.radiance[:2], stored.radiance[:2]):
+        np.testing.assert_array_equal(a.coefficients, b.coefficients)
+        for ka, kb in zip(a.axes, b.axes):
+            np.testing.assert_array_equal(ka.knots, kb.knots)
+            assert ka.degree == kb.degree
+        uv = np.random.default_rng(3).uniform(0, 1, (50, 2))
+        np.testing.assert_array_equal(a.evaluate(uv), b.evaluate(uv))
+    assert stored.settings.spatial_coeffs == 9 and stored.settings.max_bounces == 2
+    assert stored.stats["bounces"] == sol.stats["bounces"]
+
+
+def test_non_uniform_knots_round_trip():
+    k = bsgi.KnotVector([0, 0, 0, 0.1, 0.15, 0.7, 1, 1, 1], 2)
+    spline = bsgi.TensorSpline([k, bsgi.KnotVector.clamped_uniform(4, 1)], 2)
+    spline.coefficients = np.random.default_rng(0).normal(size=spline.coefficients.shape)
+    back = bsgi.spline_from_arrays(bsgi.spline_to_arrays(spline))
+    np.testing.assert_array_equal(back.coefficients, spline.coefficients)
+    np.testing.assert_array_equal(back.axes[0].knots, k.knots)
+
+
+def test_other_files_are_refused(tmp_path):
+    path = tmp_path / "other.npz"
+    np.savez(path, meta=np.frombuffer(b'{"format": "something"}', np.uint8))
+    with pytest.raises(ValueError, match="not a bsgi solution"):
+        bsgi.load_solution(path)
