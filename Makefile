@@ -7,7 +7,7 @@
 VENV       ?= .venv
 PY         := $(VENV)/bin/python
 PYTEST_ARGS ?=
-APT_PACKAGES := libembree-dev libtbb-dev libegl1 libegl-mesa0 libgl1-mesa-dri libxi6 libxxf86vm1 \
+APT_PACKAGES := libembree-dev libtbb-dev libegl1 libegl-mesa0 libgl1-mesa-dri libxi6 libxxf86vm1 libllvm19 \
                 libxfixes3 libxrender1 libxkbcommon0 libsm6 cmake g++ make
 PYTHON311  ?= $(shell command -v python3.11 2>/dev/null || ls $(HOME)/.pyenv/versions/3.11*/bin/python3.11 2>/dev/null | tail -n 1)
 CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name CMakeLists.txt \)) pyproject.toml

@@ -1,0 +1,80 @@
+"""A neutral scene description the tests build both a bsgi.Scene and a Mitsuba 3 scene from, so
+the reference path tracer sees exactly the geometry and materials the solver sees."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Patch:
+    name: str
+    corners: np.ndarray  # 4 (planar quad, counter-clockwise seen from its front) or 3 (triangle)
+    albedo: tuple = (0.0, 0.0, 0.0)
+    emission: tuple = (0.0, 0.0, 0.0)  # radiance leaving the front side
+    receiver: bool = True
+
+
+@dataclass
+class SceneSpec:
+    patches: list = field(default_factory=list)
+
+    def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True):
+        self.patches.append(Patch(name, np.asarray(corners, float), tuple(albedo), tuple(emission), receiver))
+        return self
+
+
+def quad(center, half_u, half_v):
+    """Corners of a rectangle whose front (normal u x v) faces where u x v points."""
+    c, a, b = (np.asarray(x, float) for x in (center, half_u, half_v))
+    return np.array([c - a - b, c + a - b, c + a + b, c - a + b])
+
+
+def box(center, size, angle=0.0):
+    """The six outward-facing quads of a box standing on z = center[2] - size[2] / 2, turned about z."""
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    h = np.asarray(size, float) / 2
+    faces = []
+    for axis in range(3):
+        for sign in (-1, 1):
+            n = np.zeros(3)
+            n[axis] = sign
+            u = np.zeros(3)
+            u[(axis + 1) % 3] = h[(axis + 1) % 3]
+            v = np.zeros(3)
+            v[(axis + 2) % 3] = h[(axis + 2) % 3]
+            if sign < 0:
+                u, v = v, u
+            faces.append(quad(np.asarray(center) + rot @ (n * h), rot @ u, rot @ v))
+    return faces
+
+
+def cornell_box() -> SceneSpec:
+    """The Cornell box of example_blends/make_cornell_box.py as patches (its lamp as an
+    emitting, occluding patch: the path tracer has no light that does not occlude)."""
+    white, red, green = (0.73, 0.73, 0.73), (0.63, 0.065, 0.05), (0.14, 0.45, 0.091)
+    spec = SceneSpec()
+    spec.add("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), white)
+    spec.add("ceiling", quad([0, 0, 2], [0, 1, 0], [1, 0, 0]), white)
+    spec.add("back", quad([0, 1, 1], [1, 0, 0], [0, 0, 1]), white)
+    spec.add("left", quad([-1, 0, 1], [0, 1, 0], [0, 0, 1]), red)
+    spec.add("right", quad([1, 0, 1], [0, 0, 1], [0, 1, 0]), green)
+    for i, face in enumerate(box([-0.35, 0.35, 0.6], [0.6, 0.6, 1.2], np.radians(-17))):
+        spec.add(f"tall box {i}", face, white)
+    for i, face in enumerate(box([0.35, -0.35, 0.3], [0.6, 0.6, 0.6], np.radians(17))):
+        spec.add(f"short box {i}", face, white)
+    radiance = 30.0 / (np.pi * 0.5 * 0.4)
+    spec.add("lamp", quad([0, 0, 1.98], [0, 0.2, 0], [0.25, 0, 0]), emission=(radiance,) * 3, receiver=False)
+    return spec
+
+
+def to_bsgi(spec: SceneSpec):
+    import bsgi
+
+    scene = bsgi.Scene()
+    for p in spec.patches:
+        add = scene.add_bilinear_patch if len(p.corners) == 4 else scene.add_triangle
+        add(p.name, p.corners, albedo=p.albedo, emission=p.emission, receiver=p.receiver, occluder=True)
+    return scene
