@@ -75,6 +75,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("spatial_coeffs", &SolverSettings::spatial_coeffs)
         .def_readwrite("spatial_degree", &SolverSettings::spatial_degree)
         .def_readwrite("epsilon", &SolverSettings::epsilon)
+        .def_readwrite("adaptive_knots", &SolverSettings::adaptive_knots)
         .def_readwrite("emitter_coeffs", &SolverSettings::emitter_coeffs)
         .def_readwrite("emitter_cell_ratio", &SolverSettings::emitter_cell_ratio)
         .def_readwrite("emitter_max_depth", &SolverSettings::emitter_max_depth)

@@ -127,3 +127,28 @@ def test_emitter_touching_the_receiver_along_an_edge():
             worst = max(worst, np.abs(coeff[i, j] / want - 1).max())
     print(f"contact edge: max relative error at the nodes {worst:.2e}")
     assert worst <= 0.01
+
+
+def test_adaptive_knots_cluster_at_the_penumbra_and_reduce_the_error():
+    receiver = rect([0, 0, 0], [1, 0, 0], [0, 1, 0])
+    emitter = rect([0, 0, 2], [0, 0.1, 0], [0.1, 0, 0])
+    occluder = rect([0, 0, 1], [0.3, 0, 0], [0, 0.3, 0])
+    # Exact direct light on a line across the penumbra, |x| in [0.5, 0.7] (u in [0.75, 0.85]).
+    u = np.linspace(0.6, 0.95, 141)
+    uv = np.stack([u, np.full_like(u, 0.5)], axis=1)
+    _, fine = solve_direct(receiver, emitter, [occluder], spatial_coeffs=128)
+    reference = fine.radiance[0].evaluate(uv)
+    errors = {}
+    for adaptive in (False, True):
+        _, sol = solve_direct(receiver, emitter, [occluder], spatial_coeffs=16, adaptive_knots=adaptive)
+        errors[adaptive] = np.sqrt(((sol.radiance[0].evaluate(uv) - reference) ** 2).mean()) / reference.max()
+        knots = sol.radiance[0].axes[0].knots
+    spans = np.diff(knots)
+    inner = spans[spans > 0]
+    middles = (knots[:-1] + knots[1:])[spans > 0] / 2
+    narrowest = middles[np.argsort(inner)[:4]]
+    print(f"\npenumbra: RMS error uniform {errors[False]:.3f}, adaptive {errors[True]:.3f}; narrowest spans at {np.round(narrowest, 3)}")
+    assert np.all((np.abs(narrowest - 0.8) < 0.08) | (np.abs(narrowest - 0.2) < 0.08))
+    # Schoenberg's approximation smooths a shadow edge over about three spans: narrower spans
+    # there shrink that band (measured 13% less RMS error here; no miracle for a tensor product).
+    assert errors[True] < 0.92 * errors[False]

@@ -15,6 +15,9 @@ struct SolverSettings {
     int spatial_coeffs = 16;
     int spatial_degree = 2;
     double epsilon = 1e-3;
+    // Knots clustered where the direct light has detail (shadow edges, contact lines) instead
+    // of uniform: costs a probe of the direct light on a (2n+1)^2 grid per surface.
+    bool adaptive_knots = false;
     // Surface integral (8)/(35) over emitters: B-spline quadrature (11) with emitter_coeffs
     // coefficients per direction on each cell of the emitter's parameter domain; a cell wider
     // than emitter_cell_ratio times its distance from the receiver is split in four, at most
