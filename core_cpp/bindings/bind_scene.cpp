@@ -54,6 +54,13 @@ void bind_scene(py::module_& m) {
             },
             py::arg("name"), py::arg("corners"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true,
             py::arg("occluder") = true)
+        .def(
+            "add_surface",
+            [](Scene& s, std::shared_ptr<Surface> surface, const Array& albedo, const Array& emission, bool receiver, bool occluder) {
+                return s.add(std::move(surface), {rgb(albedo, "albedo"), rgb(emission, "emission")}, receiver, occluder);
+            },
+            py::arg("surface"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true, py::arg("occluder") = true,
+            "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it.")
         .def("__len__", &Scene::size)
         .def("name", [](const Scene& s, size_t i) { return s[i].surface->name(); })
         .def("area", [](const Scene& s, size_t i) { return s[i].surface->area(); })

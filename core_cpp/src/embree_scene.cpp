@@ -2,30 +2,114 @@
 // RTCIntersectArguments/RTCOccludedArguments, rtcIntersect1 takes them as an optional pointer.
 #include <embree3/rtcore.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "bsgi/parallel.h"
 #include "bsgi/ray_scene.h"
 
 namespace bsgi {
+
+namespace {
+
+// Everything a hit needs about its triangle, in one cache line: the corner parameters, the
+// derivatives of the triangle's linear map from (u, v), and its normal.
+struct alignas(64) TriangleRecord {
+    float uv[6];
+    float dpdu[3], dpdv[3];
+    float normal[3];
+    float pad;
+};
+static_assert(sizeof(TriangleRecord) == 64, "one cache line per triangle");
+
+TriangleRecord make_record(const Tessellation& tess, size_t t) {
+    TriangleRecord r{};
+    const uint32_t* tri = &tess.triangles[3 * t];
+    Vec3 P[3];
+    for (int c = 0; c < 3; ++c) {
+        P[c] = {tess.positions[3 * tri[c]], tess.positions[3 * tri[c] + 1], tess.positions[3 * tri[c] + 2]};
+        r.uv[2 * c] = tess.uvs[2 * tri[c]];
+        r.uv[2 * c + 1] = tess.uvs[2 * tri[c] + 1];
+    }
+    const Vec3 E1 = P[1] - P[0], E2 = P[2] - P[0];
+    const double du1 = double(r.uv[2]) - r.uv[0], dv1 = double(r.uv[3]) - r.uv[1];
+    const double du2 = double(r.uv[4]) - r.uv[0], dv2 = double(r.uv[5]) - r.uv[1];
+    const double det = du1 * dv2 - dv1 * du2;
+    const double uv_scale = std::max({std::abs(du1), std::abs(dv1), std::abs(du2), std::abs(dv2)});
+    Vec3 su{0, 0, 0}, sv{0, 0, 0};
+    if (std::abs(det) > 1e-12 * uv_scale * uv_scale && uv_scale > 0) {
+        su = (E1 * dv2 - E2 * dv1) / det;
+        sv = (E2 * du1 - E1 * du2) / det;
+    }
+    Vec3 n;
+    if (!tess.normals.empty()) {
+        n = {tess.normals[3 * t], tess.normals[3 * t + 1], tess.normals[3 * t + 2]};
+    } else {
+        n = cross(E1, E2);
+        const double ln = length(n);
+        n = ln > 0 ? n / ln : Vec3{0, 0, 1};
+    }
+    for (int a = 0; a < 3; ++a) {
+        r.dpdu[a] = float(su[a]);
+        r.dpdv[a] = float(sv[a]);
+        r.normal[a] = float(n[a]);
+    }
+    return r;
+}
+
+void init_ray(RTCRay& ray, const Vec3& o, const Vec3& d, double tnear, double tfar) {
+    ray.org_x = float(o.x), ray.org_y = float(o.y), ray.org_z = float(o.z);
+    ray.dir_x = float(d.x), ray.dir_y = float(d.y), ray.dir_z = float(d.z);
+    ray.tnear = float(std::max(0.0, tnear));
+    ray.tfar = tfar >= double(std::numeric_limits<float>::max()) ? std::numeric_limits<float>::infinity() : float(tfar);
+    ray.time = 0, ray.mask = 0xFFFFFFFFu, ray.id = 0, ray.flags = 0;
+}
+
+void init_rayhit(RTCRayHit& rh, const RayBatch& rays, size_t i) {
+    const double* o = rays.origins + 3 * i;
+    const double* d = rays.directions + 3 * i;
+    init_ray(rh.ray, {o[0], o[1], o[2]}, {d[0], d[1], d[2]}, rays.tnear ? rays.tnear[i] : 0.0,
+             rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity());
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+}
+
+}  // namespace
 
 struct RayScene::Impl {
     RTCDevice device = nullptr;
     RTCScene scene = nullptr;
     struct GeometryInfo {
         int surface;
-        std::vector<float> uvs;
-        std::vector<uint32_t> triangles;
+        std::vector<TriangleRecord> records;  // per triangle
     };
     std::vector<GeometryInfo> geometries;  // indexed by Embree geometry id
     bool committed = false;
+    size_t triangles = 0;
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
 
     void check(const char* what) const {
         const RTCError err = rtcGetDeviceError(device);
         if (err != RTC_ERROR_NONE) throw std::runtime_error(std::string("Embree error ") + std::to_string(int(err)) + " in " + what);
+    }
+
+    void fill(RayHit& hit, unsigned geom, unsigned prim, float t, float b1, float b2) const {
+        const GeometryInfo& g = geometries[geom];
+        const TriangleRecord& r = g.records[prim];
+        const double b0 = 1.0 - b1 - b2;
+        hit.surface = g.surface;
+        hit.triangle = prim;
+        hit.t = t;
+        hit.u = b0 * r.uv[0] + b1 * r.uv[2] + b2 * r.uv[4];
+        hit.v = b0 * r.uv[1] + b1 * r.uv[3] + b2 * r.uv[5];
+        hit.dpdu = {r.dpdu[0], r.dpdu[1], r.dpdu[2]};
+        hit.dpdv = {r.dpdv[0], r.dpdv[1], r.dpdv[2]};
+        hit.normal = {r.normal[0], r.normal[1], r.normal[2]};
     }
 };
 
@@ -45,6 +129,10 @@ RayScene::~RayScene() {
 void RayScene::add(int surface_id, const Tessellation& tess) {
     if (impl_->committed) throw std::logic_error("RayScene::add after commit");
     const size_t nv = tess.positions.size() / 3, nt = tess.triangles.size() / 3;
+    if (tess.uvs.size() != 2 * nv) throw std::invalid_argument("RayScene::add: 2 uvs per vertex needed");
+    if (!tess.normals.empty() && tess.normals.size() != 3 * nt) throw std::invalid_argument("RayScene::add: 3 normal values per triangle needed");
+    for (uint32_t i : tess.triangles)
+        if (i >= nv) throw std::invalid_argument("RayScene::add: triangle index out of range");
     RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* vb = static_cast<float*>(
         rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
@@ -57,7 +145,15 @@ void RayScene::add(int surface_id, const Tessellation& tess) {
     const unsigned id = rtcAttachGeometry(impl_->scene, geom);
     rtcReleaseGeometry(geom);
     if (id != impl_->geometries.size()) throw std::logic_error("Embree geometry ids are not sequential");
-    impl_->geometries.push_back({surface_id, tess.uvs, tess.triangles});
+    Impl::GeometryInfo info{surface_id, std::vector<TriangleRecord>(nt)};
+    for (size_t t = 0; t < nt; ++t) info.records[t] = make_record(tess, t);
+    impl_->geometries.push_back(std::move(info));
+    impl_->triangles += nt;
+    for (size_t k = 0; k < nv; ++k) {
+        const Vec3 p{tess.positions[3 * k], tess.positions[3 * k + 1], tess.positions[3 * k + 2]};
+        impl_->lo = {std::min(impl_->lo.x, p.x), std::min(impl_->lo.y, p.y), std::min(impl_->lo.z, p.z)};
+        impl_->hi = {std::max(impl_->hi.x, p.x), std::max(impl_->hi.y, p.y), std::max(impl_->hi.z, p.z)};
+    }
 }
 
 void RayScene::commit() {
@@ -66,37 +162,73 @@ void RayScene::commit() {
     impl_->committed = true;
 }
 
+size_t RayScene::triangle_count() const { return impl_->triangles; }
+
+void RayScene::bounds(Vec3& lo, Vec3& hi) const {
+    lo = impl_->lo;
+    hi = impl_->hi;
+}
+
 RayHit RayScene::closest_hit(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh;
-    rh.ray.org_x = float(o.x), rh.ray.org_y = float(o.y), rh.ray.org_z = float(o.z);
-    rh.ray.dir_x = float(d.x), rh.ray.dir_y = float(d.y), rh.ray.dir_z = float(d.z);
-    rh.ray.tnear = float(tnear), rh.ray.tfar = float(tfar);
-    rh.ray.time = 0, rh.ray.mask = 0xFFFFFFFFu, rh.ray.id = 0, rh.ray.flags = 0;
+    init_ray(rh.ray, o, d, tnear, tfar);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(impl_->scene, &context, &rh);
     RayHit hit;
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
-    const Impl::GeometryInfo& g = impl_->geometries[rh.hit.geomID];
-    const uint32_t* tri = &g.triangles[3 * rh.hit.primID];
-    const double b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1.0 - b1 - b2;
-    hit.surface = g.surface;
-    hit.t = rh.ray.tfar;
-    hit.u = b0 * g.uvs[2 * tri[0]] + b1 * g.uvs[2 * tri[1]] + b2 * g.uvs[2 * tri[2]];
-    hit.v = b0 * g.uvs[2 * tri[0] + 1] + b1 * g.uvs[2 * tri[1] + 1] + b2 * g.uvs[2 * tri[2] + 1];
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) impl_->fill(hit, rh.hit.geomID, rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v);
     return hit;
+}
+
+void RayScene::closest_hit_block(const RayBatch& rays, size_t begin, size_t end, RayHit* hits) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    struct Found {
+        unsigned geom, prim;
+        float t, b1, b2;
+    };
+    constexpr size_t kBlock = 32;
+    Found found[kBlock];
+    for (size_t start = begin; start < end; start += kBlock) {
+        const size_t n = std::min(kBlock, end - start);
+        for (size_t k = 0; k < n; ++k) {
+            RTCRayHit rh;
+            init_rayhit(rh, rays, start + k);
+            rtcIntersect1(impl_->scene, &context, &rh);
+            found[k] = {rh.hit.geomID, rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v};
+            // The record is needed only after the whole block is traced: fetch it meanwhile.
+            if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) __builtin_prefetch(&impl_->geometries[rh.hit.geomID].records[rh.hit.primID]);
+        }
+        for (size_t k = 0; k < n; ++k) {
+            RayHit& h = hits[start - begin + k];
+            h = RayHit{};
+            if (found[k].geom != RTC_INVALID_GEOMETRY_ID) impl_->fill(h, found[k].geom, found[k].prim, found[k].t, found[k].b1, found[k].b2);
+        }
+    }
+}
+
+void RayScene::raw_closest_hit_batch(const RayBatch& rays, float* t, int32_t* surface, int threads) const {
+    parallel_for(rays.count, 4096, threads, [&](size_t begin, size_t end) {
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        for (size_t i = begin; i < end; ++i) {
+            RTCRayHit rh;
+            init_rayhit(rh, rays, i);
+            rtcIntersect1(impl_->scene, &context, &rh);
+            const bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+            t[i] = hit ? rh.ray.tfar : std::numeric_limits<float>::infinity();
+            surface[i] = hit ? impl_->geometries[rh.hit.geomID].surface : -1;
+        }
+    });
 }
 
 bool RayScene::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRay ray;
-    ray.org_x = float(o.x), ray.org_y = float(o.y), ray.org_z = float(o.z);
-    ray.dir_x = float(d.x), ray.dir_y = float(d.y), ray.dir_z = float(d.z);
-    ray.tnear = float(tnear), ray.tfar = float(tfar);
-    ray.time = 0, ray.mask = 0xFFFFFFFFu, ray.id = 0, ray.flags = 0;
+    init_ray(ray, o, d, tnear, tfar);
     rtcOccluded1(impl_->scene, &context, &ray);
     return ray.tfar == -std::numeric_limits<float>::infinity();
 }

@@ -21,15 +21,92 @@ void check_area(const std::string& name, double area, double size) {
 
 }  // namespace
 
-Frame Surface::frame_from_derivatives(const Vec3& su, const Vec3& sv, const Vec3& fallback_normal) {
-    const Vec3 n = cross(su, sv);
-    const double ln = length(n), lu = length(su);
-    if (!(ln > 1e-14 * std::max(1e-300, lu * length(sv)))) return Frame::from_normal(fallback_normal);
-    Frame f;
-    f.z = n / ln;
-    f.x = su / lu;
-    f.y = cross(f.z, f.x);
-    return f;
+Frame Surface::frame_from_derivatives(const Vec3& su, const Vec3& sv, const Vec3& fallback_normal) const {
+    return local_frame(su, sv, size_, fallback_normal);
+}
+
+Vec3 Surface::nudged_normal(double u, double v) const {
+    // Step towards the middle of the domain, farther and farther, until s_u x s_v is defined.
+    for (double h : {1e-7, 1e-5, 1e-3, 1e-2, 1e-1}) {
+        const double un = u + h * (u < 0.5 ? 1 : -1), vn = v + h * (v < 0.5 ? 1 : -1);
+        const SurfacePoint s = evaluate(un, vn);
+        Vec3 n;
+        if (normal_from_derivatives(s.dpdu, s.dpdv, size_, n)) return n;
+    }
+    return {0, 0, 0};
+}
+
+void Surface::into_domain(double& u, double& v) const {
+    if (periodic_u()) u -= std::floor(u);
+    else u = std::clamp(u, 0.0, 1.0);
+    if (periodic_v()) v -= std::floor(v);
+    else v = std::clamp(v, 0.0, 1.0);
+}
+
+void Surface::project(const Vec3& p, double& u, double& v) const {
+    for (int it = 0; it < 12; ++it) {
+        const SurfacePoint s = evaluate(u, v);
+        const Vec3 r = s.p - p;
+        const double a = dot(s.dpdu, s.dpdu), b = dot(s.dpdu, s.dpdv), c = dot(s.dpdv, s.dpdv);
+        // A little damping keeps the step finite where s_u or s_v vanishes (poles).
+        const double mu = 1e-12 * (a + c) + 1e-300;
+        const double det = (a + mu) * (c + mu) - b * b;
+        if (!(det > 0)) return;
+        const double gu = dot(s.dpdu, r), gv = dot(s.dpdv, r);
+        const double du = ((c + mu) * gu - b * gv) / det, dv = ((a + mu) * gv - b * gu) / det;
+        u -= du;
+        v -= dv;
+        into_domain(u, v);
+        if (std::abs(du) + std::abs(dv) < 1e-13) return;
+    }
+}
+
+bool Surface::intersect(const Vec3& o, const Vec3& d, double& u, double& v, double& t) const {
+    double uu = u, vv = v, tt = t;
+    const double magnitude = size_ + length(o) + length(d) * std::abs(t);
+    int stuck = 0;
+    double last_residual = 1e300;
+    for (int it = 0; it < 24; ++it) {
+        const SurfacePoint s = evaluate(uu, vv);
+        const Vec3 F = s.p - (o + d * tt);
+        const double residual = length(F);
+        // Solve [s_u s_v -d] (du, dv, dt) = F.
+        const Vec3 c1 = s.dpdu, c2 = s.dpdv, c3 = -d;
+        const double det = dot(c1, cross(c2, c3));
+        double du, dv, dt;
+        if (std::abs(det) > 1e-9 * length(c1) * length(c2) * length(c3)) {
+            du = dot(F, cross(c2, c3)) / det;
+            dv = dot(c1, cross(F, c3)) / det;
+            dt = dot(c1, cross(c2, F)) / det;
+        } else {
+            // Near a pole or a grazing hit: damped normal equations (J^T J + mu I) x = J^T F.
+            const double a11 = dot(c1, c1), a12 = dot(c1, c2), a13 = dot(c1, c3), a22 = dot(c2, c2), a23 = dot(c2, c3),
+                         a33 = dot(c3, c3);
+            const double mu = 1e-9 * (a11 + a22 + a33) + 1e-300;
+            const Vec3 r0{a11 + mu, a12, a13}, r1{a12, a22 + mu, a23}, r2{a13, a23, a33 + mu};
+            const Vec3 b{dot(c1, F), dot(c2, F), dot(c3, F)};
+            const double dd = dot(r0, cross(r1, r2));
+            if (!(std::abs(dd) > 0)) return false;
+            // Cramer's rule on the symmetric system (columns equal rows).
+            du = dot(b, cross(r1, r2)) / dd;
+            dv = dot(r0, cross(b, r2)) / dd;
+            dt = dot(r0, cross(r1, b)) / dd;
+        }
+        if (!std::isfinite(du) || !std::isfinite(dv) || !std::isfinite(dt)) return false;
+        const double un = uu - du, vn = vv - dv;
+        uu = un, vv = vn, tt -= dt;
+        into_domain(uu, vv);
+        const bool clamped = (uu != un && !periodic_u()) || (vv != vn && !periodic_v());
+        if (residual <= 1e-11 * magnitude && std::abs(du) + std::abs(dv) < 1e-9) {
+            u = uu, v = vv, t = tt;
+            return in_domain(u, v);
+        }
+        // Pushed against the edge of the domain without getting closer: the ray misses there.
+        stuck = (clamped && residual >= 0.5 * last_residual) ? stuck + 1 : 0;
+        if (stuck >= 3) return false;
+        last_residual = residual;
+    }
+    return false;
 }
 
 BilinearPatch::BilinearPatch(std::string name, const Vec3& p00, const Vec3& p10, const Vec3& p11, const Vec3& p01)
@@ -43,6 +120,9 @@ BilinearPatch::BilinearPatch(std::string name, const Vec3& p00, const Vec3& p10,
     const double size = std::max({length(p10 - p00), length(p11 - p10), length(p01 - p11), length(p00 - p01)});
     check_area(this->name(), area_, size);
     mean_normal_ = normalize(cross(p11 - p00, p01 - p10));
+    size_ = std::max(length(p11 - p00), length(p10 - p01));
+    // A parallelogram's bilinear map is affine: its two triangles carry exact (u, v).
+    parallelogram_ = length((p11 - p10) - (p01 - p00)) <= 1e-12 * size_;
 }
 
 SurfacePoint BilinearPatch::evaluate(double u, double v) const {
@@ -97,7 +177,8 @@ TrianglePatch::TrianglePatch(std::string name, const Vec3& p0, const Vec3& p1, c
     check_corners(this->name(), {p0, p1, p2});
     const Vec3 n = cross(p1 - p0, p2 - p0);
     area_ = 0.5 * length(n);
-    check_area(this->name(), area_, std::max({length(p1 - p0), length(p2 - p1), length(p0 - p2)}));
+    size_ = std::max({length(p1 - p0), length(p2 - p1), length(p0 - p2)});
+    check_area(this->name(), area_, size_);
     normal_ = normalize(n);
 }
 

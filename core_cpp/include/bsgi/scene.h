@@ -17,7 +17,7 @@ struct Material {
 };
 
 struct SceneSurface {
-    std::unique_ptr<Surface> surface;
+    std::shared_ptr<const Surface> surface;  // shared: Python may hold the same surface
     Material material;
     bool receiver;  // gets a radiance spline (false for light objects, which only emit)
     bool occluder;  // blocks rays (false for light objects, as in Cycles)
@@ -25,7 +25,8 @@ struct SceneSurface {
 
 class Scene {
 public:
-    int add(std::unique_ptr<Surface> surface, const Material& material, bool receiver = true, bool occluder = true) {
+    int add(std::shared_ptr<const Surface> surface, const Material& material, bool receiver = true, bool occluder = true) {
+        if (!surface) throw std::invalid_argument("Scene::add: no surface");
         const std::string& name = surface->name();
         for (int c = 0; c < 3; ++c) {
             if (!std::isfinite(material.albedo[c]) || material.albedo[c] < 0 || material.albedo[c] > 1)

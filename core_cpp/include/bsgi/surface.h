@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "bsgi/frame.h"
 #include "bsgi/vec3.h"
 
 namespace bsgi {
@@ -21,6 +22,9 @@ struct Tessellation {
     std::vector<float> positions;  // 3 per vertex
     std::vector<float> uvs;        // 2 per vertex
     std::vector<uint32_t> triangles;
+    // Optional, 3 per triangle: the surface's unit normal on each triangle, used instead of the
+    // winding normal (e.g. where a triangle has no area). Empty: the winding normal.
+    std::vector<float> normals;
 };
 
 class Surface {
@@ -37,10 +41,34 @@ public:
     virtual void refine_parameters(const Vec3& /*p*/, double& /*u*/, double& /*v*/) const {}
     virtual double area() const = 0;
 
+    // A length typical of the surface (its bounding-box diagonal): the scale of its derivatives
+    // on [0, 1]^2, against which "vanishing" is judged.
+    double size() const { return size_; }
+    // True when the tessellation is the surface itself and its (u, v) are linear on each
+    // triangle (meshes, parallelograms): ray hits need no refinement.
+    virtual bool tessellation_is_exact() const { return false; }
+    // Cyclic directions: parameters wrap around instead of stopping at 0 and 1.
+    virtual bool periodic_u() const { return false; }
+    virtual bool periodic_v() const { return false; }
+
+    // Intersection of the ray o + t d with the exact surface near the guess (u, v, t), by
+    // Newton's method on s(u, v) = o + t d. Returns false (leaving the guess) when it does not
+    // converge inside the parameter domain, e.g. where the tessellation overhangs the surface.
+    virtual bool intersect(const Vec3& o, const Vec3& d, double& u, double& v, double& t) const;
+
 protected:
     // The frame of (1)-(3) where it is defined; where s_u or s_u x s_v vanishes (a collapsed edge,
     // a pole) the frame is built around `fallback_normal` instead.
-    static Frame frame_from_derivatives(const Vec3& su, const Vec3& sv, const Vec3& fallback_normal);
+    Frame frame_from_derivatives(const Vec3& su, const Vec3& sv, const Vec3& fallback_normal) const;
+    // Normal near (u, v), nudged towards the middle of the domain: the limit normal at points
+    // where s_u x s_v vanishes. Zero if there is none nearby either.
+    Vec3 nudged_normal(double u, double v) const;
+    // Closest point on the surface to p from the guess (u, v): Gauss-Newton on |s(u, v) - p|^2.
+    void project(const Vec3& p, double& u, double& v) const;
+    // Wraps periodic parameters into [0, 1), clamps the others to [0, 1].
+    void into_domain(double& u, double& v) const;
+
+    double size_ = 1;
 
 private:
     std::string name_;
@@ -54,9 +82,11 @@ public:
     Tessellation tessellate() const override;
     void refine_parameters(const Vec3& p, double& u, double& v) const override;
     double area() const override { return area_; }
+    bool tessellation_is_exact() const override { return parallelogram_; }
 
 private:
     Vec3 p00_, p10_, p11_, p01_;
+    bool parallelogram_;
     Vec3 mean_normal_;
     double area_;
 };

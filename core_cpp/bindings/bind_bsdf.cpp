@@ -1,0 +1,161 @@
+// BSDFs and emission, batched over numpy arrays of local-frame directions.
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <stdexcept>
+
+#include "bindings.h"
+#include "bsgi/bsdf.h"
+
+namespace py = pybind11;
+
+namespace bsgi::bindings {
+
+namespace {
+
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+size_t vectors(const Array& a, const char* what) {
+    if (a.ndim() != 2 || a.shape(1) != 3) throw std::invalid_argument(std::string(what) + " must have shape (N, 3)");
+    return size_t(a.shape(0));
+}
+
+Vec3 at(const Array& a, size_t i) { return {a.data()[3 * i], a.data()[3 * i + 1], a.data()[3 * i + 2]}; }
+
+Vec3 rgb(const Array& a, const char* what) {
+    if (a.size() == 1) return {a.data()[0], a.data()[0], a.data()[0]};
+    if (a.size() != 3) throw std::invalid_argument(std::string(what) + " must have 1 or 3 values");
+    return {a.data()[0], a.data()[1], a.data()[2]};
+}
+
+void put(double* dst, const Vec3& v) { dst[0] = v.x, dst[1] = v.y, dst[2] = v.z; }
+
+}  // namespace
+
+void bind_bsdf(py::module_& m) {
+    py::class_<Bsdf, std::shared_ptr<Bsdf>>(m, "Bsdf",
+                                            "A BSDF in the local frame (z = normal): wo towards the viewer, wi towards the light.")
+        .def_property_readonly("name", &Bsdf::name)
+        .def(
+            "eval",
+            [](const Bsdf& b, const Array& wo, const Array& wi) {
+                const size_t n = vectors(wo, "wo");
+                if (vectors(wi, "wi") != n) throw std::invalid_argument("wo and wi differ in length");
+                py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
+                double* o = out.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    for (size_t i = 0; i < n; ++i) put(o + 3 * i, b.eval(at(wo, i), at(wi, i)));
+                }
+                return out;
+            },
+            py::arg("wo"), py::arg("wi"), "BSDF values (N, 3) RGB, without the cosine.")
+        .def(
+            "pdf",
+            [](const Bsdf& b, const Array& wo, const Array& wi) {
+                const size_t n = vectors(wo, "wo");
+                if (vectors(wi, "wi") != n) throw std::invalid_argument("wo and wi differ in length");
+                py::array_t<double> out(static_cast<py::ssize_t>(n));
+                double* o = out.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    for (size_t i = 0; i < n; ++i) o[i] = b.pdf(at(wo, i), at(wi, i));
+                }
+                return out;
+            },
+            py::arg("wo"), py::arg("wi"), "Solid-angle density of sample() drawing wi given wo.")
+        .def(
+            "sample",
+            [](const Bsdf& b, const Array& wo, const Array& u) {
+                const size_t n = vectors(wo, "wo");
+                if (vectors(u, "u") != n) throw std::invalid_argument("wo and u differ in length");
+                py::array_t<double> wi({py::ssize_t(n), py::ssize_t(3)}), weight({py::ssize_t(n), py::ssize_t(3)});
+                py::array_t<double> pdf(static_cast<py::ssize_t>(n));
+                py::array_t<bool> valid(static_cast<py::ssize_t>(n)), delta(static_cast<py::ssize_t>(n));
+                double *pw = wi.mutable_data(), *pt = weight.mutable_data(), *pp = pdf.mutable_data();
+                bool *pv = valid.mutable_data(), *pd = delta.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    for (size_t i = 0; i < n; ++i) {
+                        const Vec3 r = at(u, i);
+                        BsdfSample s;
+                        pv[i] = b.sample(at(wo, i), r.x, r.y, r.z, s);
+                        if (!pv[i]) s = BsdfSample{};
+                        put(pw + 3 * i, s.wi), put(pt + 3 * i, s.weight);
+                        pp[i] = s.pdf;
+                        pd[i] = s.delta;
+                    }
+                }
+                py::dict d;
+                d["wi"] = wi, d["weight"] = weight, d["pdf"] = pdf, d["valid"] = valid, d["delta"] = delta;
+                return d;
+            },
+            py::arg("wo"), py::arg("u"),
+            "Draws wi for each wo from three uniform numbers per row: wi, weight = eval |cos| / pdf, pdf, valid, delta.")
+        .def(
+            "index_on_side",
+            [](const Bsdf& b, const Array& w) {
+                const size_t n = vectors(w, "w");
+                py::array_t<double> out(static_cast<py::ssize_t>(n));
+                for (size_t i = 0; i < n; ++i) out.mutable_data()[i] = b.index_on_side(at(w, i));
+                return out;
+            },
+            py::arg("w"), "Refractive index of the medium on the side of each direction.");
+
+    py::class_<Lambert, Bsdf, std::shared_ptr<Lambert>>(m, "Lambert")
+        .def(py::init([](const Array& albedo) { return std::make_shared<Lambert>(rgb(albedo, "albedo")); }), py::arg("albedo"));
+    py::class_<NormalizedPhong, Bsdf, std::shared_ptr<NormalizedPhong>>(m, "NormalizedPhong")
+        .def(py::init([](const Array& kd, const Array& ks, double n) {
+                 return std::make_shared<NormalizedPhong>(rgb(kd, "kd"), rgb(ks, "ks"), n);
+             }),
+             py::arg("kd"), py::arg("ks"), py::arg("exponent"));
+    py::class_<AshikhminShirley, Bsdf, std::shared_ptr<AshikhminShirley>>(m, "AshikhminShirley")
+        .def(py::init([](const Array& rd, const Array& rs, double nu, double nv) {
+                 return std::make_shared<AshikhminShirley>(rgb(rd, "rd"), rgb(rs, "rs"), nu, nv);
+             }),
+             py::arg("rd"), py::arg("rs"), py::arg("nu"), py::arg("nv"));
+    py::class_<GgxReflection, Bsdf, std::shared_ptr<GgxReflection>>(m, "GgxReflection")
+        .def(py::init([](double ax, double ay, const Array& f0) { return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "f0")); }),
+             py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"));
+    py::class_<SmoothDielectric, Bsdf, std::shared_ptr<SmoothDielectric>>(m, "SmoothDielectric")
+        .def(py::init<double>(), py::arg("eta"));
+    py::class_<RoughDielectric, Bsdf, std::shared_ptr<RoughDielectric>>(m, "RoughDielectric")
+        .def(py::init<double, double, double>(), py::arg("eta"), py::arg("alpha_x"), py::arg("alpha_y"));
+
+    py::class_<Emission>(m, "Emission", "Uniform emitted radiance over the front (or both) sides.")
+        .def(py::init([](const Array& radiance, bool two_sided) { return Emission(rgb(radiance, "radiance"), two_sided); }),
+             py::arg("radiance"), py::arg("two_sided") = false)
+        .def("eval",
+             [](const Emission& e, const Array& w) {
+                 const size_t n = vectors(w, "w");
+                 py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
+                 for (size_t i = 0; i < n; ++i) put(out.mutable_data() + 3 * i, e.eval(at(w, i)));
+                 return out;
+             },
+             py::arg("w"))
+        .def("pdf",
+             [](const Emission& e, const Array& w) {
+                 const size_t n = vectors(w, "w");
+                 py::array_t<double> out(static_cast<py::ssize_t>(n));
+                 for (size_t i = 0; i < n; ++i) out.mutable_data()[i] = e.pdf(at(w, i));
+                 return out;
+             },
+             py::arg("w"))
+        .def("sample",
+             [](const Emission& e, const Array& u) {
+                 const size_t n = vectors(u, "u");
+                 py::array_t<double> w({py::ssize_t(n), py::ssize_t(3)}), pdf(static_cast<py::ssize_t>(n));
+                 for (size_t i = 0; i < n; ++i) {
+                     const Vec3 r = at(u, i);
+                     Vec3 d;
+                     double p = 0;
+                     if (!e.sample(r.x, r.y, r.z, d, p)) d = {0, 0, 0}, p = 0;
+                     put(w.mutable_data() + 3 * i, d);
+                     pdf.mutable_data()[i] = p;
+                 }
+                 return py::make_tuple(w, pdf);
+             },
+             py::arg("u"), "Emission directions (cosine-weighted) and their density.");
+}
+
+}  // namespace bsgi::bindings

@@ -1,0 +1,294 @@
+// Surfaces (NURBS, mesh charts, patches) and the ray caster.
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+
+#include "bindings.h"
+#include "bsgi/mesh_chart.h"
+#include "bsgi/nurbs_surface.h"
+#include "bsgi/ray_caster.h"
+
+namespace py = pybind11;
+
+namespace bsgi::bindings {
+
+namespace {
+
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// Checks a float array's trailing shape; returns the number of rows.
+size_t rows(const Array& a, std::initializer_list<py::ssize_t> tail, const std::string& what) {
+    const size_t nt = tail.size();
+    bool ok = size_t(a.ndim()) == nt + 1;
+    size_t k = 0;
+    for (py::ssize_t t : tail) ok = ok && a.shape(1 + k++) == t;
+    if (!ok) {
+        std::string shape = "(N";
+        for (py::ssize_t t : tail) shape += ", " + std::to_string(t);
+        throw std::invalid_argument(what + " must have shape " + shape + ")");
+    }
+    return size_t(a.shape(0));
+}
+
+std::vector<double> flat(const Array& a) { return std::vector<double>(a.data(), a.data() + a.size()); }
+
+py::array_t<double> empty(std::vector<py::ssize_t> shape) { return py::array_t<double>(shape); }
+
+// (N, 2) parameters -> point, derivatives, frame per row.
+py::dict evaluate_many(const Surface& s, const Array& uv) {
+    const size_t n = rows(uv, {2}, "uv");
+    auto p = empty({py::ssize_t(n), 3}), du = empty({py::ssize_t(n), 3}), dv = empty({py::ssize_t(n), 3});
+    auto x = empty({py::ssize_t(n), 3}), y = empty({py::ssize_t(n), 3}), z = empty({py::ssize_t(n), 3});
+    auto jac = py::array_t<double>(py::ssize_t(n));
+    double *pp = p.mutable_data(), *pdu = du.mutable_data(), *pdv = dv.mutable_data(), *px = x.mutable_data(),
+           *py_ = y.mutable_data(), *pz = z.mutable_data(), *pj = jac.mutable_data();
+    const double* in = uv.data();
+    {
+        py::gil_scoped_release release;
+        auto put = [](double* dst, const Vec3& v) { dst[0] = v.x, dst[1] = v.y, dst[2] = v.z; };
+        for (size_t i = 0; i < n; ++i) {
+            const SurfacePoint sp = s.evaluate(in[2 * i], in[2 * i + 1]);
+            put(pp + 3 * i, sp.p), put(pdu + 3 * i, sp.dpdu), put(pdv + 3 * i, sp.dpdv);
+            put(px + 3 * i, sp.frame.x), put(py_ + 3 * i, sp.frame.y), put(pz + 3 * i, sp.frame.z);
+            pj[i] = sp.jacobian;
+        }
+    }
+    py::dict d;
+    d["position"] = p, d["dpdu"] = du, d["dpdv"] = dv, d["x"] = x, d["y"] = y, d["normal"] = z, d["jacobian"] = jac;
+    return d;
+}
+
+// Keeps the Python surfaces alive as long as the caster.
+struct PyRayCaster {
+    std::vector<std::shared_ptr<const Surface>> surfaces;
+    std::unique_ptr<RayCaster> caster;
+};
+
+RayBatch batch(const Array& origins, const Array& directions, const std::optional<Array>& tnear,
+               const std::optional<Array>& tfar) {
+    RayBatch b;
+    b.count = rows(origins, {3}, "origins");
+    if (rows(directions, {3}, "directions") != b.count) throw std::invalid_argument("origins and directions differ in length");
+    for (size_t i = 0; i < 3 * b.count; ++i)
+        if (!std::isfinite(origins.data()[i]) || !std::isfinite(directions.data()[i]))
+            throw std::invalid_argument("ray origins and directions must be finite");
+    b.origins = origins.data();
+    b.directions = directions.data();
+    if (tnear) {
+        if (size_t(tnear->size()) != b.count) throw std::invalid_argument("tnear must have one value per ray");
+        b.tnear = tnear->data();
+    }
+    if (tfar) {
+        if (size_t(tfar->size()) != b.count) throw std::invalid_argument("tfar must have one value per ray");
+        b.tfar = tfar->data();
+    }
+    return b;
+}
+
+}  // namespace
+
+void bind_geometry(py::module_& m) {
+    m.def(
+        "blender_knots",
+        [](int points, int order, bool endpoint, bool bezier, bool cyclic) {
+            const NurbsDirection d{points, order, endpoint, bezier, cyclic};
+            const std::vector<double> k = blender_knots(d);
+            return py::make_tuple(py::array_t<double>(k.size(), k.data()), blender_range(d, k));
+        },
+        py::arg("points"), py::arg("order"), py::arg("endpoint") = false, py::arg("bezier") = false, py::arg("cyclic") = false,
+        "Blender's knot vector for one NURBS direction (calcknots) and its evaluation range (a, b).");
+    m.def(
+        "blender_nurbs_problem",
+        [](int points, int order, bool endpoint, bool bezier, bool cyclic) {
+            return blender_nurbs_problem({points, order, endpoint, bezier, cyclic});
+        },
+        py::arg("points"), py::arg("order"), py::arg("endpoint") = false, py::arg("bezier") = false, py::arg("cyclic") = false,
+        "Why Blender would draw nothing for this NURBS direction, or '' if it is valid.");
+
+    py::class_<Surface, std::shared_ptr<Surface>>(m, "Surface", "A parametric surface s(u, v) on [0, 1]^2 (paper section 2.1).")
+        .def_property_readonly("name", &Surface::name)
+        .def_property_readonly("area", &Surface::area)
+        .def_property_readonly("size", &Surface::size)
+        .def_property_readonly("tessellation_is_exact", &Surface::tessellation_is_exact)
+        .def("evaluate", &evaluate_many, py::arg("uv"),
+             "Position, s_u, s_v, local frame (x, y, normal) of (1)-(3) and |s_u x s_v| at (N, 2) parameters.")
+        .def(
+            "in_domain",
+            [](const Surface& s, const Array& uv) {
+                const size_t n = rows(uv, {2}, "uv");
+                py::array_t<bool> out(static_cast<py::ssize_t>(n));
+                for (size_t i = 0; i < n; ++i) out.mutable_data()[i] = s.in_domain(uv.data()[2 * i], uv.data()[2 * i + 1]);
+                return out;
+            },
+            py::arg("uv"), "The parameter-domain mask chi of (8) at (N, 2) parameters.")
+        .def("tessellate", [](const Surface& s) {
+            const Tessellation t = s.tessellate();
+            py::dict d;
+            d["positions"] = py::array_t<float>({py::ssize_t(t.positions.size() / 3), py::ssize_t(3)}, t.positions.data());
+            d["uvs"] = py::array_t<float>({py::ssize_t(t.uvs.size() / 2), py::ssize_t(2)}, t.uvs.data());
+            d["triangles"] = py::array_t<uint32_t>({py::ssize_t(t.triangles.size() / 3), py::ssize_t(3)}, t.triangles.data());
+            return d;
+        });
+
+    py::class_<NurbsSurface, Surface, std::shared_ptr<NurbsSurface>>(
+        m, "NurbsSurface", "A rational NURBS surface evaluated exactly as Blender does (knots by Blender's rule).")
+        .def(py::init([](const std::string& name, const Array& points, int count_u, int count_v, int order_u, int order_v,
+                         bool endpoint_u, bool endpoint_v, bool bezier_u, bool bezier_v, bool cyclic_u, bool cyclic_v,
+                         int subdivisions) {
+                 if (points.ndim() != 2 || points.shape(1) != 4)
+                     throw std::invalid_argument("surface '" + name + "': points must have shape (count_u * count_v, 4): x, y, z, weight");
+                 return std::make_shared<NurbsSurface>(name, flat(points), NurbsDirection{count_u, order_u, endpoint_u, bezier_u, cyclic_u},
+                                                       NurbsDirection{count_v, order_v, endpoint_v, bezier_v, cyclic_v}, subdivisions);
+             }),
+             py::arg("name"), py::arg("points"), py::arg("count_u"), py::arg("count_v"), py::arg("order_u") = 4, py::arg("order_v") = 4,
+             py::arg("endpoint_u") = false, py::arg("endpoint_v") = false, py::arg("bezier_u") = false, py::arg("bezier_v") = false,
+             py::arg("cyclic_u") = false, py::arg("cyclic_v") = false, py::arg("subdivisions") = 8,
+             "points: Blender's spline.points[].co, u fastest (x, y, z, weight).")
+        .def_property_readonly("knots_u", [](const NurbsSurface& s) { return py::array_t<double>(s.knots_u().size(), s.knots_u().data()); })
+        .def_property_readonly("knots_v", [](const NurbsSurface& s) { return py::array_t<double>(s.knots_v().size(), s.knots_v().data()); })
+        .def_property_readonly("range_u", &NurbsSurface::range_u)
+        .def_property_readonly("range_v", &NurbsSurface::range_v)
+        .def(
+            "mixed_derivative",
+            [](const NurbsSurface& s, double u, double v) {
+                Vec3 p, su, sv, suv;
+                s.derivatives(u, v, p, su, sv, suv);
+                return py::make_tuple(suv.x, suv.y, suv.z);
+            },
+            py::arg("u"), py::arg("v"), "s_uv at one point.");
+
+    py::class_<MeshChart, Surface, std::shared_ptr<MeshChart>>(
+        m, "MeshChart", "A triangle mesh with a UV map as one surface; chi of (8) masks the area outside the UV triangles.")
+        .def(py::init([](const std::string& name, const Array& positions, py::array_t<int64_t, py::array::c_style | py::array::forcecast> triangles,
+                         const Array& corner_uvs) {
+                 if (positions.ndim() != 2 || positions.shape(1) != 3)
+                     throw std::invalid_argument("surface '" + name + "': positions must have shape (N, 3)");
+                 if (triangles.ndim() != 2 || triangles.shape(1) != 3)
+                     throw std::invalid_argument("surface '" + name + "': triangles must have shape (M, 3)");
+                 std::vector<uint32_t> tris(triangles.size());
+                 for (size_t i = 0; i < tris.size(); ++i) {
+                     const int64_t t = triangles.data()[i];
+                     if (t < 0 || t > int64_t(UINT32_MAX)) throw std::invalid_argument("surface '" + name + "': negative or huge vertex index");
+                     tris[i] = uint32_t(t);
+                 }
+                 std::vector<double> uvs(corner_uvs.data(), corner_uvs.data() + corner_uvs.size());
+                 std::shared_ptr<MeshChart> chart;
+                 {
+                     py::gil_scoped_release release;
+                     chart = std::make_shared<MeshChart>(name, flat(positions), std::move(tris), std::move(uvs));
+                 }
+                 return chart;
+             }),
+             py::arg("name"), py::arg("positions"), py::arg("triangles"), py::arg("corner_uvs"),
+             "corner_uvs: (M, 3, 2) or (3M, 2), one UV per triangle corner, in [0, 1]^2.")
+        .def_property_readonly("triangle_count", &MeshChart::triangle_count)
+        .def_property_readonly("degenerate_uv_triangles", &MeshChart::degenerate_uv_triangles);
+
+    py::class_<BilinearPatch, Surface, std::shared_ptr<BilinearPatch>>(m, "BilinearPatch", "Quads and parallelograms.")
+        .def(py::init([](const std::string& name, const Array& c) {
+                 if (rows(c, {3}, "surface '" + name + "': corners") != 4) throw std::invalid_argument("surface '" + name + "': 4 corners needed");
+                 const double* p = c.data();
+                 return std::make_shared<BilinearPatch>(name, Vec3{p[0], p[1], p[2]}, Vec3{p[3], p[4], p[5]}, Vec3{p[6], p[7], p[8]},
+                                                        Vec3{p[9], p[10], p[11]});
+             }),
+             py::arg("name"), py::arg("corners"), "corners p00, p10, p11, p01.");
+    py::class_<TrianglePatch, Surface, std::shared_ptr<TrianglePatch>>(m, "TrianglePatch", "A triangle as the unit square with u = 0 collapsed.")
+        .def(py::init([](const std::string& name, const Array& c) {
+                 if (rows(c, {3}, "surface '" + name + "': corners") != 3) throw std::invalid_argument("surface '" + name + "': 3 corners needed");
+                 const double* p = c.data();
+                 return std::make_shared<TrianglePatch>(name, Vec3{p[0], p[1], p[2]}, Vec3{p[3], p[4], p[5]}, Vec3{p[6], p[7], p[8]});
+             }),
+             py::arg("name"), py::arg("corners"));
+
+    py::class_<PyRayCaster>(m, "RayCaster",
+                            "Embree ray queries answering with surface id, (u, v), point and local frame; surface i is surfaces[i].")
+        .def(py::init([](std::vector<std::shared_ptr<Surface>> surfaces) {
+                 auto rc = std::make_unique<PyRayCaster>();
+                 std::vector<const Surface*> raw;
+                 for (auto& s : surfaces) {
+                     rc->surfaces.push_back(s);
+                     raw.push_back(s.get());
+                 }
+                 py::gil_scoped_release release;
+                 rc->caster = std::make_unique<RayCaster>(raw);
+                 return rc;
+             }),
+             py::arg("surfaces"))
+        .def_property_readonly("offset", [](const PyRayCaster& r) { return r.caster->offset(); },
+                               "Self-intersection offset: scales with the scene's magnitude.")
+        .def_property_readonly("triangle_count", [](const PyRayCaster& r) { return r.caster->triangle_count(); })
+        .def(
+            "spawn",
+            [](const PyRayCaster& r, const Array& points, const Array& normals, const Array& directions) {
+                const size_t n = rows(points, {3}, "points");
+                if (rows(normals, {3}, "normals") != n || rows(directions, {3}, "directions") != n)
+                    throw std::invalid_argument("points, normals and directions differ in length");
+                auto out = empty({py::ssize_t(n), 3});
+                for (size_t i = 0; i < n; ++i) {
+                    const double *p = points.data() + 3 * i, *nn = normals.data() + 3 * i, *d = directions.data() + 3 * i;
+                    const Vec3 o = r.caster->spawn({p[0], p[1], p[2]}, {nn[0], nn[1], nn[2]}, {d[0], d[1], d[2]});
+                    out.mutable_data()[3 * i] = o.x, out.mutable_data()[3 * i + 1] = o.y, out.mutable_data()[3 * i + 2] = o.z;
+                }
+                return out;
+            },
+            py::arg("points"), py::arg("normals"), py::arg("directions"),
+            "Ray origins leaving surface points: lifted by offset to the side each direction goes.")
+        .def(
+            "closest_hit",
+            [](const PyRayCaster& r, const Array& origins, const Array& directions, std::optional<Array> tnear,
+               std::optional<Array> tfar, int threads) {
+                const RayBatch b = batch(origins, directions, tnear, tfar);
+                const py::ssize_t n = py::ssize_t(b.count);
+                py::array_t<int32_t> surface(n);
+                auto t = py::array_t<double>(n), uv = empty({n, 2}), p = empty({n, 3}), frame = empty({n, 3, 3});
+                HitArrays out{surface.mutable_data(), t.mutable_data(), uv.mutable_data(), p.mutable_data(), frame.mutable_data()};
+                {
+                    py::gil_scoped_release release;
+                    r.caster->closest_hit_batch(b, out, threads);
+                }
+                py::dict d;
+                d["surface"] = surface, d["t"] = t, d["uv"] = uv, d["position"] = p, d["frame"] = frame;
+                return d;
+            },
+            py::arg("origins"), py::arg("directions"), py::arg("tnear") = py::none(), py::arg("tfar") = py::none(),
+            py::arg("threads") = 0,
+            "Closest hits of rays origin + t dir: surface (-1: none), t (inf: none), uv, position, frame (N, 3, 3) with rows "
+            "x, y, normal. Releases the GIL; threads=0 uses all.")
+        .def(
+            "occluded",
+            [](const PyRayCaster& r, const Array& origins, const Array& directions, std::optional<Array> tnear,
+               std::optional<Array> tfar, int threads) {
+                const RayBatch b = batch(origins, directions, tnear, tfar);
+                py::array_t<uint8_t> out(py::ssize_t(b.count));
+                uint8_t* o = out.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    r.caster->occluded_batch(b, o, threads);
+                }
+                return out.attr("astype")("bool");
+            },
+            py::arg("origins"), py::arg("directions"), py::arg("tnear") = py::none(), py::arg("tfar") = py::none(),
+            py::arg("threads") = 0, "Whether anything blocks each ray within (tnear, tfar).")
+        .def(
+            "raw_closest_hit",
+            [](const PyRayCaster& r, const Array& origins, const Array& directions, int threads) {
+                const RayBatch b = batch(origins, directions, std::nullopt, std::nullopt);
+                py::array_t<float> t(py::ssize_t(b.count));
+                py::array_t<int32_t> surface(py::ssize_t(b.count));
+                float* pt = t.mutable_data();
+                int32_t* ps = surface.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    r.caster->ray_scene().raw_closest_hit_batch(b, pt, ps, threads);
+                }
+                return py::make_tuple(t, surface);
+            },
+            py::arg("origins"), py::arg("directions"), py::arg("threads") = 0,
+            "Benchmark baseline: plain Embree closest hits (t, surface), no parameters or frames.");
+}
+
+}  // namespace bsgi::bindings

@@ -1,0 +1,153 @@
+// BSDFs rho of (6)-(8): evaluation, sampling and its density, in the local frame (1)-(3).
+//
+// Conventions: directions are unit vectors in the local frame (z = surface normal, x along
+// s_u), pointing away from the surface. wo looks at the viewer, wi at the light; light flows
+// from wi to wo. eval(wo, wi) is the BSDF (radiance leaving along wo per unit irradiance
+// arriving from wi), without the cosine. sample(wo, ...) draws wi with density pdf(wo, wi) per
+// unit solid angle and returns the weight eval * |cos(theta_i)| / pdf. Reflection models are
+// one-sided (zero unless both directions are above the surface); the dielectrics scatter on both
+// sides, with `eta` the index inside (below the surface) over the index outside.
+#pragma once
+#include <memory>
+#include <string>
+
+#include "bsgi/microfacet.h"
+#include "bsgi/vec3.h"
+
+namespace bsgi {
+
+struct BsdfSample {
+    Vec3 wi;
+    Vec3 weight;      // eval(wo, wi) |cos theta_i| / pdf; for delta lobes the lobe's throughput
+    double pdf = 0;   // solid-angle density; for delta lobes the probability of the lobe chosen
+    bool delta = false;
+};
+
+class Bsdf {
+public:
+    virtual ~Bsdf() = default;
+    virtual Vec3 eval(const Vec3& wo, const Vec3& wi) const = 0;
+    virtual double pdf(const Vec3& wo, const Vec3& wi) const = 0;
+    // Draws wi from three uniform numbers in [0, 1); false if this draw scatters nothing
+    // (e.g. a lobe direction below the surface): the missing probability.
+    virtual bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const = 0;
+    // Index of the medium on the side of w (1 above, eta below for dielectrics).
+    virtual double index_on_side(const Vec3& /*w*/) const { return 1; }
+    virtual std::string name() const = 0;
+};
+
+// rho = albedo / pi.
+class Lambert final : public Bsdf {
+public:
+    explicit Lambert(const Vec3& albedo);
+    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    std::string name() const override { return "lambert"; }
+
+private:
+    Vec3 albedo_;
+};
+
+// Energy-normalised Phong (Lafortune and Willems 1994):
+// rho = kd / pi + ks (n + 2) / (2 pi) cos^n(alpha), alpha the angle between wi and the mirror
+// direction of wo. Conserves energy when kd + ks <= 1.
+class NormalizedPhong final : public Bsdf {
+public:
+    NormalizedPhong(const Vec3& kd, const Vec3& ks, double exponent);
+    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    std::string name() const override { return "phong"; }
+
+private:
+    Vec3 kd_, ks_;
+    double n_, p_specular_;
+};
+
+// Ashikhmin and Shirley's anisotropic Phong BRDF (2000), the paper's default: a specular lobe
+// with exponents nu along x (s_u) and nv along y and Schlick's Fresnel with rs at normal
+// incidence, over a diffuse term rd that gives way to it.
+class AshikhminShirley final : public Bsdf {
+public:
+    AshikhminShirley(const Vec3& rd, const Vec3& rs, double nu, double nv);
+    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    std::string name() const override { return "ashikhmin_shirley"; }
+
+private:
+    double half_vector_pdf(const Vec3& h) const;
+    Vec3 rd_, rs_;
+    double nu_, nv_, p_specular_;
+};
+
+// GGX microfacet reflection (Walter et al. 2007) with separable Smith masking, the model of
+// Blender's Principled BSDF and Mitsuba 3's roughconductor:
+// rho = F(wi.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o cos theta_i), Schlick's F with f0
+// (f0 = 1: a perfect mirror's Fresnel). Sampled by visible normals.
+class GgxReflection final : public Bsdf {
+public:
+    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0);
+    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    std::string name() const override { return "ggx"; }
+
+private:
+    GgxDistribution D_;
+    Vec3 f0_;
+};
+
+// A smooth dielectric boundary (glass, water): mirror reflection and Snell refraction, chosen by
+// the Fresnel reflectance. Both lobes are delta lobes: eval and pdf are zero, sample() returns
+// the direction and throughput (refraction scales radiance by (n_o / n_i)^2).
+class SmoothDielectric final : public Bsdf {
+public:
+    explicit SmoothDielectric(double eta);
+    Vec3 eval(const Vec3&, const Vec3&) const override { return {0, 0, 0}; }
+    double pdf(const Vec3&, const Vec3&) const override { return 0; }
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    double index_on_side(const Vec3& w) const override { return w.z >= 0 ? 1.0 : eta_; }
+    std::string name() const override { return "dielectric"; }
+
+private:
+    double eta_;
+};
+
+// A rough dielectric boundary: GGX reflection and transmission (Walter et al. 2007, eq. 21 for
+// radiance: f_t = |wi.h||wo.h| n_o^2 (1 - F) D G / (|cos_i cos_o| (n_i wi.h + n_o wo.h)^2)).
+// Paper section 4.3: the transmitted light is the second, lower-hemisphere radiance function.
+class RoughDielectric final : public Bsdf {
+public:
+    RoughDielectric(double eta, double alpha_x, double alpha_y);
+    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    double index_on_side(const Vec3& w) const override { return w.z >= 0 ? 1.0 : eta_; }
+    std::string name() const override { return "rough_dielectric"; }
+
+private:
+    // With wo mirrored into the upper hemisphere: n_o is the index there, n_t the other.
+    double eval_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const;
+    double pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const;
+    double eta_;
+    GgxDistribution D_;
+};
+
+// Emitted radiance L_S^emit of (6): uniform over the front (or both) sides. sample() draws
+// emission directions with the cosine-weighted density, pdf() is that density.
+class Emission {
+public:
+    Emission(const Vec3& radiance, bool two_sided = false);
+    Vec3 eval(const Vec3& w) const;
+    double pdf(const Vec3& w) const;
+    bool sample(double u0, double u1, double u2, Vec3& w, double& pdf) const;
+    const Vec3& radiance() const { return radiance_; }
+
+private:
+    Vec3 radiance_;
+    bool two_sided_;
+};
+
+}  // namespace bsgi

@@ -1,0 +1,76 @@
+// Ray queries that answer in the surfaces' own terms: which surface, its parameters (u, v), the
+// point and the local frame (1)-(3) there (paper section 5: "the ray tracer must be able to
+// compute ray intersections with these surfaces and the corresponding parameter values as well
+// as surface derivatives to compute the local frame").
+//
+// Embree finds the hit on the tessellation; surfaces whose tessellation is exact (meshes,
+// parallelograms) answer from the hit triangle directly, curved ones (NURBS) are intersected
+// exactly by Newton's method from the tessellated hit. Curved surfaces also decide self-hits:
+// a tessellation hit whose exact intersection lies behind the ray's start is skipped.
+#pragma once
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "bsgi/ray_scene.h"
+#include "bsgi/surface.h"
+
+namespace bsgi {
+
+struct SurfaceHit {
+    int surface = -1;  // -1: the ray escaped
+    double t = 0;      // origin + t * dir is the hit
+    double u = 0, v = 0;
+    Vec3 p;
+    Frame frame;
+    bool exact = true;  // false: the exact surface was not found there (the tessellation overhangs
+                        // it at a silhouette); p and (u, v) are then its closest point
+};
+
+// Outputs of a batch of closest-hit queries; null pointers are skipped. frame holds 9 values
+// per hit, x, y, z = normal.
+struct HitArrays {
+    int32_t* surface = nullptr;
+    double* t = nullptr;
+    double* uv = nullptr;
+    double* position = nullptr;
+    double* frame = nullptr;
+};
+
+class RayCaster {
+public:
+    // Surface id i is surfaces[i]; null entries take no part. The surfaces must outlive the
+    // caster. Tessellates and builds the BVH.
+    explicit RayCaster(std::vector<const Surface*> surfaces);
+
+    // Distance by which spawn() lifts ray origins off a surface: it scales with the scene's
+    // extent and its distance from the origin (Embree works in float).
+    double offset() const { return offset_; }
+    // Origin for a ray leaving point p (normal n) along dir: p lifted by offset() to the side
+    // of the surface that dir goes to.
+    Vec3 spawn(const Vec3& p, const Vec3& n, const Vec3& dir) const {
+        return p + n * (dot(dir, n) >= 0 ? offset_ : -offset_);
+    }
+
+    // Thread-safe. Hits lie in (tnear, tfar).
+    SurfaceHit closest_hit(const Vec3& o, const Vec3& d, double tnear = 0,
+                           double tfar = std::numeric_limits<double>::infinity()) const;
+    bool occluded(const Vec3& o, const Vec3& d, double tnear = 0, double tfar = std::numeric_limits<double>::infinity()) const;
+
+    // Batches on `threads` threads (0: all).
+    void closest_hit_batch(const RayBatch& rays, const HitArrays& out, int threads = 0) const;
+    void occluded_batch(const RayBatch& rays, uint8_t* occluded, int threads = 0) const;
+
+    const RayScene& ray_scene() const { return rays_; }
+    size_t triangle_count() const { return rays_.triangle_count(); }
+
+private:
+    SurfaceHit resolve(RayHit h, const Vec3& o, const Vec3& d, double tnear, double tfar) const;
+
+    std::vector<const Surface*> surfaces_;
+    RayScene rays_;
+    bool all_exact_ = true;
+    double magnitude_ = 1, offset_ = 1e-5;
+};
+
+}  // namespace bsgi

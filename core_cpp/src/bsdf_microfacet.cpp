@@ -1,0 +1,184 @@
+// GGX reflection, smooth and rough dielectrics.
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "bsgi/bsdf.h"
+
+namespace bsgi {
+
+namespace {
+
+void check_alpha(double a) {
+    if (!std::isfinite(a) || a < 1e-4 || a > 10) throw std::invalid_argument("GGX roughness alpha must be in [1e-4, 10]");
+}
+
+void check_eta(double eta) {
+    if (!std::isfinite(eta) || eta <= 0 || eta > 10) throw std::invalid_argument("dielectric eta must be in (0, 10]");
+}
+
+Vec3 mirror_z(const Vec3& w) { return {w.x, w.y, -w.z}; }
+
+Vec3 gray(double x) { return {x, x, x}; }
+
+}  // namespace
+
+// ---- GGX reflection ----
+
+GgxReflection::GgxReflection(double alpha_x, double alpha_y, const Vec3& f0) : D_{alpha_x, alpha_y}, f0_(f0) {
+    check_alpha(alpha_x);
+    check_alpha(alpha_y);
+    for (int i = 0; i < 3; ++i)
+        if (!std::isfinite(f0[i]) || f0[i] < 0 || f0[i] > 1) throw std::invalid_argument("GGX f0 must be in [0, 1]");
+}
+
+Vec3 GgxReflection::eval(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return {0, 0, 0};
+    const Vec3 h = normalize(wo + wi);
+    const double g = D_.G1(wo, h) * D_.G1(wi, h);
+    return fresnel_schlick(f0_, dot(wi, h)) * (D_.D(h) * g / (4 * wo.z * wi.z));
+}
+
+double GgxReflection::pdf(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return 0;
+    const Vec3 h = normalize(wo + wi);
+    const double oh = dot(wo, h);
+    return oh > 0 ? D_.visible_pdf(wo, h) / (4 * oh) : 0;  // reflection's Jacobian 1 / (4 wo.h)
+}
+
+bool GgxReflection::sample(const Vec3& wo, double, double u1, double u2, BsdfSample& out) const {
+    if (wo.z <= 0) return false;
+    const Vec3 m = D_.sample_visible(wo, u1, u2);
+    const double om = dot(wo, m);
+    if (om <= 0) return false;
+    const Vec3 wi = m * (2 * om) - wo;
+    if (wi.z <= 0) return false;
+    out.wi = wi;
+    out.delta = false;
+    out.pdf = pdf(wo, wi);
+    if (!(out.pdf > 0)) return false;
+    out.weight = eval(wo, wi) * (wi.z / out.pdf);
+    return true;
+}
+
+// ---- smooth dielectric ----
+
+SmoothDielectric::SmoothDielectric(double eta) : eta_(eta) { check_eta(eta); }
+
+bool SmoothDielectric::sample(const Vec3& wo, double u0, double, double, BsdfSample& out) const {
+    if (wo.z == 0) return false;
+    const double n_o = index_on_side(wo), n_t = wo.z > 0 ? eta_ : 1.0;
+    double cos_t;
+    const double c = std::abs(wo.z);
+    const double F = fresnel_dielectric(c, n_t / n_o, cos_t);
+    out.delta = true;
+    if (u0 < F) {
+        out.wi = {-wo.x, -wo.y, wo.z};
+        out.pdf = F;
+        out.weight = {1, 1, 1};
+    } else {
+        const double e = n_o / n_t, side = wo.z > 0 ? 1.0 : -1.0;
+        out.wi = -wo * e + Vec3{0, 0, side} * (e * c - cos_t);
+        out.pdf = 1 - F;
+        out.weight = gray(e * e);  // radiance scales by (n_o / n_i)^2 across the boundary
+    }
+    return true;
+}
+
+// ---- rough dielectric ----
+
+RoughDielectric::RoughDielectric(double eta, double alpha_x, double alpha_y) : eta_(eta), D_{alpha_x, alpha_y} {
+    check_eta(eta);
+    check_alpha(alpha_x);
+    check_alpha(alpha_y);
+}
+
+double RoughDielectric::eval_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const {
+    double cos_t;
+    if (wi.z > 0) {
+        const Vec3 h = normalize(wo + wi);
+        const double F = fresnel_dielectric(dot(wo, h), n_t / n_o, cos_t);
+        return F * D_.D(h) * D_.G1(wo, h) * D_.G1(wi, h) / (4 * wo.z * wi.z);
+    }
+    if (wi.z == 0) return 0;
+    const double n_i = n_t;
+    Vec3 h = -(wo * n_o + wi * n_i);
+    const double lh = length(h);
+    if (!(lh > 0)) return 0;
+    h = h / lh;
+    if (h.z < 0) h = -h;
+    const double oh = dot(wo, h), ih = dot(wi, h);
+    if (oh <= 0 || ih >= 0) return 0;  // not a refraction pair through facet h
+    const double F = fresnel_dielectric(oh, n_i / n_o, cos_t);
+    const double denom = n_i * ih + n_o * oh;
+    const double g = D_.G1(wo, h) * D_.G1(wi, h);
+    return std::abs(ih) * oh * n_o * n_o * (1 - F) * D_.D(h) * g / (std::abs(wi.z) * wo.z * denom * denom);
+}
+
+double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const {
+    double cos_t;
+    if (wi.z > 0) {
+        const Vec3 h = normalize(wo + wi);
+        const double oh = dot(wo, h);
+        if (oh <= 0) return 0;
+        const double F = fresnel_dielectric(oh, n_t / n_o, cos_t);
+        return F * D_.visible_pdf(wo, h) / (4 * oh);
+    }
+    if (wi.z == 0) return 0;
+    const double n_i = n_t;
+    Vec3 h = -(wo * n_o + wi * n_i);
+    const double lh = length(h);
+    if (!(lh > 0)) return 0;
+    h = h / lh;
+    if (h.z < 0) h = -h;
+    const double oh = dot(wo, h), ih = dot(wi, h);
+    if (oh <= 0 || ih >= 0) return 0;
+    const double F = fresnel_dielectric(oh, n_i / n_o, cos_t);
+    const double denom = n_i * ih + n_o * oh;
+    // Jacobian of refraction: d omega_h / d omega_i = n_i^2 |wi.h| / (n_i wi.h + n_o wo.h)^2.
+    return (1 - F) * D_.visible_pdf(wo, h) * n_i * n_i * std::abs(ih) / (denom * denom);
+}
+
+// Below the surface the microstructure is the mirror image: mirror both directions and swap the
+// indices.
+Vec3 RoughDielectric::eval(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z > 0) return gray(eval_up(wo, wi, 1.0, eta_));
+    if (wo.z < 0) return gray(eval_up(mirror_z(wo), mirror_z(wi), eta_, 1.0));
+    return {0, 0, 0};
+}
+
+double RoughDielectric::pdf(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z > 0) return pdf_up(wo, wi, 1.0, eta_);
+    if (wo.z < 0) return pdf_up(mirror_z(wo), mirror_z(wi), eta_, 1.0);
+    return 0;
+}
+
+bool RoughDielectric::sample(const Vec3& wo_in, double u0, double u1, double u2, BsdfSample& out) const {
+    if (wo_in.z == 0) return false;
+    const bool below = wo_in.z < 0;
+    const Vec3 wo = below ? mirror_z(wo_in) : wo_in;
+    const double n_o = below ? eta_ : 1.0, n_t = below ? 1.0 : eta_;
+    const Vec3 m = D_.sample_visible(wo, u1, u2);
+    const double c = dot(wo, m);
+    if (c <= 0) return false;
+    double cos_t;
+    const double F = fresnel_dielectric(c, n_t / n_o, cos_t);
+    Vec3 wi;
+    if (u0 < F) {
+        wi = m * (2 * c) - wo;
+        if (wi.z <= 0) return false;
+    } else {
+        const double e = n_o / n_t;
+        wi = -wo * e + m * (e * c - cos_t);
+        if (wi.z >= 0) return false;
+    }
+    const double p = pdf_up(wo, wi, n_o, n_t);
+    if (!(p > 0)) return false;
+    out.wi = below ? mirror_z(wi) : wi;
+    out.pdf = p;
+    out.delta = false;
+    out.weight = gray(eval_up(wo, wi, n_o, n_t) * std::abs(wi.z) / p);
+    return true;
+}
+
+}  // namespace bsgi

@@ -1,0 +1,132 @@
+#include "bsgi/ray_caster.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "bsgi/parallel.h"
+
+namespace bsgi {
+
+namespace {
+
+// Ray origins are lifted this fraction of the scene's magnitude: Embree's float arithmetic
+// loses about 1e-7 of it, so this clears rounding by two orders with margin, and stays far
+// below any feature a radiance spline resolves.
+constexpr double kOffsetRelative = 1e-5;
+
+void write(const HitArrays& out, size_t i, const SurfaceHit& h) {
+    if (out.surface) out.surface[i] = h.surface;
+    if (out.t) out.t[i] = h.surface >= 0 ? h.t : std::numeric_limits<double>::infinity();
+    if (out.uv) out.uv[2 * i] = h.u, out.uv[2 * i + 1] = h.v;
+    if (out.position) {
+        double* p = out.position + 3 * i;
+        p[0] = h.p.x, p[1] = h.p.y, p[2] = h.p.z;
+    }
+    if (out.frame) {
+        double* f = out.frame + 9 * i;
+        const Vec3* axes[3] = {&h.frame.x, &h.frame.y, &h.frame.z};
+        for (int a = 0; a < 3; ++a) f[3 * a] = axes[a]->x, f[3 * a + 1] = axes[a]->y, f[3 * a + 2] = axes[a]->z;
+    }
+}
+
+}  // namespace
+
+RayCaster::RayCaster(std::vector<const Surface*> surfaces) : surfaces_(std::move(surfaces)) {
+    for (size_t i = 0; i < surfaces_.size(); ++i) {
+        if (!surfaces_[i]) continue;
+        rays_.add(int(i), surfaces_[i]->tessellate());
+        all_exact_ = all_exact_ && surfaces_[i]->tessellation_is_exact();
+    }
+    rays_.commit();
+    Vec3 lo, hi;
+    rays_.bounds(lo, hi);
+    if (rays_.triangle_count() > 0)
+        magnitude_ = std::max({length(hi - lo), std::abs(lo.x), std::abs(lo.y), std::abs(lo.z), std::abs(hi.x),
+                               std::abs(hi.y), std::abs(hi.z)});
+    if (!(magnitude_ > 0)) magnitude_ = 1;
+    offset_ = kOffsetRelative * magnitude_;
+}
+
+SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tnear, double tfar) const {
+    const double dlen = length(d);
+    // Exact intersections this close to the start are the surface the ray starts on.
+    const double t_self = tnear + 1e-3 * offset_ / dlen;
+    for (int attempt = 0; attempt < 16 && h.surface >= 0; ++attempt) {
+        const Surface& s = *surfaces_[h.surface];
+        SurfaceHit out;
+        out.surface = h.surface;
+        if (s.tessellation_is_exact()) {
+            out.t = h.t;
+            out.u = h.u;
+            out.v = h.v;
+            out.p = o + d * h.t;
+            out.frame = frame_with_normal(h.normal, h.dpdu, h.dpdv);
+            return out;
+        }
+        double u = h.u, v = h.v, t = h.t;
+        if (s.intersect(o, d, u, v, t)) {
+            if (t > t_self && t < tfar) {
+                const SurfacePoint sp = s.evaluate(u, v);
+                out.t = t, out.u = u, out.v = v, out.p = sp.p, out.frame = sp.frame;
+                return out;
+            }
+            // The exact surface there lies behind the start (the tessellation stands off it
+            // near the ray's own surface) or beyond tfar: look past this triangle.
+            const double past = std::nextafter(float(h.t), std::numeric_limits<float>::infinity());
+            h = rays_.closest_hit(o, d, std::max(past, h.t * (1 + 1e-6)), tfar);
+            continue;
+        }
+        // No exact intersection nearby: keep the tessellated hit, on the surface's closest point.
+        u = h.u, v = h.v;
+        s.refine_parameters(o + d * h.t, u, v);
+        const SurfacePoint sp = s.evaluate(u, v);
+        out.t = h.t, out.u = u, out.v = v, out.p = sp.p, out.frame = sp.frame, out.exact = false;
+        return out;
+    }
+    return SurfaceHit{};
+}
+
+SurfaceHit RayCaster::closest_hit(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
+    return resolve(rays_.closest_hit(o, d, tnear, tfar), o, d, tnear, tfar);
+}
+
+bool RayCaster::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
+    if (!rays_.occluded(o, d, tnear, tfar)) return false;
+    if (all_exact_) return true;
+    // The blocker may be a curved surface's tessellation standing off the exact surface near
+    // the ray's start: decide on the exact surfaces.
+    return closest_hit(o, d, tnear, tfar).surface >= 0;
+}
+
+void RayCaster::closest_hit_batch(const RayBatch& rays, const HitArrays& out, int threads) const {
+    parallel_for(rays.count, 1024, threads, [&](size_t begin, size_t end) {
+        constexpr size_t kBlock = 256;
+        RayHit hits[kBlock];
+        for (size_t start = begin; start < end; start += kBlock) {
+            const size_t n = std::min(kBlock, end - start);
+            rays_.closest_hit_block(rays, start, start + n, hits);
+            for (size_t k = 0; k < n; ++k) {
+                const size_t i = start + k;
+                const double* o = rays.origins + 3 * i;
+                const double* d = rays.directions + 3 * i;
+                const double tnear = rays.tnear ? std::max(0.0, rays.tnear[i]) : 0.0;
+                const double tfar = rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity();
+                write(out, i, resolve(hits[k], {o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar));
+            }
+        }
+    });
+}
+
+void RayCaster::occluded_batch(const RayBatch& rays, uint8_t* result, int threads) const {
+    parallel_for(rays.count, 1024, threads, [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            const double* o = rays.origins + 3 * i;
+            const double* d = rays.directions + 3 * i;
+            const double tnear = rays.tnear ? std::max(0.0, rays.tnear[i]) : 0.0;
+            const double tfar = rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity();
+            result[i] = occluded({o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar) ? 1 : 0;
+        }
+    });
+}
+
+}  // namespace bsgi
