@@ -125,14 +125,14 @@ void bind_geometry(py::module_& m) {
                 return out;
             },
             py::arg("uv"), "The parameter-domain mask chi of (8) at (N, 2) parameters.")
-        .def("tessellate", [](const Surface& s) {
-            const Tessellation t = s.tessellate();
+        .def("tessellate", [](const Surface& s, bool for_rays) {
+            const Tessellation t = for_rays ? s.tessellate_for_rays() : s.tessellate();
             py::dict d;
             d["positions"] = py::array_t<float>({py::ssize_t(t.positions.size() / 3), py::ssize_t(3)}, t.positions.data());
             d["uvs"] = py::array_t<float>({py::ssize_t(t.uvs.size() / 2), py::ssize_t(2)}, t.uvs.data());
             d["triangles"] = py::array_t<uint32_t>({py::ssize_t(t.triangles.size() / 3), py::ssize_t(3)}, t.triangles.data());
             return d;
-        });
+        }, py::arg("for_rays") = false, "Triangles with (u, v) per vertex; for_rays: the ray caster's (possibly lifted) ones.");
 
     py::class_<NurbsSurface, Surface, std::shared_ptr<NurbsSurface>>(
         m, "NurbsSurface", "A rational NURBS surface evaluated exactly as Blender does (knots by Blender's rule).")
@@ -146,7 +146,7 @@ void bind_geometry(py::module_& m) {
              }),
              py::arg("name"), py::arg("points"), py::arg("count_u"), py::arg("count_v"), py::arg("order_u") = 4, py::arg("order_v") = 4,
              py::arg("endpoint_u") = false, py::arg("endpoint_v") = false, py::arg("bezier_u") = false, py::arg("bezier_v") = false,
-             py::arg("cyclic_u") = false, py::arg("cyclic_v") = false, py::arg("subdivisions") = 8,
+             py::arg("cyclic_u") = false, py::arg("cyclic_v") = false, py::arg("subdivisions") = 0,
              "points: Blender's spline.points[].co, u fastest (x, y, z, weight).")
         .def_property_readonly("knots_u", [](const NurbsSurface& s) { return py::array_t<double>(s.knots_u().size(), s.knots_u().data()); })
         .def_property_readonly("knots_v", [](const NurbsSurface& s) { return py::array_t<double>(s.knots_v().size(), s.knots_v().data()); })

@@ -133,7 +133,7 @@ NurbsSurface::NurbsSurface(std::string name, std::vector<double> control, NurbsD
         const std::string problem = blender_nurbs_problem(*d);
         if (!problem.empty()) fail("direction " + direction_name(d == &u_ ? 'u' : 'v') + ": " + problem);
     }
-    if (subdivisions_ < 1 || subdivisions_ > 256) fail("subdivisions must be in 1..256");
+    if (subdivisions_ < 0 || subdivisions_ > 256) fail("subdivisions must be in 0..256 (0: automatic)");
     const size_t n = size_t(u_.points) * v_.points;
     if (control.size() != 4 * n) {
         std::ostringstream msg;
@@ -174,7 +174,15 @@ NurbsSurface::NurbsSurface(std::string name, std::vector<double> control, NurbsD
     static const double gx[5] = {-0.9061798459386640, -0.5384693101056831, 0.0, 0.5384693101056831, 0.9061798459386640};
     static const double gw[5] = {0.2369268850561891, 0.4786286704993665, 0.5688888888888889, 0.4786286704993665,
                                  0.2369268850561891};
-    const std::vector<double> bu = breakpoints(knots_u_, range_u_), bv = breakpoints(knots_v_, range_v_);
+    // Four pieces per span: rational patches are not polynomials.
+    auto pieces = [](const std::vector<double>& b) {
+        std::vector<double> out;
+        for (size_t i = 0; i + 1 < b.size(); ++i)
+            for (int k = 0; k < 4; ++k) out.push_back(b[i] + (b[i + 1] - b[i]) * k / 4);
+        out.push_back(1.0);
+        return out;
+    };
+    const std::vector<double> bu = pieces(breakpoints(knots_u_, range_u_)), bv = pieces(breakpoints(knots_v_, range_v_));
     for (size_t a = 0; a + 1 < bu.size(); ++a)
         for (size_t b = 0; b + 1 < bv.size(); ++b)
             for (int i = 0; i < 5; ++i)
@@ -270,34 +278,87 @@ SurfacePoint NurbsSurface::evaluate(double u, double v) const {
     return s;
 }
 
-Tessellation NurbsSurface::tessellate() const {
-    // A grid through every knot span, `subdivisions_` steps each; cyclic seams get their own
-    // vertices (u = 1 next to u = 0) so (u, v) interpolate without wrapping.
-    auto params = [&](const std::vector<double>& b) {
-        std::vector<double> p;
-        for (size_t i = 0; i + 1 < b.size(); ++i)
-            for (int s = 0; s < subdivisions_; ++s) p.push_back(b[i] + (b[i + 1] - b[i]) * s / subdivisions_);
-        p.push_back(1.0);
+std::vector<double> NurbsSurface::grid_parameters(bool along_u) const {
+    const std::vector<double> b = along_u ? breakpoints(knots_u_, range_u_) : breakpoints(knots_v_, range_v_);
+    const std::vector<double> across = along_u ? breakpoints(knots_v_, range_v_) : breakpoints(knots_u_, range_u_);
+    // Iso-lines across which chords are checked: the breakpoints and the span middles.
+    std::vector<double> lines;
+    for (size_t i = 0; i + 1 < across.size(); ++i) {
+        lines.push_back(across[i]);
+        lines.push_back(0.5 * (across[i] + across[i + 1]));
+    }
+    lines.push_back(1.0);
+    auto at = [&](double a, double c) {
+        Vec3 p, su, sv, suv;
+        derivatives(along_u ? a : c, along_u ? c : a, p, su, sv, suv);
         return p;
     };
-    const std::vector<double> pu = params(breakpoints(knots_u_, range_u_)), pv = params(breakpoints(knots_v_, range_v_));
+    const double tolerance = 2e-4 * size_;
+    std::vector<double> out;
+    for (size_t i = 0; i + 1 < b.size(); ++i) {
+        int steps = subdivisions_;
+        if (steps == 0) {
+            // Double the steps until every chord's middle is within tolerance of the surface.
+            for (steps = 2; steps < 64; steps *= 2) {
+                double worst = 0;
+                for (int k = 0; k < steps && worst <= tolerance; ++k) {
+                    const double a0 = b[i] + (b[i + 1] - b[i]) * k / steps, a1 = b[i] + (b[i + 1] - b[i]) * (k + 1) / steps;
+                    for (double c : lines) worst = std::max(worst, length(at(0.5 * (a0 + a1), c) - (at(a0, c) + at(a1, c)) * 0.5));
+                }
+                if (worst <= tolerance) break;
+            }
+        }
+        for (int k = 0; k < steps; ++k) out.push_back(b[i] + (b[i + 1] - b[i]) * k / steps);
+    }
+    out.push_back(1.0);
+    return out;
+}
+
+Tessellation NurbsSurface::grid(bool lifted) const {
+    // Cyclic seams get their own vertices (u = 1 next to u = 0) so (u, v) interpolate without
+    // wrapping.
+    const std::vector<double> pu = grid_parameters(true), pv = grid_parameters(false);
+    const size_t nu = pu.size(), nv = pv.size();
+    std::vector<Vec3> P(nu * nv), N(nu * nv);
+    for (size_t j = 0; j < nv; ++j)
+        for (size_t i = 0; i < nu; ++i) {
+            const SurfacePoint s = evaluate(pu[i], pv[j]);
+            P[j * nu + i] = s.p;
+            N[j * nu + i] = s.frame.z;
+        }
+    if (lifted) {
+        // Each cell's chord deviation along the normal at its middle, against the diagonal the
+        // cell is split along; every vertex rises by twice the largest of its cells'.
+        std::vector<double> rise(nu * nv, 0.0);
+        for (size_t j = 0; j + 1 < nv; ++j)
+            for (size_t i = 0; i + 1 < nu; ++i) {
+                const SurfacePoint mid = evaluate(0.5 * (pu[i] + pu[i + 1]), 0.5 * (pv[j] + pv[j + 1]));
+                const Vec3 chord = (P[j * nu + i] + P[(j + 1) * nu + i + 1]) * 0.5;
+                const double dev = 2 * dot(mid.p - chord, mid.frame.z);
+                for (size_t c : {j * nu + i, j * nu + i + 1, (j + 1) * nu + i, (j + 1) * nu + i + 1})
+                    if (std::abs(dev) > std::abs(rise[c])) rise[c] = dev;
+            }
+        for (size_t k = 0; k < P.size(); ++k) P[k] += N[k] * rise[k];
+    }
     Tessellation t;
-    const uint32_t nu = uint32_t(pu.size()), nv = uint32_t(pv.size());
     t.positions.reserve(3 * nu * nv);
     t.uvs.reserve(2 * nu * nv);
-    for (double v : pv)
-        for (double u : pu) {
-            Vec3 p, su, sv, suv;
-            derivatives(u, v, p, su, sv, suv);
+    for (size_t j = 0; j < nv; ++j)
+        for (size_t i = 0; i < nu; ++i) {
+            const Vec3& p = P[j * nu + i];
             t.positions.insert(t.positions.end(), {float(p.x), float(p.y), float(p.z)});
-            t.uvs.insert(t.uvs.end(), {float(u), float(v)});
+            t.uvs.insert(t.uvs.end(), {float(pu[i]), float(pv[j])});
         }
     for (uint32_t j = 0; j + 1 < nv; ++j)
         for (uint32_t i = 0; i + 1 < nu; ++i) {
-            const uint32_t a = j * nu + i, b = a + 1, c = a + nu + 1, d = a + nu;
+            const uint32_t a = j * uint32_t(nu) + i, b = a + 1, c = a + uint32_t(nu) + 1, d = a + uint32_t(nu);
             t.triangles.insert(t.triangles.end(), {a, b, c, a, c, d});
         }
     return t;
 }
+
+Tessellation NurbsSurface::tessellate() const { return grid(false); }
+
+Tessellation NurbsSurface::tessellate_for_rays() const { return grid(true); }
 
 }  // namespace bsgi

@@ -34,7 +34,7 @@ void write(const HitArrays& out, size_t i, const SurfaceHit& h) {
 RayCaster::RayCaster(std::vector<const Surface*> surfaces) : surfaces_(std::move(surfaces)) {
     for (size_t i = 0; i < surfaces_.size(); ++i) {
         if (!surfaces_[i]) continue;
-        rays_.add(int(i), surfaces_[i]->tessellate());
+        rays_.add(int(i), surfaces_[i]->tessellate_for_rays());
         all_exact_ = all_exact_ && surfaces_[i]->tessellation_is_exact();
     }
     rays_.commit();
@@ -64,24 +64,15 @@ SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tne
             return out;
         }
         double u = h.u, v = h.v, t = h.t;
-        if (s.intersect(o, d, u, v, t)) {
-            if (t > t_self && t < tfar) {
-                const SurfacePoint sp = s.evaluate(u, v);
-                out.t = t, out.u = u, out.v = v, out.p = sp.p, out.frame = sp.frame;
-                return out;
-            }
-            // The exact surface there lies behind the start (the tessellation stands off it
-            // near the ray's own surface) or beyond tfar: look past this triangle.
-            const double past = std::nextafter(float(h.t), std::numeric_limits<float>::infinity());
-            h = rays_.closest_hit(o, d, std::max(past, h.t * (1 + 1e-6)), tfar);
-            continue;
+        if (s.intersect(o, d, u, v, t) && t > t_self && t < tfar) {
+            const SurfacePoint sp = s.evaluate(u, v);
+            out.t = t, out.u = u, out.v = v, out.p = sp.p, out.frame = sp.frame;
+            return out;
         }
-        // No exact intersection nearby: keep the tessellated hit, on the surface's closest point.
-        u = h.u, v = h.v;
-        s.refine_parameters(o + d * h.t, u, v);
-        const SurfacePoint sp = s.evaluate(u, v);
-        out.t = h.t, out.u = u, out.v = v, out.p = sp.p, out.frame = sp.frame, out.exact = false;
-        return out;
+        // The ray passes this triangle without meeting the surface, or meets it behind its
+        // start (the triangles stand off the surface it starts on) or beyond tfar: look past.
+        const double past = std::nextafter(float(h.t), std::numeric_limits<float>::infinity());
+        h = rays_.closest_hit(o, d, std::max(past, h.t * (1 + 1e-6)), tfar);
     }
     return SurfaceHit{};
 }

@@ -45,15 +45,21 @@ class NurbsSurface final : public Surface {
 public:
     // `control` holds u.points * v.points points (x, y, z, w) in Blender's order (u fastest):
     // position and weight, not homogeneous (Blender's `points[].co`). `subdivisions` is the
-    // number of tessellation steps per knot span for the ray caster. Throws
+    // number of tessellation steps per knot span; 0 chooses them per span so that chords stay
+    // within 2e-4 of the surface's size. Throws
     // std::invalid_argument naming the surface for NaN/infinite points, weights <= 0, orders
     // outside 2..6 and point counts Blender would refuse.
-    NurbsSurface(std::string name, std::vector<double> control, NurbsDirection u, NurbsDirection v, int subdivisions = 8);
+    NurbsSurface(std::string name, std::vector<double> control, NurbsDirection u, NurbsDirection v, int subdivisions = 0);
 
     SurfacePoint evaluate(double u, double v) const override;
     // Position, s_u, s_v and the mixed derivative s_uv at normalised parameters.
     void derivatives(double u, double v, Vec3& p, Vec3& su, Vec3& sv, Vec3& suv) const;
+    // A grid through every knot span, its vertices on the surface.
     Tessellation tessellate() const override;
+    // The same grid lifted to the convex side by twice each cell's chord deviation, so that it
+    // encloses the surface where it is convex (spheres, cylinders) and rays cannot slip between
+    // the triangles and the surface at silhouettes.
+    Tessellation tessellate_for_rays() const override;
     void refine_parameters(const Vec3& p, double& u, double& v) const override { project(p, u, v); }
     double area() const override { return area_; }
     bool periodic_u() const override { return u_.cyclic; }
@@ -71,6 +77,9 @@ private:
     // collapsed row s_v ~ (u - u0) s_uv, so the normal tends to +-(s_u x s_uv).
     Vec3 limit_normal(double u, double v, const Vec3& su, const Vec3& sv, const Vec3& suv) const;
     std::vector<double> breakpoints(const std::vector<double>& knots, std::pair<double, double> range) const;
+    // Tessellation parameters along one direction (normalised), `along_u` choosing which.
+    std::vector<double> grid_parameters(bool along_u) const;
+    Tessellation grid(bool lifted) const;
 
     NurbsDirection u_, v_;
     std::vector<double> control_;  // (w x, w y, w z, w): homogeneous, u fastest

@@ -6,7 +6,9 @@
 // Embree finds the hit on the tessellation; surfaces whose tessellation is exact (meshes,
 // parallelograms) answer from the hit triangle directly, curved ones (NURBS) are intersected
 // exactly by Newton's method from the tessellated hit. Curved surfaces also decide self-hits:
-// a tessellation hit whose exact intersection lies behind the ray's start is skipped.
+// a tessellation hit whose exact intersection lies behind the ray's start is skipped, and so is
+// one where the ray passes the triangle without meeting the surface (see
+// Surface::tessellate_for_rays).
 #pragma once
 #include <cstdint>
 #include <limits>
@@ -23,8 +25,6 @@ struct SurfaceHit {
     double u = 0, v = 0;
     Vec3 p;
     Frame frame;
-    bool exact = true;  // false: the exact surface was not found there (the tessellation overhangs
-                        // it at a silhouette); p and (u, v) are then its closest point
 };
 
 // Outputs of a batch of closest-hit queries; null pointers are skipped. frame holds 9 values

@@ -37,6 +37,10 @@ public:
     // Parameter-domain mask chi of (8): false where (u, v) is not part of the surface.
     virtual bool in_domain(double /*u*/, double /*v*/) const { return true; }
     virtual Tessellation tessellate() const = 0;
+    // Triangles for ray casting. Curved surfaces may stand them off the surface, on its convex
+    // side, so that a ray reaching the surface meets a triangle first and Newton's method
+    // (intersect()) finds the exact hit; by default the tessellation itself.
+    virtual Tessellation tessellate_for_rays() const { return tessellate(); }
     // Exact parameters of a point on the surface, from the tessellation's interpolated guess.
     virtual void refine_parameters(const Vec3& /*p*/, double& /*u*/, double& /*v*/) const {}
     virtual double area() const = 0;

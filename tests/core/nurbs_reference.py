@@ -1,0 +1,44 @@
+"""Independent references for NURBS surfaces: scipy's NdBSpline on homogeneous coordinates, and
+the control net of Blender's NURBS sphere primitive."""
+import numpy as np
+from scipy.interpolate import NdBSpline
+
+
+def scipy_nurbs(points, count_u, count_v, knots_u, knots_v, order_u, order_v, cyclic_u, cyclic_v):
+    """A function (u, v, du=0, dv=0) -> homogeneous derivative (4,) of the surface, at knot
+    parameters. points: (count_u * count_v, 4) = (x, y, z, w), u fastest."""
+    pts = np.asarray(points, float).reshape(count_v, count_u, 4)
+    hom = np.concatenate([pts[..., :3] * pts[..., 3:], pts[..., 3:]], axis=-1)  # (w x, w y, w z, w)
+    if cyclic_u:  # basis functions past the last point reuse the first ones
+        hom = np.concatenate([hom, hom[:, : order_u - 1]], axis=1)
+    if cyclic_v:
+        hom = np.concatenate([hom, hom[: order_v - 1]], axis=0)
+    spline = NdBSpline((np.asarray(knots_u), np.asarray(knots_v)), hom.transpose(1, 0, 2), (order_u - 1, order_v - 1))
+    return lambda x, y, du=0, dv=0: spline([[x, y]], nu=(du, dv))[0]
+
+
+def rational_derivatives(f, x, y, wu, wv):
+    """Position, s_u, s_v, s_uv from homogeneous derivatives (quotient rule), scaled to
+    normalised parameters (wu, wv: widths of the evaluation range)."""
+    A, Au, Av, Auv = f(x, y), f(x, y, 1, 0), f(x, y, 0, 1), f(x, y, 1, 1)
+    W, Wu, Wv, Wuv = A[3], Au[3], Av[3], Auv[3]
+    p = A[:3] / W
+    su = (Au[:3] - p * Wu) / W
+    sv = (Av[:3] - p * Wv) / W
+    suv = (Auv[:3] - p * Wuv - su * Wv - sv * Wu) / W
+    return p, su * wu, sv * wv, suv * wu * wv
+
+
+def blender_sphere_points(radius=1.0):
+    """Control net of Blender's `primitive_nurbs_surface_sphere_add`: a semicircle of 5 points
+    in u (order 3, endpoint + Bezier) swept by a circle of 8 points in v (order 3, cyclic +
+    Bezier + endpoint), as read from Blender 5.0."""
+    h = np.sqrt(0.5)
+    profile = [(0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1)]  # (r, z, weight)
+    ring = [(-1, 0, 1), (-1, -1, h), (0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1), (-1, 1, h)]  # (x, y, w)
+    pts = [[radius * r * c, radius * r * s, radius * z, w * wr] for (c, s, wr) in ring for (r, z, w) in profile]
+    return np.array(pts, float)
+
+
+SPHERE_FLAGS = dict(count_u=5, count_v=8, order_u=3, order_v=3, endpoint_u=True, endpoint_v=True,
+                    bezier_u=True, bezier_v=True, cyclic_u=False, cyclic_v=True)
