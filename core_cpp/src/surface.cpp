@@ -29,11 +29,17 @@ Vec3 Surface::nudged_normal(double u, double v) const {
     // Step towards the middle of the domain, farther and farther, until s_u x s_v is defined.
     for (double h : {1e-7, 1e-5, 1e-3, 1e-2, 1e-1}) {
         const double un = u + h * (u < 0.5 ? 1 : -1), vn = v + h * (v < 0.5 ? 1 : -1);
-        const SurfacePoint s = evaluate(un, vn);
-        Vec3 n;
-        if (normal_from_derivatives(s.dpdu, s.dpdv, size_, n)) return n;
+        Vec3 su, sv, n;
+        first_derivatives(un, vn, su, sv);
+        if (normal_from_derivatives(su, sv, size_, n)) return n;
     }
     return {0, 0, 0};
+}
+
+void Surface::first_derivatives(double u, double v, Vec3& su, Vec3& sv) const {
+    const SurfacePoint s = evaluate(u, v);
+    su = s.dpdu;
+    sv = s.dpdv;
 }
 
 void Surface::into_domain(double& u, double& v) const {

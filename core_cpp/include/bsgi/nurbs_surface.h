@@ -72,6 +72,12 @@ public:
     std::pair<double, double> range_u() const { return range_u_; }
     std::pair<double, double> range_v() const { return range_v_; }
 
+protected:
+    void first_derivatives(double u, double v, Vec3& su, Vec3& sv) const override {
+        Vec3 p, suv;
+        derivatives(u, v, p, su, sv, suv);
+    }
+
 private:
     // Normal at a point where s_u x s_v vanishes, from the mixed derivative: next to a
     // collapsed row s_v ~ (u - u0) s_uv, so the normal tends to +-(s_u x s_uv).

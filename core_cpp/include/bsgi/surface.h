@@ -67,6 +67,9 @@ protected:
     // Normal near (u, v), nudged towards the middle of the domain: the limit normal at points
     // where s_u x s_v vanishes. Zero if there is none nearby either.
     Vec3 nudged_normal(double u, double v) const;
+    // s_u and s_v alone (no frame): what nudged_normal() looks at. By default from evaluate();
+    // surfaces whose evaluate() relies on nudged_normal() must override it.
+    virtual void first_derivatives(double u, double v, Vec3& su, Vec3& sv) const;
     // Closest point on the surface to p from the guess (u, v): Gauss-Newton on |s(u, v) - p|^2.
     void project(const Vec3& p, double& u, double& v) const;
     // Wraps periodic parameters into [0, 1), clamps the others to [0, 1].
