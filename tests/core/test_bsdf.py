@@ -1,0 +1,245 @@
+"""BSDFs: reciprocity, energy (white furnace by numerical integration), sampling against the
+pdf (chi-square), GGX against Mitsuba 3's roughconductor."""
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+import bsgi
+
+
+def direction(cos_theta, phi):
+    s = np.sqrt(np.maximum(0, 1 - cos_theta ** 2))
+    return np.column_stack([s * np.cos(phi), s * np.sin(phi), cos_theta])
+
+
+def quadrature(n_cos, n_phi, lo=0.0, hi=1.0):
+    """Midpoint rule over cos(theta) in [lo, hi] and phi: nodes and solid-angle weights."""
+    c = lo + (hi - lo) * (np.arange(n_cos) + 0.5) / n_cos
+    p = 2 * np.pi * (np.arange(n_phi) + 0.5) / n_phi
+    C, P = np.meshgrid(c, p, indexing="ij")
+    return direction(C.ravel(), P.ravel()), np.full(C.size, (hi - lo) / n_cos * 2 * np.pi / n_phi)
+
+
+def random_directions(rng, n, lower=False):
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:, 2] = np.abs(d[:, 2]) * (-1 if lower else 1)
+    return d[np.abs(d[:, 2]) > 0.02]
+
+
+REFLECTORS = {
+    "lambert": lambda: bsgi.Lambert([1.0, 0.5, 0.2]),
+    "phong": lambda: bsgi.NormalizedPhong([0.3, 0.3, 0.3], [0.6, 0.5, 0.7], 30.0),
+    "ashikhmin_shirley": lambda: bsgi.AshikhminShirley([0.4, 0.3, 0.2], [0.2, 0.5, 0.9], 60.0, 8.0),
+    "ggx": lambda: bsgi.GgxReflection(0.35, 0.15, [1.0, 0.8, 0.3]),
+}
+
+
+@pytest.mark.parametrize("name", REFLECTORS)
+def test_reflection_is_reciprocal(name):
+    b = REFLECTORS[name]()
+    rng = np.random.default_rng(1)
+    wo, wi = random_directions(rng, 2000), random_directions(rng, 2000)
+    n = min(len(wo), len(wi))
+    f, g = b.eval(wo[:n], wi[:n]), b.eval(wi[:n], wo[:n])
+    assert f.max() > 0
+    assert np.allclose(f, g, rtol=1e-12, atol=0)
+    # One-sided: nothing through or from below the surface.
+    assert not b.eval(wo[:n], -wi[:n]).any() and not b.eval(-wo[:n], wi[:n]).any()
+
+
+def test_rough_dielectric_obeys_generalised_reciprocity():
+    """f(wo, wi) / n(wo)^2 = f(wi, wo) / n(wi)^2 (radiance BTDFs carry the index squared)."""
+    b = bsgi.RoughDielectric(1.5, 0.3, 0.2)
+    rng = np.random.default_rng(2)
+    for lower_o, lower_i in [(False, False), (False, True), (True, False), (True, True)]:
+        wo, wi = random_directions(rng, 3000, lower_o), random_directions(rng, 3000, lower_i)
+        n = min(len(wo), len(wi))
+        wo, wi = wo[:n], wi[:n]
+        f = b.eval(wo, wi)[:, 0] / b.index_on_side(wo) ** 2
+        g = b.eval(wi, wo)[:, 0] / b.index_on_side(wi) ** 2
+        assert f.max() > 0
+        assert np.allclose(f, g, rtol=1e-8, atol=1e-300)
+
+
+def albedo(b, wo, n=1200, full_sphere=False):
+    """Directional albedo sum over wi of f(wo, wi) |cos theta_i| (n(wi)/n(wo))^2 domega: the
+    fraction of power scattered (the index ratio turns radiance BTDFs into power)."""
+    nodes, w = quadrature(n, n, -1.0 if full_sphere else 0.0, 1.0)
+    wo_rep = np.tile(wo, (len(nodes), 1))
+    f = b.eval(wo_rep, nodes)
+    ratio = (b.index_on_side(nodes) / b.index_on_side(wo_rep)) ** 2
+    return np.sum(f * (np.abs(nodes[:, 2]) * w * ratio)[:, None], axis=0)
+
+
+FURNACE = {
+    "lambert": (lambda: bsgi.Lambert([1.0, 1.0, 1.0]), False),
+    "phong": (lambda: bsgi.NormalizedPhong([0.4, 0.4, 0.4], [0.6, 0.6, 0.6], 40.0), False),
+    "ashikhmin_shirley": (lambda: bsgi.AshikhminShirley([1.0, 1.0, 1.0], [0.05, 0.5, 1.0], 40.0, 5.0), False),
+    "ggx": (lambda: bsgi.GgxReflection(0.3, 0.1, [1.0, 1.0, 1.0]), False),
+    "rough_dielectric": (lambda: bsgi.RoughDielectric(1.5, 0.3, 0.3), True),
+}
+
+
+@pytest.mark.parametrize("name", FURNACE)
+def test_white_furnace_albedo_at_most_one(name):
+    make, full = FURNACE[name]
+    b = make()
+    for cos_o in [1.0, 0.8, 0.5, 0.2, 0.05]:
+        for side in ([1, -1] if full else [1]):
+            wo = direction(np.array([side * cos_o]), np.array([0.7]))
+            a = albedo(b, wo, full_sphere=full)
+            assert a.max() <= 1 + 2e-3, (cos_o, side, a)
+            assert a.min() > 0.1, (cos_o, side, a)  # and not trivially zero
+
+
+def test_lambert_and_phong_albedo_match_closed_forms():
+    wo = direction(np.array([1.0]), np.array([0.0]))
+    assert albedo(bsgi.Lambert([1.0, 0.5, 0.25]), wo) == pytest.approx([1.0, 0.5, 0.25], rel=1e-3)
+    # A pure normalised Phong lobe at normal incidence: (n + 2)/(2 pi) int cos^(n+1) = 1.
+    assert albedo(bsgi.NormalizedPhong([0, 0, 0], [1, 1, 1], 20.0), wo) == pytest.approx([1, 1, 1], rel=2e-3)
+
+
+def test_smooth_dielectric_splits_power_by_fresnel_and_bends_by_snell():
+    eta = 1.5
+    b = bsgi.SmoothDielectric(eta)
+    rng = np.random.default_rng(3)
+    for lower in [False, True]:
+        wo = random_directions(rng, 200, lower)
+        u = rng.uniform(size=(len(wo), 3))
+        s = b.sample(wo, u)
+        n_o, n_i = (eta, 1.0) if lower else (1.0, eta)
+        cos_o = np.abs(wo[:, 2])
+        sin_t = n_o / n_i * np.sqrt(1 - cos_o ** 2)
+        tir = sin_t >= 1
+        cos_t = np.sqrt(np.maximum(0, 1 - sin_t ** 2))
+        rs = (n_o * cos_o - n_i * cos_t) / (n_o * cos_o + n_i * cos_t)
+        rp = (n_i * cos_o - n_o * cos_t) / (n_i * cos_o + n_o * cos_t)
+        F = np.where(tir, 1.0, 0.5 * (rs ** 2 + rp ** 2))
+        reflected = u[:, 0] < F
+        assert s["valid"].all() and s["delta"].all()
+        assert np.allclose(s["pdf"], np.where(reflected, F, 1 - F))
+        assert np.allclose(s["wi"][reflected], wo[reflected] * [-1, -1, 1])
+        t = ~reflected
+        assert np.allclose(n_i * np.linalg.norm(s["wi"][t, :2], axis=1), n_o * np.linalg.norm(wo[t, :2], axis=1))  # Snell
+        assert (np.sign(s["wi"][t, 2]) == -np.sign(wo[t, 2])).all()
+        # Power: reflected F, transmitted (1 - F) once the radiance factor (n_o/n_i)^2 is undone.
+        assert np.allclose(s["weight"][reflected], 1)
+        assert np.allclose(s["weight"][t, 0] * (n_i / n_o) ** 2, 1)
+        assert not b.eval(wo, s["wi"]).any() and not b.pdf(wo, s["wi"]).any()
+
+
+SAMPLED = {
+    "lambert": (lambda: bsgi.Lambert([0.8, 0.8, 0.8]), False),
+    "phong": (lambda: bsgi.NormalizedPhong([0.3, 0.3, 0.3], [0.6, 0.6, 0.6], 25.0), False),
+    "ashikhmin_shirley": (lambda: bsgi.AshikhminShirley([0.5, 0.5, 0.5], [0.3, 0.3, 0.3], 30.0, 4.0), False),
+    "ggx": (lambda: bsgi.GgxReflection(0.4, 0.2, [0.9, 0.9, 0.9]), False),
+    "rough_dielectric": (lambda: bsgi.RoughDielectric(1.5, 0.35, 0.25), True),
+}
+
+
+def chi_square_p_value(b, wo, full, n=200000, bins=(24, 48), seed=0):
+    rng = np.random.default_rng(seed)
+    s = b.sample(np.tile(wo, (n, 1)), rng.uniform(size=(n, 3)))
+    wi = s["wi"][s["valid"]]
+    lo = -1.0 if full else 0.0
+    nc, nphi = bins
+    ci = np.clip(((wi[:, 2] - lo) / (1 - lo) * nc).astype(int), 0, nc - 1)
+    pi = np.clip((np.mod(np.arctan2(wi[:, 1], wi[:, 0]), 2 * np.pi) / (2 * np.pi) * nphi).astype(int), 0, nphi - 1)
+    observed = np.bincount(ci * nphi + pi, minlength=nc * nphi).astype(float)
+    # Expected counts: the pdf integrated over each bin (8 x 8 midpoints per bin).
+    nodes, w = quadrature(8 * nc, 8 * nphi, lo, 1.0)
+    dens = b.pdf(np.tile(wo, (len(nodes), 1)), nodes) * w
+    expected = n * dens.reshape(nc, 8, nphi, 8).sum(axis=(1, 3)).ravel()
+    # Valid samples carry all the mass the pdf has (the rest are draws below the surface).
+    assert abs(len(wi) - expected.sum()) < 5 * np.sqrt(n) + 2e-3 * n
+    small = expected < 5
+    obs = np.append(observed[~small], observed[small].sum())
+    exp = np.append(expected[~small], expected[small].sum())
+    keep = exp > 0
+    stat = np.sum((obs[keep] - exp[keep]) ** 2 / exp[keep])
+    return chi2.sf(stat, keep.sum() - 1), s
+
+
+@pytest.mark.parametrize("name", SAMPLED)
+def test_sampling_matches_pdf(name):
+    make, full = SAMPLED[name]
+    b = make()
+    for k, cos_o in enumerate([0.9, 0.4, -0.6] if full else [0.9, 0.4]):
+        wo = direction(np.array([cos_o]), np.array([1.1]))
+        p, s = chi_square_p_value(b, wo, full, seed=k)
+        assert p > 1e-3, (name, cos_o, p)
+        # Weights are eval |cos| / pdf at the drawn directions.
+        ok = s["valid"]
+        wo_rep = np.tile(wo, (ok.sum(), 1))
+        expect = b.eval(wo_rep, s["wi"][ok]) * (np.abs(s["wi"][ok, 2]) / b.pdf(wo_rep, s["wi"][ok]))[:, None]
+        assert np.allclose(s["weight"][ok], expect, rtol=1e-10)
+        assert np.allclose(s["pdf"][ok], b.pdf(wo_rep, s["wi"][ok]), rtol=1e-12)
+
+
+def test_sampling_test_detects_a_wrong_pdf():
+    """The chi-square check is not toothless: a Phong lobe sampled with another exponent's pdf
+    fails it."""
+    class Mismatched:
+        def __init__(self):
+            self.sampler = bsgi.NormalizedPhong([0.0] * 3, [1.0] * 3, 25.0)
+            self.density = bsgi.NormalizedPhong([0.0] * 3, [1.0] * 3, 22.0)
+
+        def sample(self, wo, u):
+            return self.sampler.sample(wo, u)
+
+        def pdf(self, wo, wi):
+            return self.density.pdf(wo, wi)
+
+    p, _ = chi_square_p_value(Mismatched(), direction(np.array([0.9]), np.array([1.1])), False)
+    assert p < 1e-6
+
+
+def test_emission_is_one_sided_and_cosine_sampled():
+    e = bsgi.Emission([2.0, 1.0, 0.5])
+    up, down = direction(np.array([0.5]), np.array([0.3])), direction(np.array([-0.5]), np.array([0.3]))
+    assert np.allclose(e.eval(up), [[2, 1, 0.5]]) and not e.eval(down).any()
+    nodes, w = quadrature(400, 400, -1, 1)
+    assert np.sum(e.pdf(nodes) * w) == pytest.approx(1, rel=1e-4)
+    two = bsgi.Emission([1.0, 1.0, 1.0], two_sided=True)
+    assert np.allclose(two.eval(down), 1) and np.sum(two.pdf(nodes) * w) == pytest.approx(1, rel=1e-4)
+    d, pdf = e.sample(np.random.default_rng(0).uniform(size=(50000, 3)))
+    assert np.allclose(pdf, d[:, 2] / np.pi)
+    assert np.mean(d[:, 2]) == pytest.approx(2 / 3, abs=5e-3)  # E[cos] under cos/pi is 2/3
+
+
+@pytest.mark.parametrize("make,message", [
+    (lambda: bsgi.Lambert([1.2, 0, 0]), "albedo"),
+    (lambda: bsgi.NormalizedPhong([0.6] * 3, [0.6] * 3, 10), "kd \\+ ks"),
+    (lambda: bsgi.NormalizedPhong([0.1] * 3, [0.1] * 3, -1), "exponent"),
+    (lambda: bsgi.AshikhminShirley([0.1] * 3, [0.1] * 3, np.nan, 1), "nu"),
+    (lambda: bsgi.GgxReflection(0.0, 0.1, [1, 1, 1]), "alpha"),
+    (lambda: bsgi.RoughDielectric(-1.5, 0.1, 0.1), "eta"),
+    (lambda: bsgi.Emission([-1, 0, 0]), "radiance"),
+])
+def test_bad_parameters_are_refused(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_ggx_matches_mitsuba_roughconductor():
+    mi = pytest.importorskip("mitsuba")
+    mi.set_variant("scalar_rgb")
+    rng = np.random.default_rng(7)
+    ctx = mi.BSDFContext()
+    for ax, ay in [(0.1, 0.1), (0.3, 0.3), (0.5, 0.2), (0.15, 0.6)]:
+        # material 'none': Mitsuba's perfect mirror, Fresnel 1 (our f0 = 1).
+        ref = mi.load_dict({"type": "roughconductor", "distribution": "ggx", "alpha_u": ax, "alpha_v": ay, "material": "none"})
+        ours = bsgi.GgxReflection(ax, ay, [1.0, 1.0, 1.0])
+        wo, wi = random_directions(rng, 300), random_directions(rng, 300)
+        n = min(len(wo), len(wi))
+        wo, wi = wo[:n], wi[:n]
+        # Mitsuba's si.wi is our wo (towards the viewer), its wo our wi; its eval includes cos(wi).
+        f = ours.eval(wo, wi)[:, 0] * wi[:, 2]
+        pdf = ours.pdf(wo, wi)
+        for k in range(n):
+            si = mi.SurfaceInteraction3f()
+            si.wi = mi.Vector3f(*wo[k])
+            value = ref.eval(ctx, si, mi.Vector3f(*wi[k]))[0]
+            assert f[k] == pytest.approx(value, rel=1e-5, abs=1e-7 * max(f.max(), 1)), (ax, ay, wo[k], wi[k])
+            assert pdf[k] == pytest.approx(ref.pdf(ctx, si, mi.Vector3f(*wi[k])), rel=1e-5, abs=1e-7 * max(pdf.max(), 1))
