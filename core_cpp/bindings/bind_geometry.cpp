@@ -6,6 +6,7 @@
 #include <limits>
 #include <optional>
 #include <stdexcept>
+#include <type_traits>
 
 #include "bindings.h"
 #include "bsgi/mesh_chart.h"
@@ -240,24 +241,41 @@ void bind_geometry(py::module_& m) {
         .def(
             "closest_hit",
             [](const PyRayCaster& r, const Array& origins, const Array& directions, std::optional<Array> tnear,
-               std::optional<Array> tfar, int threads) {
+               std::optional<Array> tfar, int threads, std::optional<py::dict> out) {
                 const RayBatch b = batch(origins, directions, tnear, tfar);
                 const py::ssize_t n = py::ssize_t(b.count);
-                py::array_t<int32_t> surface(n);
-                auto t = py::array_t<double>(n), uv = empty({n, 2}), p = empty({n, 3}), frame = empty({n, 3, 3});
-                HitArrays out{surface.mutable_data(), t.mutable_data(), uv.mutable_data(), p.mutable_data(), frame.mutable_data()};
+                py::dict d;
+                if (out) {
+                    d = *out;
+                } else {
+                    d["surface"] = py::array_t<int32_t>(n), d["t"] = py::array_t<double>(n), d["uv"] = empty({n, 2});
+                    d["position"] = empty({n, 3}), d["frame"] = empty({n, 3, 3});
+                }
+                // Writable C-contiguous arrays of the right shape, or the key is skipped.
+                auto target = [&](const char* key, std::vector<py::ssize_t> shape, auto* tag) {
+                    using T = std::remove_pointer_t<decltype(tag)>;
+                    if (!d.contains(key)) return static_cast<T*>(nullptr);
+                    auto a = py::array::ensure(d[key]);
+                    bool ok = a && a.dtype().is(py::dtype::of<T>()) && (a.flags() & py::array::c_style) && a.writeable() &&
+                              size_t(a.ndim()) == shape.size();
+                    for (size_t i = 0; ok && i < shape.size(); ++i) ok = a.shape(i) == shape[i];
+                    if (!ok) throw std::invalid_argument(std::string("out['") + key + "'] must be a writable C-contiguous array of the right shape and dtype");
+                    return static_cast<T*>(a.mutable_data());
+                };
+                HitArrays arrays{target("surface", {n}, (int32_t*)nullptr), target("t", {n}, (double*)nullptr),
+                                 target("uv", {n, 2}, (double*)nullptr), target("position", {n, 3}, (double*)nullptr),
+                                 target("frame", {n, 3, 3}, (double*)nullptr)};
                 {
                     py::gil_scoped_release release;
-                    r.caster->closest_hit_batch(b, out, threads);
+                    r.caster->closest_hit_batch(b, arrays, threads);
                 }
-                py::dict d;
-                d["surface"] = surface, d["t"] = t, d["uv"] = uv, d["position"] = p, d["frame"] = frame;
                 return d;
             },
             py::arg("origins"), py::arg("directions"), py::arg("tnear") = py::none(), py::arg("tfar") = py::none(),
-            py::arg("threads") = 0,
+            py::arg("threads") = 0, py::arg("out") = py::none(),
             "Closest hits of rays origin + t dir: surface (-1: none), t (inf: none), uv, position, frame (N, 3, 3) with rows "
-            "x, y, normal. Releases the GIL; threads=0 uses all.")
+            "x, y, normal. `out`: a dict of preallocated arrays to fill instead (keys left out are not computed). "
+            "Releases the GIL; threads=0 uses all.")
         .def(
             "occluded",
             [](const PyRayCaster& r, const Array& origins, const Array& directions, std::optional<Array> tnear,

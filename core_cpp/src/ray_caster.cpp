@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "bsgi/parallel.h"
 
@@ -14,18 +18,30 @@ namespace {
 // below any feature a radiance spline resolves.
 constexpr double kOffsetRelative = 1e-5;
 
+// Results go out with non-temporal stores where available: they are written once and not read
+// back here, so they need not displace the BVH from the cache nor be read before being written.
+inline void put(double* dst, double x) {
+#if defined(__x86_64__)
+    long long bits;
+    std::memcpy(&bits, &x, sizeof bits);
+    _mm_stream_si64(reinterpret_cast<long long*>(dst), bits);
+#else
+    *dst = x;
+#endif
+}
+
 void write(const HitArrays& out, size_t i, const SurfaceHit& h) {
     if (out.surface) out.surface[i] = h.surface;
-    if (out.t) out.t[i] = h.surface >= 0 ? h.t : std::numeric_limits<double>::infinity();
-    if (out.uv) out.uv[2 * i] = h.u, out.uv[2 * i + 1] = h.v;
+    if (out.t) put(out.t + i, h.surface >= 0 ? h.t : std::numeric_limits<double>::infinity());
+    if (out.uv) put(out.uv + 2 * i, h.u), put(out.uv + 2 * i + 1, h.v);
     if (out.position) {
         double* p = out.position + 3 * i;
-        p[0] = h.p.x, p[1] = h.p.y, p[2] = h.p.z;
+        put(p, h.p.x), put(p + 1, h.p.y), put(p + 2, h.p.z);
     }
     if (out.frame) {
         double* f = out.frame + 9 * i;
         const Vec3* axes[3] = {&h.frame.x, &h.frame.y, &h.frame.z};
-        for (int a = 0; a < 3; ++a) f[3 * a] = axes[a]->x, f[3 * a + 1] = axes[a]->y, f[3 * a + 2] = axes[a]->z;
+        for (int a = 0; a < 3; ++a) put(f + 3 * a, axes[a]->x), put(f + 3 * a + 1, axes[a]->y), put(f + 3 * a + 2, axes[a]->z);
     }
 }
 
@@ -48,9 +64,7 @@ RayCaster::RayCaster(std::vector<const Surface*> surfaces) : surfaces_(std::move
 }
 
 SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tnear, double tfar) const {
-    const double dlen = length(d);
-    // Exact intersections this close to the start are the surface the ray starts on.
-    const double t_self = tnear + 1e-3 * offset_ / dlen;
+    double t_self = -1;
     for (int attempt = 0; attempt < 16 && h.surface >= 0; ++attempt) {
         const Surface& s = *surfaces_[h.surface];
         SurfaceHit out;
@@ -60,9 +74,14 @@ SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tne
             out.u = h.u;
             out.v = h.v;
             out.p = o + d * h.t;
-            out.frame = frame_with_normal(h.normal, h.dpdu, h.dpdv);
+            // The record's frame, re-orthonormalised in double (it was stored in float).
+            out.frame.z = normalize(h.normal);
+            out.frame.x = normalize(h.tangent - out.frame.z * dot(h.tangent, out.frame.z));
+            out.frame.y = cross(out.frame.z, out.frame.x);
             return out;
         }
+        // Exact intersections this close to the start are the surface the ray starts on.
+        if (t_self < 0) t_self = tnear + 1e-3 * offset_ / length(d);
         double u = h.u, v = h.v, t = h.t;
         if (s.intersect(o, d, u, v, t) && t > t_self && t < tfar) {
             const SurfacePoint sp = s.evaluate(u, v);
@@ -91,7 +110,7 @@ bool RayCaster::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar
 
 void RayCaster::closest_hit_batch(const RayBatch& rays, const HitArrays& out, int threads) const {
     parallel_for(rays.count, 1024, threads, [&](size_t begin, size_t end) {
-        constexpr size_t kBlock = 256;
+        constexpr size_t kBlock = 32;  // the hits stay in L1
         RayHit hits[kBlock];
         for (size_t start = begin; start < end; start += kBlock) {
             const size_t n = std::min(kBlock, end - start);
@@ -105,6 +124,9 @@ void RayCaster::closest_hit_batch(const RayBatch& rays, const HitArrays& out, in
                 write(out, i, resolve(hits[k], {o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar));
             }
         }
+#if defined(__x86_64__)
+        _mm_sfence();  // make the streamed results visible before the batch returns
+#endif
     });
 }
 

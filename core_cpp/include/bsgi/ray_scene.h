@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "bsgi/frame.h"
 #include "bsgi/surface.h"
 #include "bsgi/vec3.h"
 
@@ -14,10 +15,11 @@ struct RayHit {
     int surface = -1;  // -1: the ray escaped
     double t = 0;      // ray parameter: the hit is at origin + t * dir
     double u = 0, v = 0;  // surface parameters interpolated from the tessellation (not yet refined)
-    // Where on the tessellation, and the tessellation's own geometry there (flat triangles):
+    // Where on the tessellation, and the local frame (1)-(3) of the tessellation there (flat
+    // triangles): normal from Tessellation::normals (else the winding normal), tangent x along
+    // the triangle's s_u (of its linear map from (u, v)). Exact for meshes.
     uint32_t triangle = 0;
-    Vec3 dpdu, dpdv;  // derivatives of the triangle's linear map from (u, v); zero if its UVs have no area
-    Vec3 normal;      // unit normal of the triangle (Tessellation::normals, else the winding normal)
+    Vec3 tangent, normal;
 };
 
 // Rays in structure-of-arrays form, as numpy hands them over: origins and directions are
