@@ -139,16 +139,21 @@ void bind_geometry(py::module_& m) {
         m, "NurbsSurface", "A rational NURBS surface evaluated exactly as Blender does (knots by Blender's rule).")
         .def(py::init([](const std::string& name, const Array& points, int count_u, int count_v, int order_u, int order_v,
                          bool endpoint_u, bool endpoint_v, bool bezier_u, bool bezier_v, bool cyclic_u, bool cyclic_v,
-                         int subdivisions) {
+                         int subdivisions, const std::string& front) {
                  if (points.ndim() != 2 || points.shape(1) != 4)
                      throw std::invalid_argument("surface '" + name + "': points must have shape (count_u * count_v, 4): x, y, z, weight");
+                 if (front != "blender" && front != "su_x_sv")
+                     throw std::invalid_argument("surface '" + name + "': front must be 'blender' or 'su_x_sv'");
                  return std::make_shared<NurbsSurface>(name, flat(points), NurbsDirection{count_u, order_u, endpoint_u, bezier_u, cyclic_u},
-                                                       NurbsDirection{count_v, order_v, endpoint_v, bezier_v, cyclic_v}, subdivisions);
+                                                       NurbsDirection{count_v, order_v, endpoint_v, bezier_v, cyclic_v}, subdivisions,
+                                                       front == "blender" ? NurbsFront::Blender : NurbsFront::SuCrossSv);
              }),
              py::arg("name"), py::arg("points"), py::arg("count_u"), py::arg("count_v"), py::arg("order_u") = 4, py::arg("order_v") = 4,
              py::arg("endpoint_u") = false, py::arg("endpoint_v") = false, py::arg("bezier_u") = false, py::arg("bezier_v") = false,
-             py::arg("cyclic_u") = false, py::arg("cyclic_v") = false, py::arg("subdivisions") = 0,
-             "points: Blender's spline.points[].co, u fastest (x, y, z, weight).")
+             py::arg("cyclic_u") = false, py::arg("cyclic_v") = false, py::arg("subdivisions") = 0, py::arg("front") = "blender",
+             "points: Blender's spline.points[].co, u fastest (x, y, z, weight). subdivisions: tessellation steps per knot "
+             "span (0: automatic). front: 'blender' (the frame's z is Blender's face normal, -(s_u x s_v)) or 'su_x_sv' "
+             "(paper (2) literally).")
         .def_property_readonly("knots_u", [](const NurbsSurface& s) { return py::array_t<double>(s.knots_u().size(), s.knots_u().data()); })
         .def_property_readonly("knots_v", [](const NurbsSurface& s) { return py::array_t<double>(s.knots_v().size(), s.knots_v().data()); })
         .def_property_readonly("range_u", &NurbsSurface::range_u)

@@ -126,8 +126,9 @@ std::pair<double, double> blender_range(const NurbsDirection& d, const std::vect
     return {knots[k - 1], d.cyclic ? knots[d.points + k - 1] : knots[d.points]};
 }
 
-NurbsSurface::NurbsSurface(std::string name, std::vector<double> control, NurbsDirection u, NurbsDirection v, int subdivisions)
-    : Surface(std::move(name)), u_(u), v_(v), subdivisions_(subdivisions) {
+NurbsSurface::NurbsSurface(std::string name, std::vector<double> control, NurbsDirection u, NurbsDirection v, int subdivisions,
+                           NurbsFront front)
+    : Surface(std::move(name)), u_(u), v_(v), subdivisions_(subdivisions), front_(front) {
     auto fail = [&](const std::string& what) { throw std::invalid_argument("surface '" + this->name() + "': " + what); };
     for (const NurbsDirection* d : {&u_, &v_}) {
         const std::string problem = blender_nurbs_problem(*d);
@@ -267,14 +268,13 @@ SurfacePoint NurbsSurface::evaluate(double u, double v) const {
     Vec3 suv;
     derivatives(u, v, s.p, s.dpdu, s.dpdv, suv);
     s.jacobian = length(cross(s.dpdu, s.dpdv));
-    Vec3 n;
-    if (normal_from_derivatives(s.dpdu, s.dpdv, size_, n)) {
-        s.frame = frame_with_normal(n, s.dpdu, s.dpdv);
-    } else {
+    Vec3 n, limit_su;
+    if (!normal_from_derivatives(s.dpdu, s.dpdv, size_, n)) {
+        if (!unit_or_fail(limit_normal(u, v, s.dpdu, s.dpdv, suv), 0.0, n)) n = {0, 0, 1};
         // Where s_u vanishes its direction in the limit is that of s_uv (s_u ~ (v - v0) s_uv).
-        const Vec3 limit_su = suv * (v < 0.5 ? 1.0 : -1.0);
-        s.frame = local_frame(s.dpdu, s.dpdv, size_, limit_normal(u, v, s.dpdu, s.dpdv, suv), limit_su);
+        limit_su = suv * (v < 0.5 ? 1.0 : -1.0);
     }
+    s.frame = frame_with_normal(front_ == NurbsFront::Blender ? -n : n, s.dpdu, s.dpdv, limit_su);
     return s;
 }
 

@@ -27,8 +27,9 @@ def test_paper_frame_where_defined():
     rng = np.random.default_rng(3)
     pts = np.column_stack([np.repeat(np.arange(5), 5), np.tile(np.arange(5), 5), rng.uniform(-1, 1, 25),
                            rng.uniform(0.5, 2, 25)])
-    s = bsgi.NurbsSurface("wavy", pts, 5, 5, 4, 3, endpoint_u=True, endpoint_v=True)
-    e = s.evaluate(rng.uniform(0, 1, (500, 2)))
+    s = bsgi.NurbsSurface("wavy", pts, 5, 5, 4, 3, endpoint_u=True, endpoint_v=True, front="su_x_sv")
+    uv = rng.uniform(0, 1, (500, 2))
+    e = s.evaluate(uv)
     su, sv = e["dpdu"], e["dpdv"]
     x = su / np.linalg.norm(su, axis=1, keepdims=True)
     z = np.cross(su, sv)
@@ -37,6 +38,10 @@ def test_paper_frame_where_defined():
     assert np.allclose(e["normal"], z, atol=1e-12)  # (2)
     assert np.allclose(e["y"], np.cross(z, x), atol=1e-12)  # (3)
     assert np.allclose(e["jacobian"], np.linalg.norm(np.cross(su, sv), axis=1))
+    # Blender's front (the default) turns z over and keeps x along s_u, right-handed.
+    b = bsgi.NurbsSurface("wavy", pts, 5, 5, 4, 3, endpoint_u=True, endpoint_v=True).evaluate(uv)
+    assert np.allclose(b["normal"], -z, atol=1e-12) and np.allclose(b["x"], x, atol=1e-12)
+    assert np.allclose(b["y"], np.cross(-z, x), atol=1e-12)
 
 
 def test_sphere_frames_on_a_dense_grid_with_the_poles():

@@ -41,6 +41,12 @@ std::vector<double> blender_knots(const NurbsDirection& d);
 // Blender's evaluation range [knots[order-1], cyclic ? knots[points+order-1] : knots[points]].
 std::pair<double, double> blender_range(const NurbsDirection& d, const std::vector<double>& knots);
 
+// Which side is the front, the side the frame's z points to. Blender's meshes of NURBS surfaces
+// face -(s_u x s_v) (checked on its primitives), so surfaces from Blender keep Blender's front
+// by default; the frame is then x along s_u, z = -(s_u x s_v) / |s_u x s_v|, y = z x x (still
+// right-handed). SuCrossSv is paper (2) literally.
+enum class NurbsFront { Blender, SuCrossSv };
+
 class NurbsSurface final : public Surface {
 public:
     // `control` holds u.points * v.points points (x, y, z, w) in Blender's order (u fastest):
@@ -49,7 +55,8 @@ public:
     // within 2e-4 of the surface's size. Throws
     // std::invalid_argument naming the surface for NaN/infinite points, weights <= 0, orders
     // outside 2..6 and point counts Blender would refuse.
-    NurbsSurface(std::string name, std::vector<double> control, NurbsDirection u, NurbsDirection v, int subdivisions = 0);
+    NurbsSurface(std::string name, std::vector<double> control, NurbsDirection u, NurbsDirection v, int subdivisions = 0,
+                 NurbsFront front = NurbsFront::Blender);
 
     SurfacePoint evaluate(double u, double v) const override;
     // Position, s_u, s_v and the mixed derivative s_uv at normalised parameters.
@@ -67,6 +74,7 @@ public:
 
     const NurbsDirection& direction_u() const { return u_; }
     const NurbsDirection& direction_v() const { return v_; }
+    NurbsFront front() const { return front_; }
     const std::vector<double>& knots_u() const { return knots_u_; }
     const std::vector<double>& knots_v() const { return knots_v_; }
     std::pair<double, double> range_u() const { return range_u_; }
@@ -92,6 +100,7 @@ private:
     std::vector<double> knots_u_, knots_v_;
     std::pair<double, double> range_u_, range_v_;
     int subdivisions_;
+    NurbsFront front_;
     double area_ = 0;
 };
 
