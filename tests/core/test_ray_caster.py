@@ -249,3 +249,30 @@ def test_bad_rays_are_refused():
         caster.closest_hit(np.array([[np.nan, 0, 0]]), np.array([[1.0, 0, 0]]))
     with pytest.raises(ValueError, match="shape"):
         caster.closest_hit(np.zeros((3, 2)), np.zeros((3, 2)))
+
+
+def test_mesh_chart_hits_carry_the_charts_parameters_and_frame():
+    # A bumpy latitude-longitude sphere as one chart; hits from inside.
+    nt, nph = 40, 80
+    i, j = np.meshgrid(np.arange(nt + 1), np.arange(nph + 1), indexing="ij")
+    u, v = i / nt, j / nph
+    th, ph = np.pi * u, 2 * np.pi * v
+    r = 1 + 0.1 * np.sin(3 * th) * np.cos(2 * ph)
+    pos = np.stack([r * np.sin(th) * np.cos(ph), r * np.sin(th) * np.sin(ph), r * np.cos(th)], -1).reshape(-1, 3)
+    idx = (i * (nph + 1) + j)[:-1, :-1].ravel()
+    tris = np.concatenate([np.stack([idx, idx + nph + 1, idx + nph + 2], 1), np.stack([idx, idx + nph + 2, idx + 1], 1)])
+    uv = np.stack([u, v], -1).reshape(-1, 2)
+    chart = bsgi.MeshChart("bumpy", pos, tris, uv[tris])
+    caster = bsgi.RayCaster([chart])
+    rng = np.random.default_rng(12)
+    n = 3000
+    o = rng.uniform(-0.3, 0.3, (n, 3))
+    d = unit(rng.normal(size=(n, 3)))
+    h = caster.closest_hit(o, d)
+    assert (h["surface"] == 0).all()
+    e = chart.evaluate(h["uv"])
+    assert np.abs(e["position"] - h["position"]).max() < 1e-5  # float tessellation vs double chart
+    assert np.abs(e["normal"] - h["frame"][:, 2]).max() < 1e-5
+    assert np.abs(e["x"] - h["frame"][:, 0]).max() < 1e-5
+    # Normals face out (the winding), so rays from inside see the back.
+    assert (np.sum(h["frame"][:, 2] * d, axis=1) > 0).all()
