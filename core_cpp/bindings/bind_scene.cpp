@@ -2,6 +2,7 @@
 #include <pybind11/stl.h>
 
 #include "bindings.h"
+#include "bsgi/radiance.h"
 #include "bsgi/solver.h"
 
 namespace py = pybind11;
@@ -27,40 +28,71 @@ Vec3 rgb(const Array& a, const char* what) {
 
 py::array_t<double> vec(const Vec3& v) { return py::array_t<double>(3, &v.x); }
 
+Material material(const Array& albedo, const Array& emission, std::shared_ptr<const Bsdf> bsdf) {
+    return {rgb(albedo, "albedo"), rgb(emission, "emission"), std::move(bsdf)};
+}
+
+SurfaceOptions options(const std::string& name, const std::string& representation, int spatial, int angular) {
+    SurfaceOptions o;
+    if (representation == "auto") o.representation = Representation::Auto;
+    else if (representation == "diffuse") o.representation = Representation::Diffuse;
+    else if (representation == "glossy") o.representation = Representation::Glossy;
+    else throw std::invalid_argument("surface '" + name + "': representation must be 'auto', 'diffuse' or 'glossy', got '" +
+                                     representation + "'");
+    o.spatial_coeffs = spatial;
+    o.angular_coeffs = angular;
+    return o;
+}
+
+const char* kind_name(Representation r) { return r == Representation::Glossy ? "glossy" : "diffuse"; }
+
 }  // namespace
 
 void bind_scene(py::module_& m) {
     py::register_exception<Cancelled>(m, "SolveCancelled", PyExc_RuntimeError);
 
-    py::class_<Scene>(m, "Scene", "Surfaces with Lambertian materials and emission.")
+    py::class_<Scene>(m, "Scene", "Surfaces with their materials (Lambertian albedo or a BSDF) and emission.")
         .def(py::init<>())
         .def(
             "add_bilinear_patch",
             [](Scene& s, const std::string& name, const Array& corners, const Array& albedo, const Array& emission,
-               bool receiver, bool occluder) {
+               bool receiver, bool occluder, std::shared_ptr<const Bsdf> bsdf, const std::string& representation,
+               int spatial_coeffs, int angular_coeffs) {
                 auto p = points(corners, 4, ("surface '" + name + "'").c_str());
-                return s.add(std::make_unique<BilinearPatch>(name, p[0], p[1], p[2], p[3]),
-                             {rgb(albedo, "albedo"), rgb(emission, "emission")}, receiver, occluder);
+                return s.add(std::make_shared<BilinearPatch>(name, p[0], p[1], p[2], p[3]),
+                             material(albedo, emission, std::move(bsdf)), receiver, occluder,
+                             options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("name"), py::arg("corners"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true,
-            py::arg("occluder") = true)
+            py::arg("occluder") = true, py::arg("bsdf") = nullptr, py::arg("representation") = "auto",
+            py::arg("spatial_coeffs") = 0, py::arg("angular_coeffs") = 0,
+            "A quad (p00, p10, p11, p01), front where (p10 - p00) x (p01 - p00) points. Without a BSDF it is "
+            "Lambertian with `albedo`; representation 'auto' lets the solver choose 2D or 4D, or force "
+            "'diffuse' / 'glossy'; coefficient counts 0 are chosen by the solver.")
         .def(
             "add_triangle",
             [](Scene& s, const std::string& name, const Array& corners, const Array& albedo, const Array& emission,
-               bool receiver, bool occluder) {
+               bool receiver, bool occluder, std::shared_ptr<const Bsdf> bsdf, const std::string& representation,
+               int spatial_coeffs, int angular_coeffs) {
                 auto p = points(corners, 3, ("surface '" + name + "'").c_str());
-                return s.add(std::make_unique<TrianglePatch>(name, p[0], p[1], p[2]),
-                             {rgb(albedo, "albedo"), rgb(emission, "emission")}, receiver, occluder);
+                return s.add(std::make_shared<TrianglePatch>(name, p[0], p[1], p[2]), material(albedo, emission, std::move(bsdf)),
+                             receiver, occluder, options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("name"), py::arg("corners"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true,
-            py::arg("occluder") = true)
+            py::arg("occluder") = true, py::arg("bsdf") = nullptr, py::arg("representation") = "auto",
+            py::arg("spatial_coeffs") = 0, py::arg("angular_coeffs") = 0)
         .def(
             "add_surface",
-            [](Scene& s, std::shared_ptr<Surface> surface, const Array& albedo, const Array& emission, bool receiver, bool occluder) {
-                return s.add(std::move(surface), {rgb(albedo, "albedo"), rgb(emission, "emission")}, receiver, occluder);
+            [](Scene& s, std::shared_ptr<Surface> surface, const Array& albedo, const Array& emission, bool receiver,
+               bool occluder, std::shared_ptr<const Bsdf> bsdf, const std::string& representation, int spatial_coeffs,
+               int angular_coeffs) {
+                const std::string name = surface ? surface->name() : "";
+                return s.add(std::move(surface), material(albedo, emission, std::move(bsdf)), receiver, occluder,
+                             options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("surface"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true, py::arg("occluder") = true,
-            "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it.")
+            py::arg("bsdf") = nullptr, py::arg("representation") = "auto", py::arg("spatial_coeffs") = 0,
+            py::arg("angular_coeffs") = 0, "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it.")
         .def("__len__", &Scene::size)
         .def("name", [](const Scene& s, size_t i) { return s[i].surface->name(); })
         .def("area", [](const Scene& s, size_t i) { return s[i].surface->area(); })
@@ -77,23 +109,39 @@ void bind_scene(py::module_& m) {
             },
             py::arg("index"), py::arg("u"), py::arg("v"), "Point, derivatives and local frame (1)-(3) of surface index at (u, v).");
 
-    py::class_<SolverSettings>(m, "SolverSettings", "Knots, degrees, integration nodes and bounces of a solve.")
+    py::class_<SolverSettings>(m, "SolverSettings", "Knots, degrees, integration nodes and bounces of a solve (see solver.h).")
         .def(py::init<>())
+        .def_static("preset", &SolverSettings::preset, py::arg("name"), "Settings of the 'draft', 'preview' or 'final' preset.")
         .def_readwrite("spatial_coeffs", &SolverSettings::spatial_coeffs)
         .def_readwrite("spatial_degree", &SolverSettings::spatial_degree)
         .def_readwrite("epsilon", &SolverSettings::epsilon)
+        .def_readwrite("coeffs_from_size", &SolverSettings::coeffs_from_size)
+        .def_readwrite("spatial_coeffs_min", &SolverSettings::spatial_coeffs_min)
         .def_readwrite("adaptive_knots", &SolverSettings::adaptive_knots)
+        .def_readwrite("angular_degree", &SolverSettings::angular_degree)
+        .def_readwrite("angular_delta", &SolverSettings::angular_delta)
+        .def_readwrite("angular_resolution", &SolverSettings::angular_resolution)
+        .def_readwrite("angular_coeffs_min", &SolverSettings::angular_coeffs_min)
+        .def_readwrite("angular_coeffs_max", &SolverSettings::angular_coeffs_max)
         .def_readwrite("emitter_coeffs", &SolverSettings::emitter_coeffs)
+        .def_readwrite("emitter_degree", &SolverSettings::emitter_degree)
         .def_readwrite("emitter_cell_ratio", &SolverSettings::emitter_cell_ratio)
         .def_readwrite("emitter_max_depth", &SolverSettings::emitter_max_depth)
-        .def_readwrite("emitter_degree", &SolverSettings::emitter_degree)
         .def_readwrite("hemisphere_nodes_theta", &SolverSettings::hemisphere_nodes_theta)
         .def_readwrite("hemisphere_nodes_phi", &SolverSettings::hemisphere_nodes_phi)
+        .def_readwrite("bsdf_samples", &SolverSettings::bsdf_samples)
         .def_readwrite("max_bounces", &SolverSettings::max_bounces)
         .def_readwrite("tolerance", &SolverSettings::tolerance)
         .def_readwrite("extrapolate", &SolverSettings::extrapolate)
+        .def_readwrite("final_gather", &SolverSettings::final_gather)
+        .def_readwrite("final_spatial_factor", &SolverSettings::final_spatial_factor)
+        .def_readwrite("final_integration_factor", &SolverSettings::final_integration_factor)
         .def_readwrite("threads", &SolverSettings::threads)
-        .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb);
+        .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb)
+        .def("__repr__", [](const SolverSettings& s) {
+            return "SolverSettings(spatial_coeffs=" + std::to_string(s.spatial_coeffs) + ", max_bounces=" +
+                   std::to_string(s.max_bounces) + ", final_gather=" + (s.final_gather ? "True" : "False") + ", ...)";
+        });
 
     py::class_<Progress>(m, "Progress", "Progress of a solve: poll it from any thread, cancel() stops the solve.")
         .def(py::init<>())
@@ -102,22 +150,69 @@ void bind_scene(py::module_& m) {
         .def_property_readonly("cancelled", &Progress::cancelled)
         .def("cancel", &Progress::cancel);
 
+    py::class_<SurfaceRadiance>(m, "SurfaceRadiance",
+                                "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "
+                                "(glossy), a second spline for the lower hemisphere where it transmits.")
+        .def_property_readonly("kind", [](const SurfaceRadiance& r) { return kind_name(r.kind); })
+        .def_readonly("upper", &SurfaceRadiance::upper)
+        .def_readonly("lower", &SurfaceRadiance::lower)
+        .def_property_readonly("disc_radius", [](const SurfaceRadiance& r) { return r.map.radius(); })
+        .def(
+            "evaluate",
+            [](const SurfaceRadiance& r, const Array& uv, const Array& directions) {
+                if (uv.ndim() != 2 || uv.shape(1) != 2 || directions.ndim() != 2 || directions.shape(1) != 3 ||
+                    uv.shape(0) != directions.shape(0))
+                    throw std::invalid_argument("evaluate: uv must be (N, 2) and directions (N, 3)");
+                const size_t n = uv.shape(0);
+                py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
+                const double* u = uv.data();
+                const double* d = directions.data();
+                double* o = out.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    for (size_t i = 0; i < n; ++i) {
+                        const Vec3 L = r.evaluate(u[2 * i], u[2 * i + 1], {d[3 * i], d[3 * i + 1], d[3 * i + 2]});
+                        o[3 * i] = L.x, o[3 * i + 1] = L.y, o[3 * i + 2] = L.z;
+                    }
+                }
+                return out;
+            },
+            py::arg("uv"), py::arg("directions"),
+            "Radiance leaving (u, v) along local directions (frame (1)-(3): z the surface normal), (N, 3) each.");
+
     py::class_<Solution>(m, "Solution")
         .def_property_readonly("radiance", [](const Solution& s) {
+            // The upper-hemisphere spline of each surface (2D or 4D), None for pure emitters.
+            py::list out;
+            for (const auto& r : s.radiance) out.append(r ? py::cast(r->upper) : py::none());
+            return out;
+        })
+        .def_property_readonly("surfaces", [](const Solution& s) {
             py::list out;
             for (const auto& r : s.radiance) out.append(r ? py::cast(*r) : py::none());
+            return out;
+        })
+        .def_property_readonly("reports", [](const Solution& s) {
+            py::list out;
+            for (const auto& r : s.reports) {
+                py::dict d;
+                d["name"] = r.name, d["representation"] = r.representation, d["shape"] = r.shape, d["reason"] = r.reason;
+                out.append(d);
+            }
             return out;
         })
         .def_property_readonly("stats", [](const Solution& s) {
             py::dict d;
             d["seconds_direct"] = s.stats.seconds_direct;
             d["seconds_indirect"] = s.stats.seconds_indirect;
+            d["seconds_final"] = s.stats.seconds_final;
             d["bounces"] = s.stats.bounces;
             d["last_increment"] = s.stats.last_increment;
             d["estimated_error"] = s.stats.estimated_error;
             d["extrapolated"] = s.stats.extrapolated;
             d["coefficients"] = s.stats.coefficients;
             d["rays"] = s.stats.rays;
+            d["bytes"] = s.stats.bytes;
             return d;
         });
 

@@ -77,7 +77,7 @@ def test_memory_over_budget_is_refused_before_allocating():
     scene = grid_scene(2)
     needed = bsgi.estimate_solve_bytes(scene, settings)
     assert needed > 512 * 2**20
-    with pytest.raises(RuntimeError, match=r"needs about \d+ MB .*over the budget of 512 MB"):
+    with pytest.raises(RuntimeError, match=r"needs about \d+ MB, over the budget of 512 MB; the largest is surface 'tile"):
         bsgi.solve(scene, settings)
 
 

@@ -8,6 +8,8 @@
 // one-sided (zero unless both directions are above the surface); the dielectrics scatter on both
 // sides, with `eta` the index inside (below the surface) over the index outside.
 #pragma once
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -34,6 +36,11 @@ public:
     // Index of the medium on the side of w (1 above, eta below for dielectrics).
     virtual double index_on_side(const Vec3& /*w*/) const { return 1; }
     virtual std::string name() const = 0;
+    // About the angular width (radians) of the narrowest lobe of scattered light: what a
+    // view-dependent radiance spline must resolve. pi/2 for diffuse reflection, 0 for delta lobes.
+    virtual double lobe_width() const = 0;
+    // True if light also leaves through the back side (paper section 4.3).
+    virtual bool transmits() const { return false; }
 };
 
 // rho = albedo / pi.
@@ -44,6 +51,8 @@ public:
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     std::string name() const override { return "lambert"; }
+    double lobe_width() const override { return kPiD / 2; }
+    const Vec3& albedo() const { return albedo_; }
 
 private:
     Vec3 albedo_;
@@ -59,6 +68,8 @@ public:
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     std::string name() const override { return "phong"; }
+    // cos^n falls to a half at sqrt(2 ln 2 / n) from the mirror direction.
+    double lobe_width() const override { return max_component(ks_) > 0 ? std::sqrt(1.386 / (n_ + 1)) : kPiD / 2; }
 
 private:
     Vec3 kd_, ks_;
@@ -75,6 +86,10 @@ public:
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     std::string name() const override { return "ashikhmin_shirley"; }
+    // The half vector's lobe, doubled for the reflected direction, along the sharper axis.
+    double lobe_width() const override {
+        return max_component(rs_) > 0 ? 2 * std::sqrt(1.386 / (std::max(nu_, nv_) + 1)) : kPiD / 2;
+    }
 
 private:
     double half_vector_pdf(const Vec3& h) const;
@@ -93,6 +108,7 @@ public:
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     std::string name() const override { return "ggx"; }
+    double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
 
 private:
     GgxDistribution D_;
@@ -110,6 +126,8 @@ public:
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     double index_on_side(const Vec3& w) const override { return w.z >= 0 ? 1.0 : eta_; }
     std::string name() const override { return "dielectric"; }
+    double lobe_width() const override { return 0; }
+    bool transmits() const override { return true; }
 
 private:
     double eta_;
@@ -126,6 +144,8 @@ public:
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     double index_on_side(const Vec3& w) const override { return w.z >= 0 ? 1.0 : eta_; }
     std::string name() const override { return "rough_dielectric"; }
+    double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
+    bool transmits() const override { return true; }
 
 private:
     // With wo mirrored into the upper hemisphere: n_o is the index there, n_t the other.

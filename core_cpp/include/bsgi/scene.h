@@ -1,19 +1,33 @@
 // The scene the solver sees: surfaces with their materials, and which of them block light.
 #pragma once
+#include <cmath>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "bsgi/bsdf.h"
 #include "bsgi/surface.h"
 
 namespace bsgi {
 
-// Lambertian reflection with RGB albedo, plus emitted radiance leaving the front side.
+// How a surface scatters and emits. Without a BSDF the surface is Lambertian with `albedo`.
+// Emission is radiance leaving the front side.
 struct Material {
     Vec3 albedo;
     Vec3 emission;
+    std::shared_ptr<const Bsdf> bsdf;
     bool emits() const { return max_component(emission) > 0; }
+};
+
+// How a surface's radiance is represented: chosen by the solver from the material and the size
+// ("model only what the scene requires") unless given here.
+enum class Representation { Auto = 0, Diffuse = 1, Glossy = 2 };
+
+struct SurfaceOptions {
+    Representation representation = Representation::Auto;
+    int spatial_coeffs = 0;  // per direction; 0: from the settings and the surface's size
+    int angular_coeffs = 0;  // per direction of (alpha, beta); 0: from the BSDF's lobe width
 };
 
 struct SceneSurface {
@@ -21,11 +35,13 @@ struct SceneSurface {
     Material material;
     bool receiver;  // gets a radiance spline (false for light objects, which only emit)
     bool occluder;  // blocks rays (false for light objects, as in Cycles)
+    SurfaceOptions options;
 };
 
 class Scene {
 public:
-    int add(std::shared_ptr<const Surface> surface, const Material& material, bool receiver = true, bool occluder = true) {
+    int add(std::shared_ptr<const Surface> surface, const Material& material, bool receiver = true, bool occluder = true,
+            const SurfaceOptions& options = {}) {
         if (!surface) throw std::invalid_argument("Scene::add: no surface");
         const std::string& name = surface->name();
         for (int c = 0; c < 3; ++c) {
@@ -34,7 +50,9 @@ public:
             if (!std::isfinite(material.emission[c]) || material.emission[c] < 0)
                 throw std::invalid_argument("surface '" + name + "': emission must be finite and >= 0");
         }
-        surfaces_.push_back({std::move(surface), material, receiver, occluder});
+        if (options.spatial_coeffs < 0 || options.angular_coeffs < 0)
+            throw std::invalid_argument("surface '" + name + "': coefficient counts must be >= 0 (0: automatic)");
+        surfaces_.push_back({std::move(surface), material, receiver, occluder, options});
         return static_cast<int>(surfaces_.size()) - 1;
     }
     size_t size() const { return surfaces_.size(); }

@@ -1,0 +1,74 @@
+// The two integrals of the gathering solver, for one receiver node at a time: the surface
+// integral (8)/(35) over the emitters (direct light), and the hemispherical integral (26)-(32)
+// of the radiance other surfaces send (indirect light).
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "bsgi/hemisphere_map.h"
+#include "bsgi/quadrature.h"
+#include "bsgi/ray_caster.h"
+#include "bsgi/scene.h"
+#include "bsgi/solver.h"
+#include "bsgi/tensor_spline.h"
+
+namespace bsgi {
+
+// A receiving surface during the solve: its nodes and its radiance splines (Figure 4), one per
+// side (the lower side only where the surface transmits, section 4.3).
+struct Receiver {
+    int surface = -1;
+    Representation kind = Representation::Diffuse;
+    const Bsdf* bsdf = nullptr;
+    int sides = 1;
+    HemisphereMap map{1.0};
+    std::vector<SurfacePoint> nodes;  // spatial Schoenberg nodes (u_i, v_j), i slowest
+    std::vector<Vec3> directions;     // outgoing local directions of the angular nodes, upper side
+    size_t per_node = 1;              // angular nodes per spatial node (1 if diffuse)
+    std::vector<TensorSpline> Le, L, Ltmp;  // cumulative, incremental, temporary; per side
+
+    using Splines = std::vector<TensorSpline> Receiver::*;
+    size_t values() const { return sides * nodes.size() * per_node; }
+    // Direction of value a of a node on a side: the angular node's, mirrored below for side 1.
+    Vec3 outgoing(int side, size_t a) const {
+        const Vec3 d = kind == Representation::Diffuse ? Vec3{0, 0, 1} : directions[a];
+        return side == 0 ? d : Vec3{d.x, d.y, -d.z};
+    }
+    // RGB coefficient of (side, spatial node, angular node) of one of the spline sets.
+    double* coefficient(Splines which, int side, size_t node, size_t a) {
+        return &(this->*which)[side].coeffs()[3 * (node * per_node + a)];
+    }
+    // Radiance leaving (u, v) along `local`, from one of the spline sets.
+    Vec3 radiance(Splines which, double u, double v, const Vec3& local) const;
+};
+
+class Gatherer {
+public:
+    Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster);
+
+    // Reflected (and transmitted) direct light at node j of r: r.values() / r.nodes.size()
+    // values into out, side-major then angular node.
+    void direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
+    // Light arriving from the other surfaces' splines `which` at node j of r, scattered.
+    // `density` multiplies the integration nodes (the final gather uses more).
+    void indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of, Receiver::Splines which,
+                  int density, Vec3* out, size_t& rays) const;
+    // Direct irradiance at a point (for probing where the light has detail).
+    Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays) const;
+
+private:
+    template <typename Visit>
+    void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Vec3& radiance, double s0, double s1,
+                      double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit, size_t& rays) const;
+    template <typename Visit>
+    void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,
+                                 size_t& rays) const;
+
+    const Scene& scene_;
+    const SolverSettings& settings_;
+    const RayCaster& caster_;
+    std::vector<int> emitters_;
+    QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell
+};
+
+}  // namespace bsgi

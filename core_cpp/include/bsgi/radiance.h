@@ -1,0 +1,46 @@
+// A surface's solved outgoing radiance (paper 3.1-3.3, 4.3): a 2D spline D(u, v) where the
+// surface is diffuse, a 4D spline L(u, v, alpha, beta) over the hemisphere map (20)-(22) where
+// it is glossy, and a second spline for the lower hemisphere where it transmits.
+#pragma once
+#include <optional>
+#include <string>
+
+#include "bsgi/hemisphere_map.h"
+#include "bsgi/scene.h"
+#include "bsgi/tensor_spline.h"
+
+namespace bsgi {
+
+struct SurfaceRadiance {
+    Representation kind = Representation::Diffuse;
+    HemisphereMap map{1.0};
+    TensorSpline upper;                 // leaving the front side, emission included
+    std::optional<TensorSpline> lower;  // leaving the back side (transmitting surfaces)
+
+    // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
+    Vec3 evaluate(double u, double v, const Vec3& local) const {
+        const bool front = local.z >= 0;
+        if (!front && !lower) return {0, 0, 0};
+        const TensorSpline& s = front ? upper : *lower;
+        double out[3];
+        if (kind == Representation::Diffuse) {
+            const double x[2] = {u, v};
+            s.evaluate(x, out);
+        } else {
+            double x[4] = {u, v, 0, 0};
+            map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
+            s.evaluate(x, out);
+        }
+        return {out[0], out[1], out[2]};
+    }
+};
+
+// What the solver chose for a surface, and why.
+struct SurfaceReport {
+    std::string name;
+    std::string representation;  // "diffuse 2D", "glossy 4D", "glossy 4D + transmission", "emitter"
+    std::vector<int> shape;      // coefficients per dimension of the upper spline
+    std::string reason;
+};
+
+}  // namespace bsgi

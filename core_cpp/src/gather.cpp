@@ -1,0 +1,208 @@
+#include "bsgi/gather.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace bsgi {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
+// for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
+QuadratureRule emitter_quadrature(int n, int degree) {
+    const KnotVector k = KnotVector::clamped_uniform(n, degree, 0.0, 1.0);
+    return k.degree() == 2 ? quasi_interpolant_quadrature(k) : schoenberg_quadrature(k);
+}
+
+// Cosine-weighted node m of an nt x np product rule in (cos^2 theta, phi) on the upper
+// hemisphere: degree-0 B-spline quadrature on uniform knots, since cos(theta) d(omega) =
+// d(cos^2 theta) d(phi) / 2. Rows are staggered in phi.
+Vec3 cosine_node(int i, int j, int nt, int np) {
+    const double w = (i + 0.5) / nt;
+    const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
+    const double phi = 2 * kPi * (j + 0.5 * (1 + (i & 1))) / np;
+    return {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t};
+}
+
+// Stratified point m of n in [0, 1)^2 (a sqrt(n) x sqrt(n) grid, centred), and a third
+// coordinate spread by the golden ratio: deterministic, so the solve has no noise.
+void stratified(int m, int n, double* u) {
+    const int side = std::max(1, int(std::lround(std::sqrt(double(n)))));
+    u[0] = ((m % side) + 0.5) / side;
+    u[1] = (((m / side) % side) + 0.5) / side;
+    u[2] = std::fmod((m + 0.5) * 0.6180339887498949, 1.0);
+}
+
+}  // namespace
+
+Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local) const {
+    const int side = local.z >= 0 ? 0 : 1;
+    if (side >= sides) return {0, 0, 0};
+    const TensorSpline& s = (this->*which)[side];
+    double out[3];
+    if (kind == Representation::Diffuse) {
+        const double x[2] = {u, v};
+        s.evaluate(x, out);
+    } else {
+        double x[4] = {u, v, 0, 0};
+        map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
+        s.evaluate(x, out);
+    }
+    return {out[0], out[1], out[2]};
+}
+
+Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
+    : scene_(scene), settings_(settings), caster_(caster) {
+    for (size_t i = 0; i < scene.size(); ++i)
+        if (scene[i].material.emits()) emitters_.push_back(int(i));
+    cell_rule_ = emitter_quadrature(settings.emitter_coeffs, settings.emitter_degree);
+}
+
+// The geometric part of (8) over the parameter cell [s0, s1] x [t0, t1] of an emitter: the
+// cell's B-spline quadrature rule where the cell is small seen from the receiver, else the sum
+// over its four quarters. The kernel 1/r^4 peaks where the receiver is close (contact edges,
+// a lamp just above a surface), and a glossy lobe varies across a wide cell: cells shrink
+// until both are resolved. visit(wi, value) gets each visible sample's unit direction (world)
+// and its radiance times cos_r cos_e / d^2 times the area element and weight.
+template <typename Visit>
+void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const Vec3& radiance, double s0, double s1,
+                            double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit,
+                            size_t& rays) const {
+    const Vec3 c = emitter.evaluate(0.5 * (s0 + s1), 0.5 * (t0 + t1)).p;
+    double radius = 0;
+    for (double s : {s0, s1})
+        for (double t : {t0, t1}) radius = std::max(radius, length(emitter.evaluate(s, t).p - c));
+    const double dist = length(c - r.p) - radius;
+    if (depth < settings_.emitter_max_depth && 2 * radius > ratio * dist) {
+        const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
+        emitter_cell(r, emitter, radiance, s0, sm, t0, tm, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, radiance, sm, s1, t0, tm, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, radiance, s0, sm, tm, t1, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, radiance, sm, s1, tm, t1, depth + 1, ratio, both_sides, visit, rays);
+        return;
+    }
+    const double ds = s1 - s0, dt = t1 - t0;
+    const double offset = caster_.offset();
+    for (size_t p = 0; p < cell_rule_.nodes.size(); ++p)
+        for (size_t k = 0; k < cell_rule_.nodes.size(); ++k) {
+            const double s = s0 + ds * cell_rule_.nodes[p], t = t0 + dt * cell_rule_.nodes[k];
+            if (!emitter.in_domain(s, t)) continue;  // the mask chi of (8)
+            const SurfacePoint ep = emitter.evaluate(s, t);
+            const Vec3 d = ep.p - r.p;
+            const double cos_r = dot(d, r.frame.z), cos_e = -dot(d, ep.frame.z);
+            if (cos_e <= 0 || cos_r == 0 || (cos_r < 0 && !both_sides)) continue;  // emitters radiate from their front
+            const double d2 = dot(d, d);
+            // Both ends lifted off their surfaces, and the segment stopped short of the emitter,
+            // so neither surface, nor one meeting the emitter along its edge, shadows it.
+            const Vec3 origin = caster_.spawn(r.p, r.frame.z, d);
+            const Vec3 segment = ep.p + ep.frame.z * offset - origin;
+            const double stop = 1.0 - 2 * offset / length(segment);
+            ++rays;
+            if (stop <= 0 || caster_.occluded(origin, segment, 0.0, stop)) continue;
+            const double w = cell_rule_.weights[p] * cell_rule_.weights[k] * ds * dt;
+            visit(d / std::sqrt(d2), radiance * (w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
+        }
+}
+
+template <typename Visit>
+void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,
+                                       size_t& rays) const {
+    for (int e : emitters_) {
+        if (e == receiver) continue;
+        const SceneSurface& es = scene_[e];
+        emitter_cell(r, *es.surface, es.material.emission, 0, 1, 0, 1, 0, ratio, both_sides, visit, rays);
+    }
+}
+
+Vec3 Gatherer::irradiance(int surface, const SurfacePoint& p, size_t& rays) const {
+    Vec3 e{0, 0, 0};
+    for_each_emitter_sample(surface, p, settings_.emitter_cell_ratio, false,
+                            [&](const Vec3&, const Vec3& value) { e += value; }, rays);
+    return e;
+}
+
+void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
+    const SurfacePoint& p = r.nodes[j];
+    const size_t n = r.sides * r.per_node;
+    std::fill(out, out + n, Vec3{0, 0, 0});
+    // Glossy receivers: emitter cells no wider than a fraction of the lobe, seen from here.
+    const double ratio = r.kind == Representation::Glossy
+                             ? std::min(settings_.emitter_cell_ratio, 0.5 * std::max(r.bsdf->lobe_width(), 0.02))
+                             : settings_.emitter_cell_ratio;
+    for_each_emitter_sample(r.surface, p, ratio, r.sides == 2, [&](const Vec3& wi_world, const Vec3& value) {
+        const Vec3 wi = p.frame.to_local(wi_world);
+        for (int side = 0; side < r.sides; ++side)
+            for (size_t a = 0; a < r.per_node; ++a) out[side * r.per_node + a] += r.bsdf->eval(r.outgoing(side, a), wi) * value;
+    }, rays);
+}
+
+void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
+                        Receiver::Splines which, int density, Vec3* out, size_t& rays) const {
+    const SurfacePoint& p = r.nodes[j];
+    const size_t n = r.sides * r.per_node;
+    std::fill(out, out + n, Vec3{0, 0, 0});
+    const int nt = settings_.hemisphere_nodes_theta * density, np = settings_.hemisphere_nodes_phi * density;
+    // Incoming radiance along a local direction (pointing away from the surface).
+    auto incoming = [&](const Vec3& wi) -> Vec3 {
+        const Vec3 dir = p.frame.to_world(wi);
+        ++rays;
+        const SurfaceHit hit = caster_.closest_hit(caster_.spawn(p.p, p.frame.z, dir), dir);
+        if (hit.surface < 0) return {0, 0, 0};
+        const Receiver* h = receiver_of[hit.surface];
+        return h ? h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir)) : Vec3{0, 0, 0};
+    };
+    // Cosine-weighted nodes on each side light arrives from (both where the surface transmits).
+    const int in_sides = r.bsdf->transmits() ? 2 : 1;
+    const double n_cos = double(nt) * np;
+    if (r.kind == Representation::Diffuse && in_sides == 1) {
+        // Lambertian: the cosine-weighted rule is exact for the BSDF; rho/pi * pi * mean.
+        Vec3 sum{0, 0, 0};
+        for (int i = 0; i < nt; ++i)
+            for (int k = 0; k < np; ++k) sum += incoming(cosine_node(i, k, nt, np));
+        out[0] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * kPi * sum / n_cos;
+        return;
+    }
+    // Glossy (or transmitting): multiple importance sampling of the cosine nodes and, per
+    // outgoing direction, bsdf_samples BSDF-sampled directions (balance heuristic).
+    const int nb = settings_.bsdf_samples * density;
+    auto cosine_pdf = [&](const Vec3& w) { return (w.z < 0 && in_sides == 1) ? 0.0 : std::abs(w.z) / kPi / in_sides; };
+    for (int side_in = 0; side_in < in_sides; ++side_in)
+        for (int i = 0; i < nt; ++i)
+            for (int k = 0; k < np; ++k) {
+                Vec3 wi = cosine_node(i, k, nt, np);
+                if (side_in) wi.z = -wi.z;
+                const Vec3 L = incoming(wi);
+                if (max_component(L) <= 0) continue;
+                const double pc = n_cos * cosine_pdf(wi);
+                for (int side = 0; side < r.sides; ++side)
+                    for (size_t a = 0; a < r.per_node; ++a) {
+                        const Vec3 wo = r.outgoing(side, a);
+                        const Vec3 f = r.bsdf->eval(wo, wi);
+                        if (max_component(f) <= 0) continue;
+                        out[side * r.per_node + a] += L * f * (std::abs(wi.z) / (pc + nb * r.bsdf->pdf(wo, wi)));
+                    }
+            }
+    for (int side = 0; side < r.sides; ++side)
+        for (size_t a = 0; a < r.per_node; ++a) {
+            const Vec3 wo = r.outgoing(side, a);
+            for (int m = 0; m < nb; ++m) {
+                double u[3];
+                stratified(m, nb, u);
+                BsdfSample s;
+                if (!r.bsdf->sample(wo, u[0], u[1], u[2], s)) continue;
+                const Vec3 L = incoming(s.wi);
+                if (max_component(L) <= 0) continue;
+                if (s.delta) {
+                    out[side * r.per_node + a] += L * s.weight / double(nb);
+                    continue;
+                }
+                const double pb = r.bsdf->pdf(wo, s.wi);
+                out[side * r.per_node + a] +=
+                    L * r.bsdf->eval(wo, s.wi) * (std::abs(s.wi.z) / (n_cos * cosine_pdf(s.wi) + nb * pb));
+            }
+        }
+}
+
+}  // namespace bsgi
