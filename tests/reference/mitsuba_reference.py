@@ -38,8 +38,10 @@ def to_mitsuba(spec: SceneSpec, max_depth: int = -1):
         path = folder / f"patch{i}.obj"
         faces = "f 1 2 3 4" if len(p.corners) == 4 else "f 1 2 3"
         path.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in p.corners) + faces + "\n")
-        shape = {"type": "obj", "filename": str(path), "face_normals": True,
-                 "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(p.albedo)}}}
+        bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(p.albedo)}}
+        if p.ggx_alpha > 0:
+            bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha": p.ggx_alpha, "material": "none"}
+        shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": bsdf}
         if max(p.emission) > 0:
             shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(p.emission)}}
         shapes[f"patch{i}"] = shape

@@ -14,14 +14,15 @@ class Patch:
     albedo: tuple = (0.0, 0.0, 0.0)
     emission: tuple = (0.0, 0.0, 0.0)  # radiance leaving the front side
     receiver: bool = True
+    ggx_alpha: float = 0.0  # > 0: GGX reflection with Fresnel 1 (Mitsuba's roughconductor, material 'none')
 
 
 @dataclass
 class SceneSpec:
     patches: list = field(default_factory=list)
 
-    def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True):
-        self.patches.append(Patch(name, np.asarray(corners, float), tuple(albedo), tuple(emission), receiver))
+    def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True, ggx_alpha=0.0):
+        self.patches.append(Patch(name, np.asarray(corners, float), tuple(albedo), tuple(emission), receiver, ggx_alpha))
         return self
 
 
@@ -51,6 +52,15 @@ def box(center, size, angle=0.0):
     return faces
 
 
+def glossy_cornell_box(alpha=0.3) -> SceneSpec:
+    """The Cornell box with a rough metal (GGX, Fresnel 1) back wall."""
+    spec = cornell_box()
+    back = next(p for p in spec.patches if p.name == "back")
+    back.ggx_alpha = alpha
+    back.albedo = (0.0, 0.0, 0.0)
+    return spec
+
+
 def cornell_box() -> SceneSpec:
     """The Cornell box of example_blends/make_cornell_box.py as patches (its lamp as an
     emitting, occluding patch: the path tracer has no light that does not occlude)."""
@@ -70,11 +80,25 @@ def cornell_box() -> SceneSpec:
     return spec
 
 
-def to_bsgi(spec: SceneSpec):
+def to_bsgi(spec: SceneSpec, options=None):
+    """The solver's scene; options: per patch name, keyword options of Scene.add_* (e.g. spatial_coeffs)."""
+    options = options or {}
     import bsgi
 
     scene = bsgi.Scene()
     for p in spec.patches:
         add = scene.add_bilinear_patch if len(p.corners) == 4 else scene.add_triangle
-        add(p.name, p.corners, albedo=p.albedo, emission=p.emission, receiver=p.receiver, occluder=True)
+        bsdf = bsgi.GgxReflection(p.ggx_alpha, p.ggx_alpha, [1.0, 1.0, 1.0]) if p.ggx_alpha > 0 else None
+        add(p.name, p.corners, albedo=p.albedo, emission=p.emission, receiver=p.receiver, occluder=True, bsdf=bsdf,
+            **options.get(p.name, {}))
     return scene
+
+
+def solved_radiance(scene, solution, pairs):
+    """The solution's radiance at each pair's (patch, u, v) towards its direction."""
+    out = np.zeros((len(pairs["patch"]), 3))
+    for k, (i, uv, d) in enumerate(zip(pairs["patch"], pairs["uv"], pairs["direction"])):
+        f = scene.evaluate_surface(int(i), *uv)
+        local = np.array([[np.dot(d, f["x"]), np.dot(d, f["y"]), np.dot(d, f["normal"])]])
+        out[k] = solution.surfaces[int(i)].evaluate(uv[None], local)[0]
+    return out
