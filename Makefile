@@ -29,7 +29,7 @@ CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '
 test: build extension venv313
 	$(PY) -m pytest $(PYTEST_ARGS)
 
-# Skips the slow reference comparisons (Cycles renders, Mitsuba 3).
+# Skips the slow tests (Cycles/EEVEE renders, Mitsuba 3, the extension zips) and their set-up.
 test-fast: build
 	$(PY) -m pytest --skip-slow $(PYTEST_ARGS)
 

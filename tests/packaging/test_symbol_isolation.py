@@ -3,17 +3,15 @@ already global, as in Blender's executable (simulated with LD_PRELOAD of bpy's l
 
 Control: the same wheel before tools/isolate_embree.py renamed the symbols does bind to Embree 4
 under the same preload, so the simulation is real and the renaming is what prevents it."""
-import importlib.util
 import json
 import os
 import pathlib
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from artifacts import wheel
+from artifacts import blender_python, wheel
 
 # Runs in the child: solve a small lit scene, report which Embree the core reached and which
 # Embree/TBB libraries the process mapped.
@@ -46,34 +44,36 @@ print("PROBE" + json.dumps(info))
 """
 
 
-def bpy_embree4() -> pathlib.Path:
-    """Blender's own Embree 4, shipped inside the bpy module (found without importing bpy)."""
-    spec = importlib.util.find_spec("bpy")
-    assert spec is not None, "the bpy module is not installed"
-    found = sorted(pathlib.Path(spec.submodule_search_locations[0], "lib").glob("libembree4.so*"))
-    assert found, "no libembree4 in the bpy package"
+def bpy_embree4(python: pathlib.Path) -> pathlib.Path:
+    """Blender's own Embree 4, shipped inside that interpreter's bpy module (found without importing bpy)."""
+    where = subprocess.run([str(python), "-c", "import importlib.util; "
+                            "print(importlib.util.find_spec('bpy').submodule_search_locations[0])"],
+                           capture_output=True, text=True, check=True).stdout.strip()
+    found = sorted(pathlib.Path(where, "lib").glob("libembree4.so*"))
+    assert found, f"no libembree4 in {where}/lib"
     return found[0]
 
 
-@pytest.fixture(scope="module")
-def installed(tmp_path_factory):
-    """Both wheels for this interpreter, each pip-installed into a folder of its own."""
-    tag = f"{sys.version_info.major}{sys.version_info.minor}"
+@pytest.fixture(scope="module", params=["311", "313"])
+def installed(request, tmp_path_factory):
+    """For one Python version: its interpreter with bpy, and both wheels pip-installed into folders of their own."""
+    tag = request.param
+    python, _ = blender_python(tag)
     folders = {}
     for isolated in (True, False):
-        target = tmp_path_factory.mktemp("isolated" if isolated else "control")
-        subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(target),
+        target = tmp_path_factory.mktemp(f"cp{tag}-" + ("isolated" if isolated else "control"))
+        subprocess.run([str(python), "-m", "pip", "install", "-q", "--no-deps", "--target", str(target),
                         str(wheel(tag, isolated))], check=True)
         folders[isolated] = target
-    return folders
+    return python, folders
 
 
-def probe(target: pathlib.Path, preload: pathlib.Path | None, solve: bool) -> dict:
+def probe(python: pathlib.Path, target: pathlib.Path, preload: pathlib.Path | None, solve: bool) -> dict:
     env = dict(os.environ, PYTHONPATH=str(target))  # ahead of the venv's own development bsgi
     env.pop("LD_PRELOAD", None)
     if preload:
         env["LD_PRELOAD"] = str(preload)
-    proc = subprocess.run([sys.executable, "-c", PROBE] + (["--solve"] if solve else []), env=env,
+    proc = subprocess.run([str(python), "-c", PROBE] + (["--solve"] if solve else []), env=env,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, f"exit status {proc.returncode}\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
     (line,) = [x for x in proc.stdout.splitlines() if x.startswith("PROBE")]
@@ -88,10 +88,11 @@ def bundled(info: dict, target: pathlib.Path) -> list[str]:
 
 @pytest.mark.slow
 def test_preloaded_embree4_does_not_capture_the_core(installed):
-    target, embree4 = installed[True], bpy_embree4()
-    alone = probe(target, None, solve=True)
-    with_blender = probe(target, embree4, solve=True)
-    print(f"without preload: Embree {alone['embree_version']} from {alone['embree_library']}")
+    python, folders = installed
+    target, embree4 = folders[True], bpy_embree4(python)
+    alone = probe(python, target, None, solve=True)
+    with_blender = probe(python, target, embree4, solve=True)
+    print(f"{python}: without preload: Embree {alone['embree_version']} from {alone['embree_library']}")
     print(f"with {embree4.name} preloaded: Embree {with_blender['embree_version']} from "
           f"{with_blender['embree_library']}; mapped {with_blender['maps']}")
     # The preload took effect: Blender's Embree 4 is in the process ...
@@ -110,8 +111,9 @@ def test_preloaded_embree4_does_not_capture_the_core(installed):
 @pytest.mark.slow
 def test_control_without_renaming_is_captured_by_embree4(installed):
     """Without the renaming the same preload hijacks the core: the test above is not vacuous."""
-    target, embree4 = installed[False], bpy_embree4()
-    assert probe(target, None, solve=False)["embree_version"].startswith("3.")
-    captured = probe(target, embree4, solve=False)
+    python, folders = installed
+    target, embree4 = folders[False], bpy_embree4(python)
+    assert probe(python, target, None, solve=False)["embree_version"].startswith("3.")
+    captured = probe(python, target, embree4, solve=False)
     assert captured["embree_version"].startswith("4."), captured
     assert pathlib.Path(captured["embree_library"]).name.startswith("libembree4"), captured
