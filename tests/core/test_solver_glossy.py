@@ -1,0 +1,140 @@
+"""Glossy (4D) and transmitting surfaces through the whole solve, against Mitsuba 3's path tracer
+(independent), and the per-surface choice of representation (solver.cpp, gather.cpp)."""
+import time
+
+import numpy as np
+import pytest
+
+import bsgi
+from reference import mitsuba_reference, scene_spec
+
+
+def nrmse(ours, ref):
+    return np.sqrt(((ours - ref) ** 2).sum() / (ref ** 2).sum())
+
+
+@pytest.fixture(scope="module")
+def glossy_cornell():
+    spec = scene_spec.glossy_cornell_box(alpha=0.3)
+    pairs = mitsuba_reference.visible_pairs(spec, 2000, seed=11)
+    ref, stderr = mitsuba_reference.reference_radiance(spec, pairs, spp=8192, seed=5)
+    return spec, pairs, ref, np.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
+
+
+@pytest.mark.slow
+def test_glossy_cornell_box_presets_against_mitsuba(glossy_cornell):
+    spec, pairs, ref, noise = glossy_cornell
+    assert noise < 0.01
+    scene = scene_spec.to_bsgi(spec)
+    back = [p.name for p in spec.patches].index("back")
+    errors = {}
+    for preset in ("draft", "preview", "final"):
+        start = time.perf_counter()
+        sol = bsgi.solve(scene, bsgi.SolverSettings.preset(preset))
+        seconds = time.perf_counter() - start
+        ours = scene_spec.solved_radiance(scene, sol, pairs)
+        glossy = pairs["patch"] == back
+        errors[preset] = nrmse(ours, ref)
+        print(f"\n{preset}: NRMSE {errors[preset]:.4f} (GGX wall {nrmse(ours[glossy], ref[glossy]):.4f}) in {seconds:.1f} s, "
+              f"reference noise {noise:.4f}; wall: {sol.reports[back]['reason']}")
+    assert errors["final"] <= 0.03
+    assert errors["final"] < errors["preview"] < errors["draft"]
+
+
+def test_representation_follows_the_material():
+    spec = scene_spec.glossy_cornell_box(alpha=0.3)
+    scene = scene_spec.to_bsgi(spec, options={"floor": {"representation": "glossy", "angular_coeffs": 5},
+                                              "left": {"spatial_coeffs": 5}})
+    settings = bsgi.SolverSettings.preset("draft")
+    settings.final_gather = False
+    sol = bsgi.solve(scene, settings)
+    reports = {r["name"]: r for r in sol.reports}
+    assert reports["back"]["representation"] == "glossy 4D" and len(reports["back"]["shape"]) == 4
+    assert reports["right"]["representation"] == "diffuse 2D" and reports["right"]["shape"] == [8, 8]
+    assert reports["floor"]["shape"][2:] == [5, 5] and "set on the surface" in reports["floor"]["reason"]
+    assert reports["left"]["shape"] == [5, 5]
+    assert reports["lamp"]["representation"] == "emitter"
+    surfaces = sol.surfaces
+    assert surfaces[[p.name for p in spec.patches].index("back")].kind == "glossy"
+
+
+def test_narrower_lobes_get_more_angular_knots():
+    counts = []
+    for alpha in (0.5, 0.25, 0.1):
+        scene = bsgi.Scene()
+        scene.add_bilinear_patch("metal", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), albedo=[0] * 3,
+                                 emission=[0] * 3, bsdf=bsgi.GgxReflection(alpha, alpha, [1, 1, 1]))
+        scene.add_bilinear_patch("lamp", np.array([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]], float), albedo=[0] * 3,
+                                 emission=[1] * 3, receiver=False, occluder=False)
+        settings = bsgi.SolverSettings.preset("draft")
+        settings.angular_coeffs_max = 64
+        settings.max_bounces = 0
+        settings.final_gather = False
+        counts.append(bsgi.solve(scene, settings).reports[0]["shape"][2])
+    assert counts[0] < counts[1] < counts[2]
+
+
+def test_mirror_without_roughness_is_refused_by_name():
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("glass", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), albedo=[0] * 3,
+                             emission=[0] * 3, bsdf=bsgi.SmoothDielectric(1.5))
+    scene.add_bilinear_patch("lamp", np.array([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]], float), albedo=[0] * 3,
+                             emission=[1] * 3, receiver=False, occluder=False)
+    with pytest.raises(ValueError, match="surface 'glass'.*roughness"):
+        bsgi.solve(scene)
+
+
+def mitsuba_directional_albedo(alpha, cos_o, n=1024):
+    """Integral of Mitsuba 3's GGX roughconductor (Fresnel 1) times the cosine over the
+    hemisphere of incident directions, for outgoing directions at cos_o (midpoint rule in
+    (cos theta, phi))."""
+    mi = mitsuba_reference.load_mitsuba()
+    bsdf = mi.load_dict({"type": "roughconductor", "distribution": "ggx", "alpha": alpha, "material": "none"})
+    mu = (np.arange(n) + 0.5) / n
+    phi = 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n)
+    M, P = np.meshgrid(mu, phi, indexing="ij")
+    S = np.sqrt(1 - M * M)
+    wi = np.stack([S * np.cos(P), S * np.sin(P), M]).reshape(3, -1).astype(np.float32)
+    out = []
+    for c in cos_o:
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(float(np.sqrt(1 - c * c)), 0.0, float(c))
+        wo = mi.Vector3f(mi.Float(wi[0]), mi.Float(wi[1]), mi.Float(wi[2]))
+        value = np.array(bsdf.eval(mi.BSDFContext(), si, wo))  # f * cos(theta_i)
+        out.append(value[0].mean() * 2 * np.pi)
+    return np.array(out)
+
+
+def test_glossy_surface_in_a_uniform_furnace_reflects_its_directional_albedo():
+    # The floor of a closed cube whose other walls emit radiance 1: every direction above the
+    # floor sees emission 1, so the floor's outgoing radiance is its BSDF's directional albedo,
+    # computed here from Mitsuba's own GGX.
+    alpha = 0.3
+    scene = bsgi.Scene()
+    floor = np.array([[1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 0]], float)
+    scene.add_bilinear_patch("floor", floor, albedo=[0] * 3, emission=[0] * 3, bsdf=bsgi.GgxReflection(alpha, alpha, [1, 1, 1]))
+    corners = {
+        "top": [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
+        "front": [[0, 0, 1], [1, 0, 1], [1, 0, 0], [0, 0, 0]],
+        "back": [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
+        "left": [[0, 1, 0], [0, 1, 1], [0, 0, 1], [0, 0, 0]],
+        "right": [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
+    }
+    for name, c in corners.items():
+        scene.add_bilinear_patch(name, np.array(c, float), albedo=[0] * 3, emission=[1] * 3, receiver=False)
+    settings = bsgi.SolverSettings.preset("preview")
+    settings.max_bounces = 0
+    settings.final_gather = False
+    sol = bsgi.solve(scene, settings)
+    cos_o = np.array([1.0, 0.8, 0.5, 0.25])
+    expected = mitsuba_directional_albedo(alpha, cos_o)
+    rng = np.random.default_rng(2)
+    worst = 0.0
+    for c, want in zip(cos_o, expected):
+        phi = rng.uniform(0, 2 * np.pi, 20)
+        d = np.stack([np.sqrt(1 - c * c) * np.cos(phi), np.sqrt(1 - c * c) * np.sin(phi), np.full(20, c)], axis=1)
+        uv = rng.uniform(0.1, 0.9, (20, 2))
+        got = sol.surfaces[0].evaluate(uv, d)[:, 0]
+        worst = max(worst, np.abs(got / want - 1).max())
+    print(f"\ndirectional albedo of GGX {alpha} at cos {cos_o}: {np.round(expected, 4)}; worst relative error {worst:.4f}")
+    assert worst <= 0.02
