@@ -167,6 +167,9 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
     // Glossy (or transmitting): multiple importance sampling of the cosine nodes and, per
     // outgoing direction, bsdf_samples BSDF-sampled directions (balance heuristic).
     const int nb = settings_.bsdf_samples * density;
+    // The cosine nodes as one strategy over the sides sampled: n_cos nodes on each side, so
+    // in_sides * n_cos samples of density |cos| / (pi * in_sides).
+    const double n_strategy = in_sides * n_cos;
     auto cosine_pdf = [&](const Vec3& w) { return (w.z < 0 && in_sides == 1) ? 0.0 : std::abs(w.z) / kPi / in_sides; };
     for (int side_in = 0; side_in < in_sides; ++side_in)
         for (int i = 0; i < nt; ++i)
@@ -175,7 +178,7 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
                 if (side_in) wi.z = -wi.z;
                 const Vec3 L = incoming(wi);
                 if (max_component(L) <= 0) continue;
-                const double pc = n_cos * cosine_pdf(wi);
+                const double pc = n_strategy * cosine_pdf(wi);
                 for (int side = 0; side < r.sides; ++side)
                     for (size_t a = 0; a < r.per_node; ++a) {
                         const Vec3 wo = r.outgoing(side, a);
@@ -200,7 +203,7 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
                 }
                 const double pb = r.bsdf->pdf(wo, s.wi);
                 out[side * r.per_node + a] +=
-                    L * r.bsdf->eval(wo, s.wi) * (std::abs(s.wi.z) / (n_cos * cosine_pdf(s.wi) + nb * pb));
+                    L * r.bsdf->eval(wo, s.wi) * (std::abs(s.wi.z) / (n_strategy * cosine_pdf(s.wi) + nb * pb));
             }
         }
 }

@@ -41,6 +41,9 @@ def to_mitsuba(spec: SceneSpec, max_depth: int = -1):
         bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(p.albedo)}}
         if p.ggx_alpha > 0:
             bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha": p.ggx_alpha, "material": "none"}
+        if p.dielectric:
+            bsdf = {"type": "roughdielectric", "distribution": "ggx", "alpha": p.dielectric[1],
+                    "int_ior": p.dielectric[0], "ext_ior": 1.0}
         shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": bsdf}
         if max(p.emission) > 0:
             shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(p.emission)}}
@@ -63,6 +66,9 @@ def visible_pairs(spec: SceneSpec, count: int, seed: int = 0):
         uv = rng.uniform(0.02, 0.98, (n, 2))
         pts, nrm = zip(*(_point(spec.patches[receivers[k]].corners, *uv[j]) for j, k in enumerate(pick)))
         pts, nrm = np.array(pts), np.array(nrm)
+        # Transmitting patches are seen from both sides.
+        flip = np.array([bool(spec.patches[receivers[k]].dielectric) for k in pick]) & (rng.uniform(0, 1, n) < 0.5)
+        nrm[flip] *= -1
         # Outgoing directions: cosine-distributed about the normal.
         r, phi = np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * np.pi, n)
         t1 = np.cross(nrm, np.where(np.abs(nrm[:, :1]) > 0.5, [[0, 1, 0]], [[1, 0, 0]]))
@@ -80,6 +86,8 @@ def visible_pairs(spec: SceneSpec, count: int, seed: int = 0):
         # The eye must be in open space: the ray from the point leaves into the scene and meets a
         # surface's front (or nothing), not the inside of a closed object (the floor under a box).
         front = np.einsum("ij,ij->i", np.array(si.n).T, d) < 0
+        # The back of a transmitting surface also faces open space.
+        front |= np.array(mi.has_flag(si.bsdf().flags(), mi.BSDFFlags.Transmission), bool)
         keep = (escaped | front) & (np.linalg.norm(eye - pts, axis=1) > 1e-4 * scale)
         for j in np.nonzero(keep)[0][: count - len(out["patch"])]:
             out["patch"].append(receivers[pick[j]])

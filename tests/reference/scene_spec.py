@@ -15,14 +15,16 @@ class Patch:
     emission: tuple = (0.0, 0.0, 0.0)  # radiance leaving the front side
     receiver: bool = True
     ggx_alpha: float = 0.0  # > 0: GGX reflection with Fresnel 1 (Mitsuba's roughconductor, material 'none')
+    dielectric: tuple = ()  # (eta, alpha): rough dielectric boundary, index eta below the front
 
 
 @dataclass
 class SceneSpec:
     patches: list = field(default_factory=list)
 
-    def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True, ggx_alpha=0.0):
-        self.patches.append(Patch(name, np.asarray(corners, float), tuple(albedo), tuple(emission), receiver, ggx_alpha))
+    def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True, ggx_alpha=0.0, dielectric=()):
+        self.patches.append(Patch(name, np.asarray(corners, float), tuple(albedo), tuple(emission), receiver, ggx_alpha,
+                                  tuple(dielectric)))
         return self
 
 
@@ -50,6 +52,15 @@ def box(center, size, angle=0.0):
                 u, v = v, u
             faces.append(quad(np.asarray(center) + rot @ (n * h), rot @ u, rot @ v))
     return faces
+
+
+def glass_over_floor(eta=1.5, alpha=0.3) -> SceneSpec:
+    """A rough glass sheet between a lamp and a floor (paper figure 9's transmitting rectangle)."""
+    spec = SceneSpec()
+    spec.add("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), (0.8, 0.8, 0.8))
+    spec.add("glass", quad([0, 0, 0.5], [0.4, 0, 0], [0, 0.4, 0]), dielectric=(eta, alpha))
+    spec.add("lamp", quad([0.1, 0, 1.5], [0, 0.3, 0], [0.3, 0, 0]), emission=(5.0, 5.0, 5.0), receiver=False)
+    return spec
 
 
 def glossy_cornell_box(alpha=0.3) -> SceneSpec:
@@ -89,6 +100,8 @@ def to_bsgi(spec: SceneSpec, options=None):
     for p in spec.patches:
         add = scene.add_bilinear_patch if len(p.corners) == 4 else scene.add_triangle
         bsdf = bsgi.GgxReflection(p.ggx_alpha, p.ggx_alpha, [1.0, 1.0, 1.0]) if p.ggx_alpha > 0 else None
+        if p.dielectric:
+            bsdf = bsgi.RoughDielectric(p.dielectric[0], p.dielectric[1], p.dielectric[1])
         add(p.name, p.corners, albedo=p.albedo, emission=p.emission, receiver=p.receiver, occluder=True, bsdf=bsdf,
             **options.get(p.name, {}))
     return scene

@@ -144,7 +144,12 @@ public:
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     double index_on_side(const Vec3& w) const override { return w.z >= 0 ? 1.0 : eta_; }
     std::string name() const override { return "rough_dielectric"; }
-    double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
+    // Refraction narrows the transmitted lobe: a microfacet tilt of alpha turns the refracted
+    // direction by about alpha (eta - 1) / eta on the denser side.
+    double lobe_width() const override {
+        const double e = std::max(eta_, 1 / eta_);
+        return 2 * std::min(D_.ax, D_.ay) * std::min(1.0, (e - 1) / e + 0.1);
+    }
     bool transmits() const override { return true; }
 
 private:
