@@ -131,6 +131,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("hemisphere_nodes_phi", &SolverSettings::hemisphere_nodes_phi)
         .def_readwrite("bsdf_samples", &SolverSettings::bsdf_samples)
         .def_readwrite("max_bounces", &SolverSettings::max_bounces)
+        .def_readwrite("form_factors", &SolverSettings::form_factors)
         .def_readwrite("tolerance", &SolverSettings::tolerance)
         .def_readwrite("extrapolate", &SolverSettings::extrapolate)
         .def_readwrite("final_gather", &SolverSettings::final_gather)
@@ -213,6 +214,7 @@ void bind_scene(py::module_& m) {
             d["coefficients"] = s.stats.coefficients;
             d["rays"] = s.stats.rays;
             d["bytes"] = s.stats.bytes;
+            d["transport_terms"] = s.stats.transport_terms;
             return d;
         });
 

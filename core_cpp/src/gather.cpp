@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 namespace bsgi {
 
@@ -206,6 +207,76 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
                     L * r.bsdf->eval(wo, s.wi) * (std::abs(s.wi.z) / (n_strategy * cosine_pdf(s.wi) + nb * pb));
             }
         }
+}
+
+namespace {
+
+// (coefficient number, weight) of the basis functions non-zero at x: the tensor products of
+// each axis' degree + 1 basis values (paper (14)).
+void basis_terms(const TensorSpline& s, const double* x, std::vector<std::pair<size_t, double>>& out) {
+    const int D = s.dims();
+    double basis[8][kMaxDegree + 1];
+    size_t first[8], stride[8];
+    int order[8];
+    size_t st = 1;
+    for (int k = D - 1; k >= 0; --k) stride[k] = st, st *= s.axis(k).num_coeffs();
+    for (int k = 0; k < D; ++k) {
+        const KnotVector& a = s.axis(k);
+        const int span = a.find_span(x[k]);
+        a.basis(x[k], span, basis[k]);
+        first[k] = size_t(span - a.degree());
+        order[k] = a.degree() + 1;
+    }
+    int idx[8] = {0};
+    out.clear();
+    for (;;) {
+        double w = 1;
+        size_t offset = 0;
+        for (int k = 0; k < D; ++k) w *= basis[k][idx[k]], offset += (first[k] + idx[k]) * stride[k];
+        if (w != 0) out.emplace_back(offset, w);
+        int k = D - 1;
+        while (k >= 0 && ++idx[k] == order[k]) idx[k--] = 0;
+        if (k < 0) break;
+    }
+}
+
+}  // namespace
+
+void Gatherer::transport_row(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
+                             const std::vector<int>& receiver_index, std::vector<TransportTerm>& row, size_t& rays) const {
+    const SurfacePoint& p = r.nodes[j];
+    const int nt = settings_.hemisphere_nodes_theta, np = settings_.hemisphere_nodes_phi;
+    const double scale = kPi / (double(nt) * np);  // rho/pi * pi * mean; albedo applied later
+    std::vector<std::pair<size_t, double>> terms;
+    std::vector<TransportTerm> raw;
+    for (int i = 0; i < nt; ++i)
+        for (int k = 0; k < np; ++k) {
+            const Vec3 dir = p.frame.to_world(cosine_node(i, k, nt, np));
+            ++rays;
+            const SurfaceHit hit = caster_.closest_hit(caster_.spawn(p.p, p.frame.z, dir), dir);
+            if (hit.surface < 0 || !receiver_of[hit.surface]) continue;
+            const Receiver& h = *receiver_of[hit.surface];
+            const Vec3 local = hit.frame.to_local(-dir);
+            const int side = local.z >= 0 ? 0 : 1;
+            if (side >= h.sides) continue;
+            double x[4] = {hit.u, hit.v, 0, 0};
+            if (h.kind == Representation::Glossy) h.map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
+            basis_terms(h.L[side], x, terms);
+            for (const auto& [index, w] : terms)
+                raw.push_back({uint32_t(receiver_index[hit.surface]), uint32_t(index), uint8_t(side), float(w * scale)});
+        }
+    // Merge the terms of rays that land on the same coefficients.
+    std::sort(raw.begin(), raw.end(), [](const TransportTerm& a, const TransportTerm& b) {
+        return std::tie(a.receiver, a.side, a.index) < std::tie(b.receiver, b.side, b.index);
+    });
+    row.clear();
+    for (const TransportTerm& t : raw) {
+        if (!row.empty() && row.back().receiver == t.receiver && row.back().side == t.side && row.back().index == t.index)
+            row.back().weight += t.weight;
+        else
+            row.push_back(t);
+    }
+    row.shrink_to_fit();
 }
 
 }  // namespace bsgi

@@ -312,7 +312,13 @@ SolverSettings SolverSettings::preset(const std::string& name) {
 
 size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
     size_t bytes = 0, triangles = 0;
-    for (const Plan& p : plan_scene(scene, settings, 1)) bytes += plan_bytes(p);
+    for (const Plan& p : plan_scene(scene, settings, 1)) {
+        bytes += plan_bytes(p);
+        // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
+        if (settings.form_factors && p.kind == Representation::Diffuse)
+            bytes += size_t(p.nu) * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
+                     (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
+    }
     if (settings.final_gather)
         for (const Plan& p : plan_scene(scene, settings, settings.final_spatial_factor)) bytes += plan_bytes(p) / 3;
     for (const auto& s : scene.surfaces())
@@ -348,7 +354,8 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
                                         "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
                                         "give it a roughness");
 
-    const int stages = 2 + settings.max_bounces + (settings.final_gather ? 1 : 0);
+    const int ff_stage = settings.form_factors && settings.max_bounces > 0 ? 1 : 0;
+    const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? 1 : 0);
     progress.begin_stage("building ray scene", 0, stages, 1);
     std::vector<const Surface*> occluders(scene.size(), nullptr);
     for (size_t i = 0; i < scene.size(); ++i)
@@ -377,10 +384,51 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     const auto t1 = std::chrono::steady_clock::now();
     double previous[3] = {0, 0, 0}, previous_rho[3] = {2, 2, 2}, tail[3] = {0, 0, 0};
     bool converged = false;
+    // With form factors, Lambertian receivers keep their rows of the transport operator.
+    std::vector<int> receiver_index(scene.size(), -1);
+    for (size_t k = 0; k < receivers.size(); ++k) receiver_index[receivers[k].surface] = int(k);
+    std::vector<std::vector<std::vector<TransportTerm>>> rows(receivers.size());
+    auto uses_rows = [&](const Receiver& r) {
+        return settings.form_factors && r.kind == Representation::Diffuse && !r.bsdf->transmits();
+    };
+    if (settings.form_factors && settings.max_bounces > 0) {
+        progress.begin_stage("form factors", 2, stages, node_count(receivers));
+        std::vector<std::pair<int, int>> items;
+        for (size_t k = 0; k < receivers.size(); ++k) {
+            if (!uses_rows(receivers[k])) continue;
+            rows[k].resize(receivers[k].nodes.size());
+            for (size_t j = 0; j < receivers[k].nodes.size(); ++j) items.emplace_back(int(k), int(j));
+        }
+        std::atomic<size_t> row_rays{0};
+        parallel_for(items.size(), 4, settings.threads, [&](size_t begin, size_t end) {
+            size_t local = 0;
+            for (size_t w = begin; w < end; ++w) {
+                const auto [k, j] = items[w];
+                gather.transport_row(receivers[k], j, receiver_of, receiver_index, rows[k][j], local);
+            }
+            row_rays += local;
+            progress.advance(end - begin);
+        }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        rays += row_rays;
+        for (const auto& per_receiver : rows)
+            for (const auto& row : per_receiver) solution.stats.transport_terms += row.size();
+    }
     for (int bounce = 0; bounce < settings.max_bounces; ++bounce) {
-        progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + bounce, stages, node_count(receivers));
+        progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + ff_stage + bounce, stages,
+                             node_count(receivers));
         rays += gather_all(receivers, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-            gather.indirect(r, j, receiver_of, &Receiver::L, 1, out, n);
+            const size_t k = size_t(receiver_index[r.surface]);
+            if (!uses_rows(r)) {
+                gather.indirect(r, j, receiver_of, &Receiver::L, 1, out, n);
+                return;
+            }
+            Vec3 sum{0, 0, 0};
+            for (const TransportTerm& t : rows[k][j]) {
+                const double* c = &receivers[t.receiver].L[t.side].coeffs()[3 * size_t(t.index)];
+                sum += Vec3{c[0], c[1], c[2]} * double(t.weight);
+            }
+            out[0] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * sum;
         });
         double increment[3] = {0, 0, 0}, total[3] = {0, 0, 0};
         for (auto& r : receivers)

@@ -2,6 +2,7 @@
 // integral (8)/(35) over the emitters (direct light), and the hemispherical integral (26)-(32)
 // of the radiance other surfaces send (indirect light).
 #pragma once
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -42,6 +43,15 @@ struct Receiver {
     Vec3 radiance(Splines which, double u, double v, const Vec3& local) const;
 };
 
+// One term of a row of the transport operator (36)-(37): the weight of coefficient `index`
+// (RGB triple number) of spline set side `side` of receiver `receiver` in a node's gathered light.
+struct TransportTerm {
+    uint32_t receiver;
+    uint32_t index;
+    uint8_t side;
+    float weight;
+};
+
 class Gatherer {
 public:
     Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster);
@@ -53,6 +63,12 @@ public:
     // `density` multiplies the integration nodes (the final gather uses more).
     void indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of, Receiver::Splines which,
                   int density, Vec3* out, size_t& rays) const;
+    // Generalized form factors (36)-(37): for a Lambertian, opaque receiver, the row of the
+    // transport operator at node j, so that its gathered light is albedo * sum(weight * coefficient)
+    // over the receivers' incremental splines: the rays are cast once, not every bounce.
+    // `receiver_index` maps a surface id to its position in the receivers (-1: none).
+    void transport_row(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
+                       const std::vector<int>& receiver_index, std::vector<TransportTerm>& row, size_t& rays) const;
     // Direct irradiance at a point (for probing where the light has detail).
     Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays) const;
 

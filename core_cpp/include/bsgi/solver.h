@@ -55,6 +55,9 @@ struct SolverSettings {
     // extrapolate, that missing geometric tail is added instead of bounced, which makes albedos
     // near 1 converge in a few bounces.
     int max_bounces = 64;
+    // Generalized form factors (36)-(37) for Lambertian receivers: their gathering rays are cast
+    // once and kept as rows of the transport operator; later bounces are sparse products.
+    bool form_factors = false;
     double tolerance = 1e-3;
     bool extrapolate = true;
 
@@ -81,6 +84,7 @@ struct SolveStats {
     size_t coefficients = 0;     // RGB coefficients of all output splines
     size_t rays = 0;
     size_t bytes = 0;            // the memory estimate the solve was admitted with
+    size_t transport_terms = 0;  // entries of the form-factor operator, if used
 };
 
 struct Solution {
