@@ -78,6 +78,21 @@ def run() -> dict:
         # Mitsuba's error falls as 1/sqrt(time): interpolate in log-log between the runs that
         # bracket ours (None if even the longest run is worse).
         out[f"gi_{preset}_mitsuba_equal_error_seconds"] = _equal_error_seconds(mitsuba, err)
+    # The hemispherical integral of glossy receivers: the paper's node quadrature alone (cosine-
+    # weighted nodes) against nodes plus BSDF importance sampling (the presets' choice).
+    import bsgi
+
+    scene = scene_spec.to_bsgi(spec)
+    back = [p.name for p in spec.patches].index("back")
+    glossy = pairs["patch"] == back
+    for label, samples in (("nodes_only", 0), ("nodes_and_bsdf_sampling", 16)):
+        settings = bsgi.SolverSettings.preset("preview")
+        settings.bsdf_samples = samples
+        start = time.perf_counter()
+        solution = bsgi.solve(scene, settings)
+        out[f"gi_preview_{label}_seconds"] = round(time.perf_counter() - start, 3)
+        ours = scene_spec.solved_radiance(scene, solution, pairs)
+        out[f"gi_preview_{label}_glossy_rel_rmse"] = round(nrmse(ours[glossy], reference[glossy]), 4)
     return out
 
 

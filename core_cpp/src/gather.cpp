@@ -56,8 +56,18 @@ Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local) co
 
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
     : scene_(scene), settings_(settings), caster_(caster) {
-    for (size_t i = 0; i < scene.size(); ++i)
-        if (scene[i].material.emits()) emitters_.push_back(int(i));
+    for (size_t i = 0; i < scene.size(); ++i) {
+        if (!scene[i].material.emits()) continue;
+        emitters_.push_back(int(i));
+        // A curved emitter can light itself (non-convex surfaces, the inside of a sphere); a flat
+        // one cannot, and integrating over it from its own points would only cost time.
+        const Surface& e = *scene[i].surface;
+        const Vec3 n0 = e.evaluate(0.5, 0.5).frame.z;
+        bool flat = true;
+        for (double u : {0.1, 0.5, 0.9})
+            for (double v : {0.1, 0.5, 0.9}) flat &= dot(e.evaluate(u, v).frame.z, n0) > 1 - 1e-9;
+        if (!flat) self_lit_.push_back(int(i));
+    }
     cell_rule_ = emitter_quadrature(settings.emitter_coeffs, settings.emitter_degree);
 }
 
@@ -111,7 +121,7 @@ template <typename Visit>
 void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,
                                        size_t& rays) const {
     for (int e : emitters_) {
-        if (e == receiver) continue;
+        if (e == receiver && std::find(self_lit_.begin(), self_lit_.end(), e) == self_lit_.end()) continue;
         const SceneSurface& es = scene_[e];
         emitter_cell(r, *es.surface, es.material.emission, 0, 1, 0, 1, 0, ratio, both_sides, visit, rays);
     }

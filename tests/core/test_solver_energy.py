@@ -104,3 +104,24 @@ def test_open_scene_power_balance(distance):
     assert mean == pytest.approx(expected, rel=1e-2 if distance < 0.5 else 2e-3)
     # The emitter does not reflect and gets no spline of reflected light beyond its emission.
     assert sol.radiance[1].evaluate(uv[:5])[:, 0] == pytest.approx(radiance)
+
+
+def test_inside_of_a_nurbs_sphere_lights_itself():
+    # One closed, curved surface facing inwards: all its light comes from itself, directly
+    # (self-emission through the surface integral) and by bounces (rays that hit it again).
+    from nurbs_reference import SPHERE_FLAGS, blender_sphere_points
+
+    scene = bsgi.Scene()
+    sphere = bsgi.NurbsSurface("sphere", blender_sphere_points(1.0), front="su_x_sv", **SPHERE_FLAGS)
+    scene.add_surface(sphere, albedo=[0.5] * 3, emission=[1.0] * 3)
+    p = scene.evaluate_surface(0, 0.3, 0.3)
+    assert np.dot(p["normal"], p["position"]) < 0  # the front faces the centre
+    settings = bsgi.SolverSettings()
+    settings.spatial_coeffs = 10
+    settings.tolerance = 1e-4
+    sol = bsgi.solve(scene, settings)
+    uv = np.random.default_rng(4).uniform(0.05, 0.95, (200, 2))
+    L = sol.radiance[0].evaluate(uv)
+    err = np.abs(L / 2.0 - 1).max()
+    print(f"\nNURBS sphere furnace: max relative error {err:.2e}, {sol.stats['bounces']} bounces")
+    assert err <= 0.02

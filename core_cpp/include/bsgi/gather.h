@@ -84,6 +84,7 @@ private:
     const SolverSettings& settings_;
     const RayCaster& caster_;
     std::vector<int> emitters_;
+    std::vector<int> self_lit_;  // curved emitters, which light themselves too
     QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell
 };
 
