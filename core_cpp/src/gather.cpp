@@ -1,4 +1,5 @@
 #include "bsgi/gather.h"
+#include "bsgi/radiance.h"
 
 #include <algorithm>
 #include <cmath>
@@ -40,18 +41,7 @@ void stratified(int m, int n, double* u) {
 
 Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local) const {
     const int side = local.z >= 0 ? 0 : 1;
-    if (side >= sides) return {0, 0, 0};
-    const TensorSpline& s = (this->*which)[side];
-    double out[3];
-    if (kind == Representation::Diffuse) {
-        const double x[2] = {u, v};
-        s.evaluate(x, out);
-    } else {
-        double x[4] = {u, v, 0, 0};
-        map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
-        s.evaluate(x, out);
-    }
-    return {out[0], out[1], out[2]};
+    return side < sides ? evaluate_side(kind, map, (this->*which)[side], u, v, local) : Vec3{0, 0, 0};
 }
 
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)

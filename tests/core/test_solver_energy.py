@@ -6,19 +6,21 @@ import pytest
 import bsgi
 
 
+# The faces of the unit cube, normals pointing inwards.
+CUBE_FACES = {
+    "bottom": [[1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 0]],
+    "top": [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
+    "front": [[0, 0, 1], [1, 0, 1], [1, 0, 0], [0, 0, 0]],
+    "back": [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
+    "left": [[0, 1, 0], [0, 1, 1], [0, 0, 1], [0, 0, 0]],
+    "right": [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
+}
+
+
 def closed_cube(scene, albedo, emission, size=1.0):
     """The six faces of [0, size]^3, normals pointing inwards."""
-    s = size
-    faces = {
-        "bottom": [[1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 0]],
-        "top": [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
-        "front": [[0, 0, 1], [1, 0, 1], [1, 0, 0], [0, 0, 0]],
-        "back": [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
-        "left": [[0, 1, 0], [0, 1, 1], [0, 0, 1], [0, 0, 0]],
-        "right": [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
-    }
-    for name, corners in faces.items():
-        scene.add_bilinear_patch(name, s * np.array(corners, float), albedo=[albedo] * 3, emission=[emission] * 3)
+    for name, corners in CUBE_FACES.items():
+        scene.add_bilinear_patch(name, size * np.array(corners, float), albedo=[albedo] * 3, emission=[emission] * 3)
 
 
 def sample_radiance(solution, count, n=400):

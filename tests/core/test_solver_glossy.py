@@ -110,18 +110,15 @@ def test_glossy_surface_in_a_uniform_furnace_reflects_its_directional_albedo():
     # floor sees emission 1, so the floor's outgoing radiance is its BSDF's directional albedo,
     # computed here from Mitsuba's own GGX.
     alpha = 0.3
+    from test_solver_energy import CUBE_FACES
+
     scene = bsgi.Scene()
-    floor = np.array([[1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 0]], float)
-    scene.add_bilinear_patch("floor", floor, albedo=[0] * 3, emission=[0] * 3, bsdf=bsgi.GgxReflection(alpha, alpha, [1, 1, 1]))
-    corners = {
-        "top": [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
-        "front": [[0, 0, 1], [1, 0, 1], [1, 0, 0], [0, 0, 0]],
-        "back": [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
-        "left": [[0, 1, 0], [0, 1, 1], [0, 0, 1], [0, 0, 0]],
-        "right": [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
-    }
-    for name, c in corners.items():
-        scene.add_bilinear_patch(name, np.array(c, float), albedo=[0] * 3, emission=[1] * 3, receiver=False)
+    for name, corners in CUBE_FACES.items():
+        if name == "bottom":
+            scene.add_bilinear_patch(name, np.array(corners, float), albedo=[0] * 3, emission=[0] * 3,
+                                     bsdf=bsgi.GgxReflection(alpha, alpha, [1, 1, 1]))
+        else:  # emitters that do not reflect
+            scene.add_bilinear_patch(name, np.array(corners, float), albedo=[0] * 3, emission=[1] * 3, receiver=False)
     settings = bsgi.SolverSettings.preset("preview")
     settings.max_bounces = 0
     settings.final_gather = False

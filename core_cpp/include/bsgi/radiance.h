@@ -2,6 +2,7 @@
 // surface is diffuse, a 4D spline L(u, v, alpha, beta) over the hemisphere map (20)-(22) where
 // it is glossy, and a second spline for the lower hemisphere where it transmits.
 #pragma once
+#include <cmath>
 #include <optional>
 #include <string>
 
@@ -11,6 +12,22 @@
 
 namespace bsgi {
 
+// Radiance of one side's spline at (u, v) along `local`: a 2D spline ignores the direction, a 4D
+// one takes it through the inverse hemisphere map (of |z|: the caller has chosen the side).
+inline Vec3 evaluate_side(Representation kind, const HemisphereMap& map, const TensorSpline& s, double u, double v,
+                          const Vec3& local) {
+    double out[3];
+    if (kind == Representation::Diffuse) {
+        const double x[2] = {u, v};
+        s.evaluate(x, out);
+    } else {
+        double x[4] = {u, v, 0, 0};
+        map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
+        s.evaluate(x, out);
+    }
+    return {out[0], out[1], out[2]};
+}
+
 struct SurfaceRadiance {
     Representation kind = Representation::Diffuse;
     HemisphereMap map{1.0};
@@ -19,19 +36,8 @@ struct SurfaceRadiance {
 
     // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
     Vec3 evaluate(double u, double v, const Vec3& local) const {
-        const bool front = local.z >= 0;
-        if (!front && !lower) return {0, 0, 0};
-        const TensorSpline& s = front ? upper : *lower;
-        double out[3];
-        if (kind == Representation::Diffuse) {
-            const double x[2] = {u, v};
-            s.evaluate(x, out);
-        } else {
-            double x[4] = {u, v, 0, 0};
-            map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
-            s.evaluate(x, out);
-        }
-        return {out[0], out[1], out[2]};
+        if (local.z >= 0) return evaluate_side(kind, map, upper, u, v, local);
+        return lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
     }
 };
 
