@@ -17,11 +17,30 @@ PROP_SLOTS = "bsgi_slot_links"  # the slots' links before the bake, to restore t
 PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
 PROP_RADIANCE = "bsgi_radiance"  # the faces' splines, for re-baking and solution export
+# The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
+NURBS_UV_NAME = "UVMap"
 
 
 def tile_size(spline) -> int:
     """Texels per face side: two per coefficient, so the image resolves the spline's knots."""
-    return max(8, 2 * max(axis.num_coeffs for axis in spline.axes))
+    return max(8, 2 * max(axis.num_coeffs for axis in spline.axes[:2]))
+
+
+def radiance_along_normal(spline, uv: np.ndarray) -> np.ndarray:
+    """(N, 3) radiance at the (u, v) rows of uv. A glossy (4D) spline is evaluated at the
+    centre of the hemisphere's disc, (alpha, beta) = (0, 0), which the map (20)-(22) sends to
+    the surface normal: until view-dependent baking exists, the bake shows the radiance seen
+    head-on."""
+    if spline.dims == 4:
+        uv = np.concatenate([uv, np.zeros((len(uv), 2))], axis=1)
+    return spline.evaluate(np.ascontiguousarray(uv, np.float64))
+
+
+def _view_dependence_warning(obj, faces) -> list:
+    if any(s.dims == 4 for _, splines in faces for s in splines):
+        return [f"object '{obj.name}': glossy radiance is baked as seen along the surface normal (the bake is not "
+                "view-dependent yet)"]
+    return []
 
 
 def _tile_parameters(kind: str, t: int) -> np.ndarray:
@@ -57,9 +76,12 @@ def face_splines(exported, radiance) -> list:
     return [(kind, [radiance[first + k] for k in range(count)]) for kind, first, count in exported.patches]
 
 
-def bake_object(obj, faces) -> None:
-    """Bake one object: faces is, per polygon, (kind, splines) as face_splines gives. The
-    splines are also stored on the object, so the bake can be redone without a solve."""
+def bake_object(obj, faces) -> list:
+    """Bake one object: faces is, per polygon (per spline for a NURBS surface), (kind, splines)
+    as face_splines gives. The splines are also stored on the object, so the bake can be redone
+    without a solve. Returns warnings about what the bake approximates."""
+    if obj.type == "SURFACE":
+        return _bake_nurbs(obj, faces)
     mesh = obj.data
     if len(mesh.polygons) != len(faces):
         raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
@@ -74,10 +96,11 @@ def bake_object(obj, faces) -> None:
         poly = mesh.polygons[index]
         if kind == "ngon":
             # N-gons are solved as triangle fans; show their mean radiance until charts land.
-            pixels[oy:oy + t, ox:ox + t, :3] = np.mean([s.coefficients.reshape(-1, 3).mean(axis=0) for s in splines], axis=0)
+            centre = np.full((1, 2), 0.5)
+            pixels[oy:oy + t, ox:ox + t, :3] = np.mean([radiance_along_normal(s, centre)[0] for s in splines], axis=0)
             uvs[list(poly.loop_indices)] = ((ox + t / 2) / size, (oy + t / 2) / size)
             continue
-        values = splines[0].evaluate(_tile_parameters(kind, t))
+        values = radiance_along_normal(splines[0], _tile_parameters(kind, t))
         pixels[oy:oy + t, ox:ox + t, :3] = values.reshape(t, t, 3)
         for loop, uv in zip(poly.loop_indices, _face_uvs(kind, (ox, oy), t, size, poly.loop_total)):
             uvs[loop] = uv
@@ -86,10 +109,44 @@ def bake_object(obj, faces) -> None:
     mesh.uv_layers[UV_NAME].data.foreach_set("uv", uvs.ravel())
     del uv_layer  # look layers up by name again after creating one
 
-    image = _radiance_image(f"BSGI {obj.name}", size, pixels)
-    material = _baked_material(f"BSGI {obj.name}", image)
+    image = _radiance_image(f"BSGI {obj.name}", size, size, pixels)
+    material = _baked_material(f"BSGI {obj.name}", image, UV_NAME)
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
+    return _view_dependence_warning(obj, faces)
+
+
+def nurbs_image_size(spline) -> tuple:
+    """(width, height) of a NURBS surface's image: two texels per coefficient in u and v, at least 16."""
+    return tuple(max(16, 2 * axis.num_coeffs) for axis in spline.axes[:2])
+
+
+def nurbs_pixels(spline) -> np.ndarray:
+    """(height, width, 4) image of a spline over the surface's parameter square. Blender's mesh
+    of the surface has UVs = normalized (u, v), and a linear image lookup at UV x reads texel
+    centres at (i + 0.5) / width: each texel holds the radiance at its centre's parameters, so
+    the image interpolates the spline there."""
+    w, h = nurbs_image_size(spline)
+    u, v = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
+    pixels = np.ones((h, w, 4), np.float32)
+    pixels[..., :3] = radiance_along_normal(spline, np.stack([u.ravel(), v.ravel()], axis=1)).reshape(h, w, 3)
+    return pixels
+
+
+def _bake_nurbs(obj, faces) -> list:
+    """A SURFACE object of one spline: its image laid out in parameter space, shown through the
+    UV map Blender gives the surface's mesh. Several splines share that UV map's square, so one
+    image cannot show them all: they are solved (they light each other) but not baked yet."""
+    if len(faces) != 1:
+        return [f"object '{obj.name}': {len(faces)} NURBS splines are solved but not baked (they share one UV "
+                "square; one spline per object is baked)"]
+    spline = faces[0][1][0]
+    pixels = nurbs_pixels(spline)
+    image = _radiance_image(f"BSGI {obj.name}", pixels.shape[1], pixels.shape[0], pixels)
+    material = _baked_material(f"BSGI {obj.name}", image, NURBS_UV_NAME)
+    _link_baked_material(obj, material)
+    _store_splines(obj, faces)
+    return _view_dependence_warning(obj, faces)
 
 
 def _store_splines(obj, faces) -> None:
@@ -132,18 +189,18 @@ def _shaped(arrays):
     return arrays
 
 
-def rebake(obj) -> None:
+def rebake(obj) -> list:
     """Regenerate an object's image from its stored splines (no solve)."""
-    bake_object(obj, stored_faces(obj))
+    return bake_object(obj, stored_faces(obj))
 
 
-def _radiance_image(name: str, size: int, pixels: np.ndarray):
+def _radiance_image(name: str, width: int, height: int, pixels: np.ndarray):
     image = bpy.data.images.get(name)
-    if image is not None and (image.size[0] != size or image.size[1] != size):
+    if image is not None and (image.size[0] != width or image.size[1] != height):
         bpy.data.images.remove(image)
         image = None
     if image is None:
-        image = bpy.data.images.new(name, size, size, alpha=False, float_buffer=True)
+        image = bpy.data.images.new(name, width, height, alpha=False, float_buffer=True)
     # Radiance is scene-linear data: the colour space is set before the pixels, since
     # changing it afterwards discards them.
     image.colorspace_settings.name = "Non-Color"
@@ -152,7 +209,7 @@ def _radiance_image(name: str, size: int, pixels: np.ndarray):
     return image
 
 
-def _baked_material(name: str, image):
+def _baked_material(name: str, image, uv_map: str):
     material = bpy.data.materials.get(name) or bpy.data.materials.new(name)
     material.use_fake_user = True  # kept in the .blend while the originals are shown
     tree = material.node_tree
@@ -164,7 +221,7 @@ def _baked_material(name: str, image):
     emission = tree.nodes.new("ShaderNodeEmission")
     tex = tree.nodes.new("ShaderNodeTexImage")
     uv = tree.nodes.new("ShaderNodeUVMap")
-    uv.uv_map = UV_NAME
+    uv.uv_map = uv_map
     tex.image = image
     tex.interpolation = "Linear"
     tex.extension = "EXTEND"
@@ -221,7 +278,7 @@ def clear_bake(obj) -> None:
     del obj[PROP_MATERIAL]
     if PROP_RADIANCE in obj:
         del obj[PROP_RADIANCE]
-    uv = obj.data.uv_layers.get(UV_NAME)
+    uv = obj.data.uv_layers.get(UV_NAME) if obj.type == "MESH" else None
     if uv is not None:
         obj.data.uv_layers.remove(uv)
     material = bpy.data.materials.get(name)

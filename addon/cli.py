@@ -53,6 +53,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", help="where to save the solved scene (default: overwrite the opened file)")
     parser.add_argument("--render", help="also render the camera view of the baked scene to this image")
     parser.add_argument("--resolution", type=int, nargs=2, default=(512, 512))
+    parser.add_argument("--preset", choices=["draft", "preview", "final", "custom"],
+                        help="quality preset (default: the scene's setting)")
     args = parser.parse_args(argv)
 
     import bpy
@@ -68,6 +70,8 @@ def main(argv=None) -> int:
     if args.blend:
         bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(args.blend).resolve()))
     context = bpy.context
+    if args.preset:
+        context.scene.bsgi.preset = args.preset.upper()
 
     def on_progress(fraction, stage):
         print(f"bsgi: {fraction * 100:5.1f}% {stage}", flush=True)
@@ -80,7 +84,7 @@ def main(argv=None) -> int:
     for warning in rep["warnings"]:
         print(f"bsgi: warning: {warning}")
     print(f"bsgi: solved {rep['surfaces']} surfaces, {rep['coefficients']} coefficients, {rep['bounces']} bounces "
-          f"in {rep['solve_seconds']:.2f} s (bake {rep['bake_seconds']:.2f} s)")
+          f"in {rep['solve_seconds']:.2f} s (bake {rep['bake_seconds']:.2f} s); {pipeline.summary_text(rep)}")
     out = pathlib.Path(args.out).resolve() if args.out else None
     if out:
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -24,12 +24,14 @@ class ExportError(ValueError):
 
 @dataclass
 class ExportedObject:
-    """One Blender object's faces, in polygon order, as scene surfaces."""
+    """One Blender object's faces (in polygon order) or NURBS splines, as scene surfaces."""
 
     name: str
     polygon_count: int
-    # Per polygon: ("quad" | "triangle" | "ngon", first scene index, number of patches).
+    # Per polygon: ("quad" | "triangle" | "ngon", first scene index, number of patches);
+    # for a SURFACE object per spline: ("nurbs", scene index, 1).
     patches: list = field(default_factory=list)
+    kind: str = "mesh"  # "mesh" | "nurbs"
 
 
 @dataclass
@@ -101,16 +103,20 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     if kind in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC"}:
         return SurfaceMaterial(specular=_socket_color(node, "Color"), roughness=_socket_value(node, "Roughness", 0.5),
                                anisotropy=_socket_value(node, "Anisotropy", 0.0))
+    if kind == "BSDF_GLASS":
+        return SurfaceMaterial(transmission=1.0, roughness=_socket_value(node, "Roughness", 0.0),
+                               ior=_socket_value(node, "IOR", 1.5))
     if kind == "BSDF_PRINCIPLED":
         base = _socket_color(node, "Base Color")
         metallic = _socket_value(node, "Metallic")
-        transmission = _socket_value(node, "Transmission Weight", _socket_value(node, "Transmission"))
+        # Metals do not transmit: Blender's metallic part covers the transmission.
+        transmission = _socket_value(node, "Transmission Weight", _socket_value(node, "Transmission")) * (1 - metallic)
         specular_level = _socket_value(node, "Specular IOR Level", 0.5)
         ior = _socket_value(node, "IOR", 1.5)
         # Dielectric specular reflectance at normal incidence, ((ior-1)/(ior+1))^2, scaled by
         # the specular level (0.5 is the physical value); metals reflect their base colour.
         f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * specular_level
-        diffuse_weight = (1 - metallic) * (1 - transmission)
+        diffuse_weight = 1 - metallic - transmission
         specular = tuple(metallic * c + (1 - metallic) * f0 for c in base)
         emission = _scale(_socket_color(node, "Emission Color"), _socket_value(node, "Emission Strength"))
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
@@ -147,15 +153,68 @@ def describe_material(material, warnings) -> SurfaceMaterial:
     return _shader(_from(output.inputs["Surface"]), material, warnings)
 
 
-def lambertian(material, described: SurfaceMaterial, warnings) -> tuple:
-    """(albedo, emission) for the diffuse solver; what it cannot represent is named in a warning."""
+# The narrowest GGX lobe the angular splines resolve: with the default 24 angular coefficients
+# across the disc a lobe needs a width of about 0.1 rad, i.e. alpha = roughness^2 >= 0.04.
+# Smoother materials (mirrors, clear glass) are solved at this roughness; the core refuses
+# perfectly smooth BSDFs, which have no spline representation.
+MIN_ROUGHNESS = 0.2
+
+
+@dataclass
+class SolverMaterial:
+    """What the core is given for one material: Lambertian albedo, or a BSDF, and emission.
+    kind and the parameters are kept beside the bsgi BSDF, which does not expose them."""
+
+    albedo: tuple
+    emission: tuple
+    kind: str = "lambert"  # "lambert" | "ggx" | "rough_dielectric"
+    alpha: float = 0.0
+    f0: tuple = (0.0, 0.0, 0.0)
+    eta: float = 1.0
+    bsdf: object = None  # bsgi.Bsdf, None for Lambert (the scene then uses albedo)
+
+
+def _alpha(name: str, roughness: float, warnings) -> float:
+    """Blender's alpha = roughness^2, the roughness clamped to what the splines resolve."""
+    if roughness < MIN_ROUGHNESS:
+        warnings.append(f"material '{name}': roughness {roughness:.2f} is solved as {MIN_ROUGHNESS} (mirror-like "
+                        "reflection and clear glass are not representable by the radiance splines)")
+        roughness = MIN_ROUGHNESS
+    return roughness**2
+
+
+def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMaterial:
+    """The part of the described material that dominates its reflected energy, as the core's
+    BSDF: Lambert (diffuse), GGX reflection (metals, glossy coatings) or a rough dielectric
+    (transmission). The core has one BSDF per surface, so the other parts are approximated and
+    named in a warning."""
     name = material.name if material is not None else "(none)"
-    if max(described.specular) > 0.05:
-        warnings.append(f"material '{name}': glossy reflection is solved as diffuse until glossy surfaces are supported")
-    if described.transmission > 0:
-        warnings.append(f"material '{name}': transmission is not solved yet; the surface is treated as opaque")
+    diffuse = sum(described.albedo) / 3
+    glossy = sum(described.specular) / 3
+    transmission = described.transmission
+    if described.anisotropy:
+        warnings.append(f"material '{name}': anisotropy is solved as isotropic")
+    if transmission > max(diffuse, glossy):
+        if diffuse + glossy > 0.05:
+            warnings.append(f"material '{name}': solved as rough glass; its diffuse and metallic parts are dropped")
+        eta = max(described.ior, 1.0 + 1e-3)
+        alpha = _alpha(name, described.roughness, warnings)
+        return SolverMaterial((0, 0, 0), described.emission, "rough_dielectric", alpha=alpha, eta=eta,
+                              bsdf=bsgi.RoughDielectric(eta, alpha, alpha))
+    if transmission > 0:
+        warnings.append(f"material '{name}': its transmission is weaker than its reflection; solved as opaque")
+    if glossy > diffuse:
+        if diffuse > 0.05:
+            warnings.append(f"material '{name}': solved as glossy (GGX); its diffuse part is dropped")
+        f0 = tuple(min(1.0, max(0.0, c)) for c in described.specular)
+        alpha = _alpha(name, described.roughness, warnings)
+        return SolverMaterial((0, 0, 0), described.emission, "ggx", alpha=alpha, f0=f0,
+                              bsdf=bsgi.GgxReflection(alpha, alpha, f0))
+    if glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
+        warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
+                        f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")
     albedo = tuple(min(1.0, max(0.0, a + s)) for a, s in zip(described.albedo, described.specular))
-    return albedo, described.emission
+    return SolverMaterial(albedo, described.emission)
 
 
 def _area_light(scene, obj, warnings):
@@ -183,14 +242,32 @@ def _v(x, y):
     return Vector((x, y, 0.0))
 
 
+def surface_options(obj) -> dict:
+    """The object's per-surface solver options (Object properties), as the core's keywords."""
+    settings = getattr(obj, "bsgi", None)
+    if settings is None:
+        return {}
+    return {"representation": settings.representation.lower(), "spatial_coeffs": settings.spatial_coeffs,
+            "angular_coeffs": settings.angular_coeffs}
+
+
+def _slot_materials(obj, warnings) -> list:
+    slots = [slot.material for slot in obj.material_slots] or [None]
+    return [solver_material(m, describe_material(m, warnings), warnings) for m in slots]
+
+
+def _material_keywords(material: SolverMaterial, options: dict) -> dict:
+    return dict(albedo=material.albedo, emission=material.emission, bsdf=material.bsdf, **options)
+
+
 def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObject:
     co = np.empty(len(mesh.vertices) * 3, np.float64)
     mesh.vertices.foreach_get("co", co)
     co = co.reshape(-1, 3)
     m = np.array(matrix, float)
     world = co @ m[:3, :3].T + m[:3, 3]
-    slots = [slot.material for slot in obj.material_slots] or [None]
-    materials = [lambertian(m, describe_material(m, warnings), warnings) for m in slots]
+    options = surface_options(obj)
+    materials = [_material_keywords(material, options) for material in _slot_materials(obj, warnings)]
     exported = ExportedObject(obj.name, len(mesh.polygons))
     ngon_tris = {}
     if any(p.loop_total > 4 for p in mesh.polygons):
@@ -198,24 +275,71 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObje
         for tri in mesh.loop_triangles:
             ngon_tris.setdefault(tri.polygon_index, []).append(tuple(tri.vertices))
     for poly in mesh.polygons:
-        albedo, emission = materials[min(poly.material_index, len(materials) - 1)]
+        keywords = materials[min(poly.material_index, len(materials) - 1)]
         name = f"{obj.name}: face {poly.index}"
         verts = list(poly.vertices)
         first = len(scene)
         try:
             if len(verts) == 4:
-                scene.add_bilinear_patch(name, world[verts], albedo=albedo, emission=emission)
+                scene.add_bilinear_patch(name, world[verts], **keywords)
                 exported.patches.append(("quad", first, 1))
             elif len(verts) == 3:
-                scene.add_triangle(name, world[verts], albedo=albedo, emission=emission)
+                scene.add_triangle(name, world[verts], **keywords)
                 exported.patches.append(("triangle", first, 1))
             else:
                 for k, tri in enumerate(ngon_tris[poly.index]):
-                    scene.add_triangle(f"{name} triangle {k}", world[list(tri)], albedo=albedo, emission=emission)
+                    scene.add_triangle(f"{name} triangle {k}", world[list(tri)], **keywords)
                 exported.patches.append(("ngon", first, len(ngon_tris[poly.index])))
         except ValueError as error:
             raise ExportError(str(error)) from None
     return exported
+
+
+def nurbs_surface(name: str, spline, matrix: Matrix) -> "bsgi.NurbsSurface":
+    """A Blender SURFACE spline as the exact rational surface, control points in world space.
+    Points are Cartesian with the weight beside them, so the affine transform commutes with the
+    rational combination: transforming the points transforms the surface."""
+    co = np.empty(len(spline.points) * 4, np.float64)
+    spline.points.foreach_get("co", co)
+    co = co.reshape(-1, 4)
+    m = np.array(matrix, float)
+    co[:, :3] = co[:, :3] @ m[:3, :3].T + m[:3, 3]
+    return bsgi.NurbsSurface(name, co, spline.point_count_u, spline.point_count_v, spline.order_u, spline.order_v,
+                             spline.use_endpoint_u, spline.use_endpoint_v, spline.use_bezier_u, spline.use_bezier_v,
+                             spline.use_cyclic_u, spline.use_cyclic_v)
+
+
+def _nurbs_problem(spline) -> str:
+    """Why Blender draws nothing for a spline (its knot rule cannot use the point counts), or ''."""
+    return (bsgi.blender_nurbs_problem(spline.point_count_u, spline.order_u, spline.use_endpoint_u, spline.use_bezier_u,
+                                       spline.use_cyclic_u)
+            or bsgi.blender_nurbs_problem(spline.point_count_v, spline.order_v, spline.use_endpoint_v,
+                                          spline.use_bezier_v, spline.use_cyclic_v))
+
+
+def _add_nurbs_object(scene, obj, matrix: Matrix, warnings) -> ExportedObject | None:
+    """One exact NURBS surface per spline of a SURFACE object (not its tessellation)."""
+    original = obj.original
+    if original.modifiers:
+        warnings.append(f"object '{obj.name}': modifiers of NURBS surfaces are ignored (the splines are solved exactly)")
+    options = surface_options(original)
+    materials = [_material_keywords(material, options) for material in _slot_materials(original, warnings)]
+    exported = ExportedObject(obj.name, 0, kind="nurbs")
+    for k, spline in enumerate(original.data.splines):
+        if spline.type != "NURBS":
+            continue
+        if _nurbs_problem(spline):
+            warnings.append(f"object '{obj.name}': spline {k} is skipped, Blender draws nothing for it "
+                            f"({_nurbs_problem(spline)})")
+            continue
+        first = len(scene)
+        try:
+            surface = nurbs_surface(f"{obj.name}: spline {k}", spline, matrix)
+            scene.add_surface(surface, **materials[min(spline.material_index, len(materials) - 1)])
+        except ValueError as error:
+            raise ExportError(str(error)) from None
+        exported.patches.append(("nurbs", first, 1))
+    return exported if exported.patches else None
 
 
 def export_scene(depsgraph) -> Export:
@@ -234,6 +358,11 @@ def export_scene(depsgraph) -> Export:
             continue
         if inst.is_instance:
             warnings.append(f"object '{obj.name}': instances are not baked yet; skipped")
+            continue
+        if obj.type == "SURFACE":
+            exported = _add_nurbs_object(scene, obj, inst.matrix_world, warnings)
+            if exported is not None:
+                objects.append(exported)
             continue
         mesh = obj.to_mesh()
         try:

@@ -95,7 +95,8 @@ class BSGI_OT_solve(bpy.types.Operator):
         for warning in rep["warnings"]:
             self.report({"WARNING"}, warning)
         self.report({"INFO"}, f"B-spline GI: solved {rep['surfaces']} surfaces ({rep['coefficients']} coefficients, "
-                    f"{rep['bounces']} bounces) in {rep['solve_seconds']:.2f} s, baked in {rep['bake_seconds']:.2f} s")
+                    f"{rep['bounces']} bounces) in {rep['solve_seconds']:.2f} s, baked in {rep['bake_seconds']:.2f} s; "
+                    f"{pipeline.summary_text(rep)}")
 
 
 class BSGI_OT_clear(bpy.types.Operator):
@@ -124,7 +125,8 @@ class BSGI_OT_rebake(bpy.types.Operator):
             self.report({"ERROR"}, "B-spline GI: nothing to re-bake; solve first")
             return {"CANCELLED"}
         for obj in objects:
-            bake.rebake(obj)
+            for warning in bake.rebake(obj):
+                self.report({"WARNING"}, warning)
         context.scene.bsgi.show_baked = True
         return {"FINISHED"}
 

@@ -2,6 +2,7 @@
 main thread, Blender's data is read and written only on it."""
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -26,9 +27,10 @@ def prepare(context) -> Job:
     export = export_scene(depsgraph)
     for exported in export.objects:
         obj = bpy.data.objects[exported.name]
-        if obj.type != "MESH":
-            raise ExportError(f"object '{obj.name}': only mesh objects can be baked yet ({obj.type.lower()} given)")
-        if len(obj.data.polygons) != exported.polygon_count:
+        if obj.type not in {"MESH", "SURFACE"}:
+            raise ExportError(f"object '{obj.name}': only mesh and NURBS surface objects can be baked yet "
+                              f"({obj.type.lower()} given)")
+        if obj.type == "MESH" and len(obj.data.polygons) != exported.polygon_count:
             raise ExportError(f"object '{obj.name}': its modifiers change its faces; apply them before solving")
     return Job(export, context.scene.bsgi.solver_settings(), bsgi.Progress())
 
@@ -39,9 +41,11 @@ def run(job: Job) -> bsgi.Solution:
 
 
 def finish(context, job: Job, solution: bsgi.Solution) -> None:
-    """Main thread: bake the solution into the scene."""
+    """Main thread: bake the solution into the scene; the bake's warnings join the export's."""
+    warnings = job.export.warnings
     for exported in job.export.objects:
-        bake.bake_object(bpy.data.objects[exported.name], bake.face_splines(exported, solution.radiance))
+        warnings += bake.bake_object(bpy.data.objects[exported.name], bake.face_splines(exported, solution.radiance))
+    job.export.warnings = list(dict.fromkeys(warnings))
     context.scene.bsgi.show_baked = True
 
 
@@ -65,5 +69,33 @@ def report(job: Job, solution: bsgi.Solution, solve_seconds: float, bake_seconds
         "coefficients": stats["coefficients"],
         "bounces": stats["bounces"],
         "rays": stats["rays"],
+        "representations": representation_summary(solution.reports),
         "warnings": job.export.warnings,
     }
+
+
+def representation_summary(reports) -> dict:
+    """What the solver chose per surface (paper: "model only what a scene requires"): counts of
+    diffuse (2D) and glossy (4D) surfaces and the largest spline, by coefficients."""
+    counts: dict = {}
+    largest = None
+    for r in reports:
+        kind = r["representation"].split()[0]  # "diffuse 2D", "glossy 4D + transmission", "emitter"
+        counts[kind] = counts.get(kind, 0) + 1
+        if r["shape"]:
+            coefficients = math.prod(r["shape"]) * (2 if "transmission" in r["representation"] else 1)
+            if largest is None or coefficients > largest["coefficients"]:
+                largest = {"name": r["name"], "shape": list(r["shape"]), "coefficients": coefficients,
+                           "reason": r["reason"]}
+    return {"counts": counts, "largest": largest}
+
+
+def summary_text(rep: dict) -> str:
+    """One line for the status bar: "2 diffuse, 1 glossy; largest 'Floor: face 0' 12x12x10x10 (14400 coefficients)"."""
+    kinds = rep["representations"]
+    text = ", ".join(f"{n} {kind}" for kind, n in sorted(kinds["counts"].items()))
+    largest = kinds["largest"]
+    if largest:
+        text += (f"; largest '{largest['name']}' {'x'.join(map(str, largest['shape']))} "
+                 f"({largest['coefficients']} coefficients)")
+    return text

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 import bsgi
 
@@ -14,7 +14,24 @@ def _show_baked_update(self, context):
         bake.show_baked(obj, self.show_baked)
 
 
+# The core's presets (bsgi.SolverSettings.preset): each iterates the bounces on a coarse
+# representation and refines it once in a final gather; the README lists their measured time
+# and error. CUSTOM solves with the individual settings below instead.
+PRESETS = [
+    ("DRAFT", "Draft", "Fastest: 8 spatial coefficients per direction, few integration nodes, 1% tolerance; "
+     "blurry shadows and highlights, for checking the light set-up"),
+    ("PREVIEW", "Preview", "Balanced: 12 spatial coefficients per direction, the default integration nodes, "
+     "0.3% tolerance; a few times slower than Draft"),
+    ("FINAL", "Final", "Most accurate: 16 spatial coefficients with knots clustered at shadow edges, finer "
+     "glossy lobes, 0.1% tolerance; several times slower than Preview and more memory"),
+    ("CUSTOM", "Custom", "The coefficients, degree, bounces, tolerance and nodes set below, without a final gather"),
+]
+
+
 class BSGISceneSettings(bpy.types.PropertyGroup):
+    preset: EnumProperty(
+        name="Quality", items=PRESETS, default="PREVIEW",
+        description="Speed against accuracy of the solve")
     spatial_coeffs: IntProperty(
         name="Spatial Coefficients", default=16, min=1, max=256,
         description="B-spline coefficients per surface direction (u and v): more resolve finer light detail, "
@@ -36,6 +53,9 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="Show the solved radiance, or the objects' own materials")
 
     def solver_settings(self) -> bsgi.SolverSettings:
+        """The preset's settings, or with CUSTOM the core's defaults with the individual settings."""
+        if self.preset != "CUSTOM":
+            return bsgi.SolverSettings.preset(self.preset.lower())
         s = bsgi.SolverSettings()
         s.spatial_coeffs = max(self.spatial_coeffs, self.spatial_degree + 1)
         s.spatial_degree = self.spatial_degree
@@ -46,16 +66,38 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         return s
 
 
-classes = (BSGISceneSettings,)
+class BSGIObjectSettings(bpy.types.PropertyGroup):
+    """Per-object options of the object's surfaces (every face of a mesh, every spline of a NURBS
+    surface); 0 and Automatic leave the choice to the solver."""
+
+    representation: EnumProperty(
+        name="Representation", default="AUTO",
+        items=[("AUTO", "Automatic", "Diffuse (2D) for Lambertian materials, glossy (4D) for the others"),
+               ("DIFFUSE", "Diffuse", "A 2D spline over the surface: radiance the same in every direction (cheap)"),
+               ("GLOSSY", "Glossy", "A 4D spline over the surface and the hemisphere: view-dependent radiance "
+                "(costs the angular coefficients squared times more)")],
+        description="How the radiance leaving the object's surfaces is represented")
+    spatial_coeffs: IntProperty(
+        name="Spatial Coefficients", default=0, min=0, max=256,
+        description="Coefficients per surface direction for this object (0: the scene's quality setting)")
+    angular_coeffs: IntProperty(
+        name="Angular Coefficients", default=0, min=0, max=64,
+        description="Coefficients per direction of the hemisphere disc of glossy surfaces (0: from the "
+        "material's lobe width)")
+
+
+classes = (BSGISceneSettings, BSGIObjectSettings)
 
 
 def register():
     for c in classes:
         bpy.utils.register_class(c)
     bpy.types.Scene.bsgi = bpy.props.PointerProperty(type=BSGISceneSettings)
+    bpy.types.Object.bsgi = bpy.props.PointerProperty(type=BSGIObjectSettings)
 
 
 def unregister():
+    del bpy.types.Object.bsgi
     del bpy.types.Scene.bsgi
     for c in reversed(classes):
         bpy.utils.unregister_class(c)

@@ -9,7 +9,8 @@ import bsgi
 
 from . import bake
 
-_FACE = re.compile(r"^(?P<object>.*): face (?P<face>\d+)(?: triangle (?P<k>\d+))?$")
+# Surface names as the exporter gives them: "<object>: face <i>[ triangle <k>]", "<object>: spline <i>".
+_FACE = re.compile(r"^(?P<object>.*): (?P<part>face|spline) (?P<face>\d+)(?: triangle (?P<k>\d+))?$")
 
 
 def export_solution(scene, path) -> int:
@@ -20,7 +21,8 @@ def export_solution(scene, path) -> int:
             continue
         for i, (kind, splines) in enumerate(bake.stored_faces(obj)):
             for k, spline in enumerate(splines):
-                names.append(f"{obj.name}: face {i}" + (f" triangle {k}" if kind == "ngon" else ""))
+                part = "spline" if kind == "nurbs" else "face"
+                names.append(f"{obj.name}: {part} {i}" + (f" triangle {k}" if kind == "ngon" else ""))
                 radiance.append(spline)
     if not radiance:
         raise ValueError("no baked objects: solve first")
@@ -40,6 +42,10 @@ def import_solution(scene, path) -> list:
     baked = []
     for obj_name, faces in per_object.items():
         obj = bpy.data.objects.get(obj_name)
+        if obj is not None and obj.type == "SURFACE":
+            bake.bake_object(obj, [("nurbs", faces[i]) for i in sorted(faces)])
+            baked.append(obj)
+            continue
         if obj is None or obj.type != "MESH":
             raise ValueError(f"solution file names object '{obj_name}', which is not a mesh in this scene")
         mesh = obj.data

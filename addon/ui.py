@@ -7,7 +7,9 @@ import bpy
 def draw_controls(layout, scene):
     settings = scene.bsgi
     layout.operator("bsgi.solve", icon="LIGHT_AREA")
+    layout.prop(settings, "preset")
     col = layout.column(align=True)
+    col.enabled = settings.preset == "CUSTOM"  # shown for reference, used only by Custom
     col.prop(settings, "spatial_coeffs")
     col.prop(settings, "spatial_degree")
     col.prop(settings, "max_bounces")
@@ -42,7 +44,31 @@ class BSGI_PT_sidebar(bpy.types.Panel):
         draw_controls(self.layout, context.scene)
 
 
-classes = (BSGI_PT_render, BSGI_PT_sidebar)
+class BSGI_PT_object(bpy.types.Panel):
+    """Object properties: how the solver represents this object's radiance."""
+
+    bl_label = "B-spline GI"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "object"
+
+    @classmethod
+    def poll(cls, context):
+        return context.object is not None and context.object.type in {"MESH", "SURFACE"}
+
+    def draw(self, context):
+        settings = context.object.bsgi
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(settings, "representation")
+        col = layout.column(align=True)
+        col.prop(settings, "spatial_coeffs")
+        row = col.row()
+        row.enabled = settings.representation != "DIFFUSE"
+        row.prop(settings, "angular_coeffs")
+
+
+classes = (BSGI_PT_render, BSGI_PT_sidebar, BSGI_PT_object)
 
 
 def register():

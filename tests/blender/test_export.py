@@ -5,6 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
+import bsgi
 import scenes
 from bsgi_addon import export
 
@@ -88,8 +89,96 @@ def test_glossy_and_textures_are_named_in_warnings(context):
     m.node_tree.links.new(tex.outputs["Color"], node.inputs["Color"])
     result = export.export_scene(context.evaluated_depsgraph_get())
     text = "\n".join(result.warnings)
-    assert "material 'Shiny'" in text and "glossy" in text and "driven by nodes" in text
+    assert "material 'Shiny'" in text and "driven by nodes" in text
     assert len(result.warnings) == len(set(result.warnings))
+
+
+def solver_material(material):
+    warnings = []
+    described = export.describe_material(material, warnings)
+    return export.solver_material(material, described, warnings), warnings
+
+
+def assert_same_bsdf(bsdf, expected):
+    """Same values over a spread of (wo, wi) pairs: the bsgi BSDFs do not expose their parameters."""
+    rng = np.random.default_rng(3)
+    w = rng.normal(size=(2, 64, 3))
+    w[..., 2] = np.abs(w[..., 2])
+    w /= np.linalg.norm(w, axis=2, keepdims=True)
+    np.testing.assert_allclose(bsdf.eval(w[0], w[1]), expected.eval(w[0], w[1]), rtol=1e-6)  # Blender stores float32
+
+
+def test_metal_becomes_ggx_with_base_colour_f0(context):
+    base = (0.9, 0.6, 0.3)
+    got, warnings = solver_material(principled("Gold", **{"Base Color": (*base, 1), "Metallic": 1.0, "Roughness": 0.5}))
+    assert got.kind == "ggx" and got.bsdf.name == "ggx"
+    assert got.alpha == pytest.approx(0.25)  # alpha = roughness^2, as Blender
+    assert got.f0 == pytest.approx(base)
+    assert_same_bsdf(got.bsdf, bsgi.GgxReflection(0.25, 0.25, base))
+    assert not warnings
+
+
+def test_glossy_bsdf_becomes_ggx(context):
+    m, _ = shader_material("Gloss", "ShaderNodeBsdfGlossy", Color=(0.8, 0.7, 0.6, 1), Roughness=0.6)
+    got, warnings = solver_material(m)
+    assert got.kind == "ggx" and got.alpha == pytest.approx(0.36) and got.f0 == pytest.approx((0.8, 0.7, 0.6))
+    assert not warnings
+
+
+def test_dark_dielectric_coating_becomes_ggx_with_f0_from_ior(context):
+    m = principled("Lacquer", **{"Base Color": (0.01, 0.01, 0.01, 1), "Roughness": 0.4, "IOR": 2.0})
+    got, warnings = solver_material(m)
+    assert got.kind == "ggx" and got.alpha == pytest.approx(0.16)
+    assert got.f0 == pytest.approx(((2.0 - 1) / (2.0 + 1)) ** 2 * np.ones(3))  # specular level 0.5
+    assert not warnings  # its diffuse part (0.01) is negligible
+
+
+def test_diffuse_dominated_principled_stays_lambertian(context):
+    got, warnings = solver_material(principled("Plastic", **{"Base Color": (0.5, 0.5, 0.5, 1), "Roughness": 0.5}))
+    assert got.kind == "lambert" and got.bsdf is None and got.albedo[0] == pytest.approx(0.54, abs=1e-3)
+    assert not warnings
+    got, warnings = solver_material(principled("Glossy plastic", **{"Base Color": (0.5, 0.5, 0.5, 1), "Roughness": 0.1}))
+    assert got.kind == "lambert"
+    assert any("'Glossy plastic'" in w and "highlights" in w for w in warnings)
+    got, warnings = solver_material(principled("Half metal", **{"Base Color": (0.5, 0.5, 0.5, 1), "Metallic": 0.3}))
+    assert got.kind == "lambert" and any("'Half metal'" in w for w in warnings)
+
+
+def test_transmission_becomes_rough_dielectric(context):
+    m = principled("Frosted", **{"Transmission Weight": 1.0, "Roughness": 0.5, "IOR": 1.45})
+    got, warnings = solver_material(m)
+    assert got.kind == "rough_dielectric" and got.bsdf.name == "rough_dielectric"
+    assert got.eta == pytest.approx(1.45) and got.alpha == pytest.approx(0.25)
+    assert_same_bsdf(got.bsdf, bsgi.RoughDielectric(1.45, 0.25, 0.25))
+    assert not warnings
+    m, _ = shader_material("Glass", "ShaderNodeBsdfGlass", Roughness=0.5, IOR=1.3)
+    got, _ = solver_material(m)
+    assert got.kind == "rough_dielectric" and got.eta == pytest.approx(1.3)
+
+
+@pytest.mark.parametrize("inputs", [{"Metallic": 1.0, "Roughness": 0.0}, {"Transmission Weight": 1.0, "Roughness": 0.05}])
+def test_mirrors_and_clear_glass_are_clamped_to_the_minimum_roughness(context, inputs):
+    got, warnings = solver_material(principled("Smooth", **inputs))
+    assert got.kind in {"ggx", "rough_dielectric"}
+    assert got.alpha == pytest.approx(export.MIN_ROUGHNESS**2)
+    assert any("material 'Smooth'" in w and "roughness" in w for w in warnings)
+
+
+def test_glossy_materials_reach_the_scene_with_the_objects_options(context):
+    floor = scenes.floor_under_lamp()
+    floor.data.materials[0] = principled("Steel", **{"Metallic": 1.0, "Roughness": 0.5})
+    floor.bsgi.spatial_coeffs = 5
+    floor.bsgi.angular_coeffs = 7
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    solution = bsgi.solve(result.scene, bsgi.SolverSettings.preset("draft"))
+    report = next(r for r in solution.reports if r["name"].startswith("Floor"))
+    # The presets' final gather refines the spatial coefficients by final_spatial_factor (2).
+    assert report["representation"] == "glossy 4D" and report["shape"] == [10, 10, 7, 7]
+    floor.bsgi.representation = "DIFFUSE"
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    solution = bsgi.solve(result.scene, bsgi.SolverSettings.preset("draft"))
+    report = next(r for r in solution.reports if r["name"].startswith("Floor"))
+    assert report["representation"] == "diffuse 2D" and report["shape"] == [10, 10]
 
 
 def test_unsupported_lights_and_world_are_warned_about(context):
@@ -146,6 +235,7 @@ def test_area_light_lights_a_floor_as_cycles_does(context):
     from bsgi_addon import pipeline
 
     floor = scenes.floor_under_lamp()  # grey 0.5 under a 1 x 1 lamp of 50 W at height 1
+    context.scene.bsgi.preset = "CUSTOM"
     context.scene.bsgi.max_bounces = 0
     job = pipeline.prepare(context)
     solution = pipeline.run(job)

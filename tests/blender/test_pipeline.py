@@ -35,6 +35,7 @@ def render_exr(scene, path, samples, bounces):
 @pytest.mark.slow
 def test_baked_cornell_box_matches_cycles_path_tracing(context, tmp_path):
     scene = scenes.cornell_box()
+    scene.bsgi.preset = "CUSTOM"
     bounces = scene.bsgi.max_bounces
     scene.bsgi.tolerance = 0  # exactly max_bounces, like Cycles
     reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=bounces)
