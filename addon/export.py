@@ -243,8 +243,9 @@ def _v(x, y):
 
 
 def surface_options(obj) -> dict:
-    """The object's per-surface solver options (Object properties), as the core's keywords."""
-    settings = getattr(obj, "bsgi", None)
+    """The object's per-surface solver options (Object properties), as the core's keywords. Read
+    from the original object: the evaluated copy's may predate the user's last change."""
+    settings = getattr(obj.original, "bsgi", None)
     if settings is None:
         return {}
     return {"representation": settings.representation.lower(), "spatial_coeffs": settings.spatial_coeffs,
@@ -322,7 +323,7 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings) -> ExportedObject | 
     original = obj.original
     if original.modifiers:
         warnings.append(f"object '{obj.name}': modifiers of NURBS surfaces are ignored (the splines are solved exactly)")
-    options = surface_options(original)
+    options = surface_options(obj)
     materials = [_material_keywords(material, options) for material in _slot_materials(original, warnings)]
     exported = ExportedObject(obj.name, 0, kind="nurbs")
     for k, spline in enumerate(original.data.splines):
