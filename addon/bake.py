@@ -253,6 +253,16 @@ def is_baked(obj) -> bool:
     return PROP_SLOTS in obj
 
 
+def user_materials(obj) -> list:
+    """The user's material in each slot, whether or not the bake is shown: a solve must read
+    these, never the baked emission materials."""
+    if not is_baked(obj):
+        return [slot.material for slot in obj.material_slots]
+    data = obj.data.materials
+    return [(data[i] if link == "DATA" else bpy.data.materials.get(object_material))
+            for i, (link, object_material) in enumerate(obj[PROP_SLOTS])]
+
+
 def show_baked(obj, baked: bool) -> None:
     """Switch an object between its baked radiance and the user's own materials."""
     if not is_baked(obj):

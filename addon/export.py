@@ -253,7 +253,9 @@ def surface_options(obj) -> dict:
 
 
 def _slot_materials(obj, warnings) -> list:
-    slots = [slot.material for slot in obj.material_slots] or [None]
+    from .bake import user_materials  # the bake's record of the slots, not the baked materials
+
+    slots = user_materials(obj.original) or [None]
     return [solver_material(m, describe_material(m, warnings), warnings) for m in slots]
 
 

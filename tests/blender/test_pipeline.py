@@ -245,3 +245,16 @@ def test_glossy_quad_solves_and_bakes_the_radiance_along_its_normal(context):
     # Re-baking from the stored (4D) splines gives the same image.
     bpy.ops.bsgi.rebake()
     np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(size, size, 4), pixels)
+
+
+def test_a_second_solve_reads_the_users_materials_not_the_baked_ones(context):
+    floor = scenes.floor_under_lamp()
+    first = pipeline.solve_and_bake(context)
+    pixels = _image_pixels("BSGI Floor")
+    for show in (True, False):  # whether the bake or the originals are shown
+        context.scene.bsgi.show_baked = show
+        again = pipeline.solve_and_bake(context)
+        assert again["representations"] == first["representations"]
+        assert not any("BSGI" in w for w in again["warnings"])
+        np.testing.assert_array_equal(_image_pixels("BSGI Floor"), pixels)
+    assert floor.data.materials[0].name == "Grey"

@@ -1,0 +1,149 @@
+"""NURBS surfaces through export -> solve -> bake: exact surfaces in the scene, one image per
+spline laid out in parameter space and shown through the UV map of Blender's own mesh."""
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from bsgi_addon import bake, export, pipeline
+
+
+def add_sphere(location=(0.3, -0.2, 0.0), scale=(1.0, 1.2, 0.8)):
+    bpy.ops.surface.primitive_nurbs_surface_sphere_add(radius=1.0, location=location)
+    sphere = bpy.context.active_object
+    sphere.scale = scale
+    sphere.rotation_euler = (0.3, 0.0, 0.5)
+    sphere.data.materials.append(scenes.diffuse_material("Clay", (0.6, 0.5, 0.4)))
+    return sphere
+
+
+def sphere_under_lamp(context):
+    sphere = add_sphere()
+    scenes.add_area_light(location=(0, 0, 3), size=2.0, energy=300.0)
+    context.scene.bsgi.preset = "DRAFT"
+    return sphere
+
+
+def mesh_corners(obj):
+    """(uv, world position) of the corners of Blender's mesh of the surface."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        uv = np.empty(2 * len(mesh.loops))
+        mesh.uv_layers[bake.NURBS_UV_NAME].data.foreach_get("uv", uv)
+        vi = np.empty(len(mesh.loops), np.int64)
+        mesh.loops.foreach_get("vertex_index", vi)
+        co = np.empty(3 * len(mesh.vertices))
+        mesh.vertices.foreach_get("co", co)
+        m = np.array(evaluated.matrix_world)
+        world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        return uv.reshape(-1, 2), world[vi]
+    finally:
+        evaluated.to_mesh_clear()
+
+
+def sample_linear_extend(pixels, uv):
+    """A Linear, Extend image lookup as Blender's Image Texture does: texel centres at (i + 0.5) / size."""
+    h, w = pixels.shape[:2]
+    x, y = uv[:, 0] * w - 0.5, uv[:, 1] * h - 0.5
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    cx = lambda i: np.clip(i, 0, w - 1)  # noqa: E731
+    cy = lambda j: np.clip(j, 0, h - 1)  # noqa: E731
+    p = pixels[..., :3]
+    return ((1 - fy) * ((1 - fx) * p[cy(y0), cx(x0)] + fx * p[cy(y0), cx(x0 + 1)])
+            + fy * ((1 - fx) * p[cy(y0 + 1), cx(x0)] + fx * p[cy(y0 + 1), cx(x0 + 1)]))
+
+
+def test_surface_is_exported_exactly_in_world_space(context):
+    sphere = sphere_under_lamp(context)
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    (exported,) = result.objects
+    assert exported.kind == "nurbs" and exported.patches == [("nurbs", 0, 1)]
+    uv, world = mesh_corners(sphere)
+    surface = export.nurbs_surface("check", sphere.data.splines[0], sphere.matrix_world)
+    got = surface.evaluate(uv)["position"]
+    assert np.abs(got - world).max() < 1e-5 * np.ptp(world, axis=0).max()
+    # The scene's surface 0 is that surface: the same point at a parameter.
+    p = result.scene.evaluate_surface(0, 0.3, 0.6)["position"]
+    np.testing.assert_allclose(p, surface.evaluate(np.array([[0.3, 0.6]]))["position"][0], atol=1e-12)
+
+
+def test_sphere_bakes_its_spline_in_parameter_space(context):
+    sphere = sphere_under_lamp(context)
+    points = np.array([p.co[:] for p in sphere.data.splines[0].points])
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    pipeline.finish(context, job, solution)
+    spline = solution.radiance[job.export.objects[0].patches[0][1]]
+
+    image = bpy.data.images["BSGI SurfSphere"]
+    w, h = image.size
+    assert (w, h) == bake.nurbs_image_size(spline)
+    assert w >= max(16, 2 * spline.axes[0].num_coeffs) and h >= max(16, 2 * spline.axes[1].num_coeffs)
+    pixels = np.array(image.pixels[:], np.float32).reshape(h, w, 4)
+    assert pixels[..., :3].max() > 0
+    # What a render shows at each corner of Blender's mesh (its UVMap is the normalized (u, v)) is the spline there.
+    uv, world = mesh_corners(sphere)
+    shown = sample_linear_extend(pixels, uv)
+    solved = spline.evaluate(uv)
+    error = np.abs(shown - solved).max(axis=1) / solved.max()
+    # Between the texel centres the lookup interpolates the spline linearly (second order); in
+    # the half-texel border the Extend lookup holds the edge texel (first order).
+    inner = np.all((uv >= 0.5 / np.array([w, h])) & (uv <= 1 - 0.5 / np.array([w, h])), axis=1)
+    print(f"\nNURBS sphere: image {w}x{h}; image vs spline at the mesh's UVs, of the peak: largest "
+          f"{error[inner].max():.4f} inside the texel centres, {error[~inner].max():.4f} in the border")
+    assert inner.sum() > 0.5 * len(uv)
+    assert error[inner].max() < 0.01
+    assert error[~inner].max() < 0.05
+    # Lit from above: the top of the sphere is brighter than its bottom.
+    top, bottom = np.argmax(world[:, 2]), np.argmin(world[:, 2])
+    assert solved[top, 0] > 2 * solved[bottom, 0]
+
+    # The material is linked at object level through the surface's own UV map; the user's data is as it was.
+    slot = sphere.material_slots[0]
+    assert slot.link == "OBJECT" and slot.material.name == "BSGI SurfSphere"
+    uv_node = next(n for n in slot.material.node_tree.nodes if n.type == "UVMAP")
+    assert uv_node.uv_map == "UVMap"
+    assert sphere.data.materials[0].name == "Clay"
+    np.testing.assert_array_equal(np.array([p.co[:] for p in sphere.data.splines[0].points]), points)
+
+    context.scene.bsgi.show_baked = False
+    assert sphere.material_slots[0].link == "DATA" and sphere.active_material.name == "Clay"
+    context.scene.bsgi.show_baked = True
+    image.pixels.foreach_set(np.zeros(w * h * 4, np.float32))
+    assert bpy.ops.bsgi.rebake() == {"FINISHED"}
+    np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(h, w, 4), pixels)
+    bpy.ops.bsgi.clear()
+    assert sphere.active_material.name == "Clay"
+    assert "BSGI SurfSphere" not in bpy.data.materials and "BSGI SurfSphere" not in bpy.data.images
+
+
+def test_nurbs_patch_lights_a_floor_and_bakes_with_it(context):
+    """A glossy NURBS patch between a floor and the lamp: both solve, both bake; the patch's
+    bake warns that it is not view-dependent, and its shadow darkens the floor's middle."""
+    scenes.floor_under_lamp()
+    bpy.ops.surface.primitive_nurbs_surface_surface_add(radius=0.3, location=(0, 0, 0.5))
+    patch = bpy.context.active_object
+    patch.rotation_euler = (0.2, 0.1, 0.3)
+    mat = bpy.data.materials.new("Chrome")
+    if mat.node_tree is None:
+        mat.use_nodes = True
+    node = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    node.inputs["Metallic"].default_value = 1.0
+    node.inputs["Roughness"].default_value = 0.6
+    patch.data.materials.append(mat)
+    context.scene.bsgi.preset = "DRAFT"
+    rep = pipeline.solve_and_bake(context)
+    assert rep["representations"]["counts"] == {"diffuse": 1, "glossy": 1, "emitter": 1}
+    assert any("'SurfPatch'" in w and "not view-dependent" in w for w in rep["warnings"])
+    assert bake.is_baked(patch) and bake.is_baked(bpy.data.objects["Floor"])
+    pixels = np.array(bpy.data.images["BSGI SurfPatch"].pixels[:], np.float32)
+    assert pixels.reshape(-1, 4)[:, :3].max() > 0
+    shadowed = bake.stored_faces(bpy.data.objects["Floor"])[0][1][0].evaluate(np.array([[0.5, 0.5]]))[0, 0]
+    bpy.data.objects.remove(patch)
+    pipeline.solve_and_bake(context)  # a second solve reads the user's materials, not the baked ones
+    lit = bake.stored_faces(bpy.data.objects["Floor"])[0][1][0].evaluate(np.array([[0.5, 0.5]]))[0, 0]
+    print(f"\nfloor middle: {shadowed:.3f} under the NURBS patch, {lit:.3f} without it")
+    assert shadowed < 0.97 * lit  # a small patch (its cubic span is 0.3 wide) under a 1 x 1 lamp
