@@ -147,3 +147,11 @@ def test_nurbs_patch_lights_a_floor_and_bakes_with_it(context):
     lit = bake.stored_faces(bpy.data.objects["Floor"])[0][1][0].evaluate(np.array([[0.5, 0.5]]))[0, 0]
     print(f"\nfloor middle: {shadowed:.3f} under the NURBS patch, {lit:.3f} without it")
     assert shadowed < 0.97 * lit  # a small patch (its cubic span is 0.3 wide) under a 1 x 1 lamp
+
+
+def test_failed_nurbs_solve_leaves_the_scene_unchanged(context):
+    from test_pipeline import _assert_clear_error
+
+    add_sphere()  # no light
+    _assert_clear_error(context, "no emitter")
+    assert not bake.is_baked(bpy.data.objects["SurfSphere"])

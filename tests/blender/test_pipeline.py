@@ -258,3 +258,32 @@ def test_a_second_solve_reads_the_users_materials_not_the_baked_ones(context):
         assert not any("BSGI" in w for w in again["warnings"])
         np.testing.assert_array_equal(_image_pixels("BSGI Floor"), pixels)
     assert floor.data.materials[0].name == "Grey"
+
+
+@pytest.mark.parametrize("preset", ["DRAFT", "PREVIEW", "FINAL"])
+def test_quality_preset_is_the_cores_preset(context, preset):
+    import bsgi
+
+    settings = context.scene.bsgi
+    settings.preset = preset
+    settings.spatial_coeffs = 5  # the individual settings are used by Custom only
+    got, expected = settings.solver_settings(), bsgi.SolverSettings.preset(preset.lower())
+    for name in ("spatial_coeffs", "adaptive_knots", "angular_resolution", "hemisphere_nodes_theta", "tolerance",
+                 "final_gather", "max_bounces"):
+        assert getattr(got, name) == getattr(expected, name), name
+
+
+def test_custom_preset_uses_the_individual_settings(context):
+    settings = context.scene.bsgi
+    assert settings.preset == "PREVIEW"  # the default
+    settings.preset = "CUSTOM"
+    settings.spatial_coeffs, settings.max_bounces, settings.hemisphere_nodes = 7, 3, 5
+    got = settings.solver_settings()
+    assert (got.spatial_coeffs, got.max_bounces, got.hemisphere_nodes_theta, got.hemisphere_nodes_phi) == (7, 3, 5, 10)
+    assert not got.final_gather
+
+
+def test_object_panel_and_options_are_registered(context):
+    assert hasattr(bpy.types, "BSGI_PT_object")
+    floor = scenes.floor_under_lamp()
+    assert (floor.bsgi.representation, floor.bsgi.spatial_coeffs, floor.bsgi.angular_coeffs) == ("AUTO", 0, 0)
