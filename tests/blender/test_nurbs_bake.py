@@ -155,3 +155,16 @@ def test_failed_nurbs_solve_leaves_the_scene_unchanged(context):
     add_sphere()  # no light
     _assert_clear_error(context, "no emitter")
     assert not bake.is_baked(bpy.data.objects["SurfSphere"])
+
+
+def test_nurbs_solution_file_round_trip(context, tmp_path):
+    sphere_under_lamp(context)
+    pipeline.solve_and_bake(context)
+    image = bpy.data.images["BSGI SurfSphere"]
+    first = np.array(image.pixels[:], np.float32)
+    path = tmp_path / "sphere.npz"
+    assert bpy.ops.bsgi.export_solution(filepath=str(path)) == {"FINISHED"}
+    bpy.ops.bsgi.clear()
+    assert "BSGI SurfSphere" not in bpy.data.images
+    assert bpy.ops.bsgi.import_solution(filepath=str(path)) == {"FINISHED"}
+    np.testing.assert_array_equal(np.array(bpy.data.images["BSGI SurfSphere"].pixels[:], np.float32), first)
