@@ -1,7 +1,8 @@
 """Blender scene -> bsgi.Scene: the only place that reads the user's scene for a solve.
 
 Nothing of the user's data is changed here: meshes come from the evaluated depsgraph
-(`to_mesh()` on evaluated objects, cleared afterwards)."""
+(`to_mesh()` on evaluated objects, cleared afterwards), NURBS surfaces are read from their
+splines, and materials are the user's even where a bake is shown."""
 from __future__ import annotations
 
 import math
@@ -346,7 +347,8 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings) -> ExportedObject | 
 
 
 def export_scene(depsgraph) -> Export:
-    """Every visible geometry object's faces as patches, every area light as an emitter."""
+    """Every visible geometry object's faces as patches (a NURBS surface object's splines as exact
+    surfaces), every area light as an emitter."""
     scene = bsgi.Scene()
     objects, warnings = [], []
     for inst in depsgraph.object_instances:
