@@ -91,9 +91,10 @@ def representation_summary(reports) -> dict:
 
 
 def summary_text(rep: dict) -> str:
-    """One line for the status bar: "2 diffuse, 1 glossy; largest 'Floor: face 0' 12x12x10x10 (14400 coefficients)"."""
+    """One line for the status bar: "2 diffuse, 1 glossy, 1 emitter; largest 'Floor: face 0' 12x12x10x10 (14400 coefficients)"."""
     kinds = rep["representations"]
-    text = ", ".join(f"{n} {kind}" for kind, n in sorted(kinds["counts"].items()))
+    order = {"diffuse": 0, "glossy": 1}
+    text = ", ".join(f"{n} {kind}" for kind, n in sorted(kinds["counts"].items(), key=lambda c: (order.get(c[0], 2), c[0])))
     largest = kinds["largest"]
     if largest:
         text += (f"; largest '{largest['name']}' {'x'.join(map(str, largest['shape']))} "

@@ -287,3 +287,14 @@ def test_object_panel_and_options_are_registered(context):
     assert hasattr(bpy.types, "BSGI_PT_object")
     floor = scenes.floor_under_lamp()
     assert (floor.bsgi.representation, floor.bsgi.spatial_coeffs, floor.bsgi.angular_coeffs) == ("AUTO", 0, 0)
+
+
+def test_solve_operator_reports_the_representations(context, capfd):
+    floor = scenes.floor_under_lamp()
+    floor.data.materials[0] = _metal("Steel", 0.5)
+    context.scene.bsgi.preset = "DRAFT"
+    assert bpy.ops.bsgi.solve() == {"FINISHED"}
+    out = capfd.readouterr()
+    text = out.out + out.err
+    assert "1 glossy, 1 emitter; largest 'Floor: face 0'" in text, text[-2000:]
+    assert "not view-dependent" in text
