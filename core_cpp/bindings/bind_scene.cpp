@@ -154,6 +154,19 @@ void bind_scene(py::module_& m) {
     py::class_<SurfaceRadiance>(m, "SurfaceRadiance",
                                 "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "
                                 "(glossy), a second spline for the lower hemisphere where it transmits.")
+        .def(py::init([](const std::string& kind, double disc_radius, const TensorSpline& upper,
+                         std::optional<TensorSpline> lower) {
+                 if (kind != "diffuse" && kind != "glossy")
+                     throw std::invalid_argument("SurfaceRadiance: kind must be 'diffuse' or 'glossy', got '" + kind + "'");
+                 const Representation r = kind == "glossy" ? Representation::Glossy : Representation::Diffuse;
+                 const int dims = r == Representation::Glossy ? 4 : 2;
+                 if (upper.dims() != dims || upper.channels() != 3 || (lower && (lower->dims() != dims || lower->channels() != 3)))
+                     throw std::invalid_argument("SurfaceRadiance: a " + kind + " surface needs RGB splines of " +
+                                                 std::to_string(dims) + " dimensions");
+                 return SurfaceRadiance{r, HemisphereMap(disc_radius), upper, std::move(lower)};
+             }),
+             py::arg("kind"), py::arg("disc_radius"), py::arg("upper"), py::arg("lower") = std::nullopt,
+             "Rebuilds a solved surface's radiance (as a solution file stores it).")
         .def_property_readonly("kind", [](const SurfaceRadiance& r) { return kind_name(r.kind); })
         .def_readonly("upper", &SurfaceRadiance::upper)
         .def_readonly("lower", &SurfaceRadiance::lower)

@@ -45,26 +45,40 @@ def settings_from_dict(values: dict) -> _core.SolverSettings:
 
 @dataclass
 class StoredSolution:
-    """What a solution file holds: per surface its radiance spline (None for pure emitters)."""
+    """What a solution file holds: per surface its radiance (None for pure emitters), as the
+    upper-hemisphere spline (`radiance`) and as the whole SurfaceRadiance (`surfaces`: kind,
+    disc radius, the lower-hemisphere spline of transmitting surfaces)."""
 
     radiance: list
+    surfaces: list
     names: list
     settings: _core.SolverSettings
     stats: dict = field(default_factory=dict)
 
 
-def save_solution(path, radiance: Sequence[Optional[_core.TensorSpline]], names: Sequence[str],
-                  settings: _core.SolverSettings, stats: Optional[dict] = None) -> None:
-    """Write a solution (e.g. ``solution.radiance`` with the scene's surface names)."""
+def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _core.SolverSettings,
+                  stats: Optional[dict] = None) -> None:
+    """Write a solution: ``solution.surfaces`` (everything) or ``solution.radiance`` (the upper
+    splines, read back as diffuse or glossy by their dimension), with the surfaces' names."""
     if len(radiance) != len(names):
         raise ValueError(f"save_solution: {len(radiance)} splines but {len(names)} names")
-    arrays = {}
-    for i, spline in enumerate(radiance):
-        if spline is not None:
-            for key, value in spline_to_arrays(spline).items():
-                arrays[f"surface{i}/{key}"] = value
+    arrays, kinds, radii = {}, [], []
+    for i, entry in enumerate(radiance):
+        if entry is None:
+            kinds.append(None)
+            radii.append(None)
+            continue
+        surface = entry if isinstance(entry, _core.SurfaceRadiance) else None
+        upper = surface.upper if surface else entry
+        kinds.append(surface.kind if surface else ("glossy" if upper.dims == 4 else "diffuse"))
+        radii.append(surface.disc_radius if surface else None)
+        sides = {"upper": upper, "lower": surface.lower if surface else None}
+        for side, spline in sides.items():
+            if spline is not None:
+                for key, value in spline_to_arrays(spline).items():
+                    arrays[f"surface{i}/{side}/{key}"] = value
     meta = {"format": FORMAT, "names": list(names), "settings": settings_to_dict(settings),
-            "stats": dict(stats or {}), "solved": [s is not None for s in radiance]}
+            "stats": dict(stats or {}), "solved": [k is not None for k in kinds], "kinds": kinds, "disc_radii": radii}
     with open(path, "wb") as f:
         np.savez_compressed(f, meta=np.frombuffer(json.dumps(meta).encode(), np.uint8), **arrays)
 
@@ -75,11 +89,19 @@ def load_solution(path) -> StoredSolution:
         meta = json.loads(bytes(data["meta"]).decode())
         if meta.get("format") != FORMAT:
             raise ValueError(f"{path}: not a bsgi solution file (format {meta.get('format')!r})")
-        radiance = []
+        radiance, surfaces = [], []
         for i, solved in enumerate(meta["solved"]):
             if not solved:
                 radiance.append(None)
+                surfaces.append(None)
                 continue
-            prefix = f"surface{i}/"
-            radiance.append(spline_from_arrays({k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}))
-    return StoredSolution(radiance, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])
+            sides = {}
+            for side in ("upper", "lower"):
+                prefix = f"surface{i}/{side}/"
+                found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
+                sides[side] = spline_from_arrays(found) if found else None
+            radiance.append(sides["upper"])
+            radius = meta["disc_radii"][i]
+            surfaces.append(_core.SurfaceRadiance(meta["kinds"][i], radius if radius is not None else 1.0,
+                                                  sides["upper"], sides["lower"]))
+    return StoredSolution(radiance, surfaces, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])

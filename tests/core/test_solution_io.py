@@ -51,3 +51,27 @@ def test_other_files_are_refused(tmp_path):
     np.savez(path, meta=np.frombuffer(b'{"format": "something"}', np.uint8))
     with pytest.raises(ValueError, match="not a bsgi solution"):
         bsgi.load_solution(path)
+
+
+def test_glossy_and_transmitting_surfaces_round_trip(tmp_path):
+    # A rough glass sheet (4D, both hemispheres) and a GGX patch over a floor.
+    scene = bsgi.Scene()
+    quad = lambda z, s=1.0: np.array([[0, 0, z], [s, 0, z], [s, s, z], [0, s, z]], float)
+    scene.add_bilinear_patch("floor", quad(0), albedo=[0.5] * 3, emission=[0] * 3)
+    scene.add_bilinear_patch("glass", quad(0.5, 0.6), albedo=[0] * 3, emission=[0] * 3,
+                             bsdf=bsgi.RoughDielectric(1.5, 0.4, 0.4), spatial_coeffs=4, angular_coeffs=6)
+    scene.add_bilinear_patch("lamp", quad(1)[::-1].copy(), albedo=[0] * 3, emission=[3] * 3, receiver=False)
+    settings = bsgi.SolverSettings.preset("draft")
+    settings.final_gather = False
+    sol = bsgi.solve(scene, settings)
+    path = tmp_path / "glass.npz"
+    bsgi.save_solution(path, sol.surfaces, [scene.name(i) for i in range(len(scene))], settings)
+    stored = bsgi.load_solution(path)
+    a, b = sol.surfaces[1], stored.surfaces[1]
+    assert b.kind == "glossy" and b.lower is not None and b.disc_radius == a.disc_radius
+    rng = np.random.default_rng(0)
+    uv = rng.uniform(0, 1, (40, 2))
+    d = rng.normal(size=(40, 3))  # both hemispheres
+    np.testing.assert_array_equal(a.evaluate(uv, d), b.evaluate(uv, d))
+    assert np.abs(a.evaluate(uv, d)[d[:, 2] < 0]).max() > 0  # the lower spline carries light
+    assert stored.surfaces[0].kind == "diffuse" and stored.surfaces[2] is None
