@@ -117,6 +117,12 @@ void bind_bsdf(py::module_& m) {
     py::class_<GgxReflection, Bsdf, std::shared_ptr<GgxReflection>>(m, "GgxReflection")
         .def(py::init([](double ax, double ay, const Array& f0) { return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "f0")); }),
              py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"));
+    py::class_<DiffuseGgx, Bsdf, std::shared_ptr<DiffuseGgx>>(m, "DiffuseGgx",
+                                                               "Lambertian base under a GGX coat: albedo / pi + GGX.")
+        .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0) {
+                 return std::make_shared<DiffuseGgx>(rgb(albedo, "albedo"), ax, ay, rgb(f0, "f0"));
+             }),
+             py::arg("albedo"), py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"));
     py::class_<SmoothDielectric, Bsdf, std::shared_ptr<SmoothDielectric>>(m, "SmoothDielectric")
         .def(py::init<double>(), py::arg("eta"));
     py::class_<RoughDielectric, Bsdf, std::shared_ptr<RoughDielectric>>(m, "RoughDielectric")

@@ -61,6 +61,41 @@ bool GgxReflection::sample(const Vec3& wo, double, double u1, double u2, BsdfSam
     return true;
 }
 
+// ---- Lambertian base under a GGX coat ----
+
+DiffuseGgx::DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0)
+    : albedo_(albedo), coat_(std::make_shared<GgxReflection>(alpha_x, alpha_y, f0)) {
+    for (int i = 0; i < 3; ++i)
+        if (!std::isfinite(albedo[i]) || albedo[i] < 0 || albedo[i] > 1) throw std::invalid_argument("albedo must be in [0, 1]");
+    const double d = (albedo.x + albedo.y + albedo.z) / 3, c = (f0.x + f0.y + f0.z) / 3;
+    p_diffuse_ = d + c > 0 ? std::clamp(d / (d + c), 0.05, 0.95) : 0.5;
+}
+
+Vec3 DiffuseGgx::eval(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return {0, 0, 0};
+    return albedo_ / kPiD + coat_->eval(wo, wi);
+}
+
+double DiffuseGgx::pdf(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return 0;
+    return p_diffuse_ * wi.z / kPiD + (1 - p_diffuse_) * coat_->pdf(wo, wi);
+}
+
+bool DiffuseGgx::sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const {
+    if (wo.z <= 0) return false;
+    if (u0 < p_diffuse_) {  // cosine-weighted
+        const double r = std::sqrt(u1), phi = 2 * kPiD * u2;
+        out.wi = {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1 - u1))};
+    } else if (!coat_->sample(wo, 0, u1, u2, out)) {
+        return false;
+    }
+    out.delta = false;
+    out.pdf = pdf(wo, out.wi);
+    if (!(out.pdf > 0) || out.wi.z <= 0) return false;
+    out.weight = eval(wo, out.wi) * (out.wi.z / out.pdf);
+    return true;
+}
+
 // ---- smooth dielectric ----
 
 SmoothDielectric::SmoothDielectric(double eta) : eta_(eta) { check_eta(eta); }

@@ -41,6 +41,10 @@ public:
     virtual double lobe_width() const = 0;
     // True if light also leaves through the back side (paper section 4.3).
     virtual bool transmits() const { return false; }
+    // The decomposition (38): a Lambertian part of albedo diffuse_albedo() plus glossy_part(),
+    // for BSDFs that are such a sum (null otherwise).
+    virtual Vec3 diffuse_albedo() const { return {0, 0, 0}; }
+    virtual std::shared_ptr<const Bsdf> glossy_part() const { return nullptr; }
 };
 
 // rho = albedo / pi.
@@ -53,6 +57,7 @@ public:
     std::string name() const override { return "lambert"; }
     double lobe_width() const override { return kPiD / 2; }
     const Vec3& albedo() const { return albedo_; }
+    Vec3 diffuse_albedo() const override { return albedo_; }
 
 private:
     Vec3 albedo_;
@@ -113,6 +118,27 @@ public:
 private:
     GgxDistribution D_;
     Vec3 f0_;
+};
+
+// A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal:
+// rho = albedo / pi + GGX(alpha_x, alpha_y, f0). Sampled by choosing the lobe in proportion to
+// the albedo and f0. The sum is what the decomposition (38) of the radiance splits. Uncoupled:
+// at grazing angles the coat's Fresnel rises while the base stays, so the albedo can pass 1 there.
+class DiffuseGgx final : public Bsdf {
+public:
+    DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0);
+    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    std::string name() const override { return "diffuse_ggx"; }
+    double lobe_width() const override { return coat_->lobe_width(); }
+    Vec3 diffuse_albedo() const override { return albedo_; }
+    std::shared_ptr<const Bsdf> glossy_part() const override { return coat_; }
+
+private:
+    Vec3 albedo_;
+    std::shared_ptr<const GgxReflection> coat_;
+    double p_diffuse_;
 };
 
 // A smooth dielectric boundary (glass, water): mirror reflection and Snell refraction, chosen by
