@@ -37,14 +37,17 @@ SurfaceOptions options(const std::string& name, const std::string& representatio
     if (representation == "auto") o.representation = Representation::Auto;
     else if (representation == "diffuse") o.representation = Representation::Diffuse;
     else if (representation == "glossy") o.representation = Representation::Glossy;
-    else throw std::invalid_argument("surface '" + name + "': representation must be 'auto', 'diffuse' or 'glossy', got '" +
+    else if (representation == "decomposed") o.representation = Representation::Decomposed;
+    else throw std::invalid_argument("surface '" + name + "': representation must be 'auto', 'diffuse', 'glossy' or 'decomposed', got '" +
                                      representation + "'");
     o.spatial_coeffs = spatial;
     o.angular_coeffs = angular;
     return o;
 }
 
-const char* kind_name(Representation r) { return r == Representation::Glossy ? "glossy" : "diffuse"; }
+const char* kind_name(Representation r) {
+    return r == Representation::Glossy ? "glossy" : (r == Representation::Decomposed ? "decomposed" : "diffuse");
+}
 
 }  // namespace
 
@@ -155,21 +158,30 @@ void bind_scene(py::module_& m) {
                                 "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "
                                 "(glossy), a second spline for the lower hemisphere where it transmits.")
         .def(py::init([](const std::string& kind, double disc_radius, const TensorSpline& upper,
-                         std::optional<TensorSpline> lower) {
-                 if (kind != "diffuse" && kind != "glossy")
-                     throw std::invalid_argument("SurfaceRadiance: kind must be 'diffuse' or 'glossy', got '" + kind + "'");
-                 const Representation r = kind == "glossy" ? Representation::Glossy : Representation::Diffuse;
-                 const int dims = r == Representation::Glossy ? 4 : 2;
-                 if (upper.dims() != dims || upper.channels() != 3 || (lower && (lower->dims() != dims || lower->channels() != 3)))
+                         std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse) {
+                 const Representation r = kind == "glossy" ? Representation::Glossy
+                                          : kind == "decomposed" ? Representation::Decomposed
+                                          : kind == "diffuse" ? Representation::Diffuse
+                                                              : Representation::Auto;
+                 if (r == Representation::Auto)
+                     throw std::invalid_argument("SurfaceRadiance: kind must be 'diffuse', 'glossy' or 'decomposed', got '" +
+                                                 kind + "'");
+                 const int dims = r == Representation::Diffuse ? 2 : 4;
+                 auto rgb_of = [](const std::optional<TensorSpline>& s, int d) { return !s || (s->dims() == d && s->channels() == 3); };
+                 if (!rgb_of(upper, dims) || !rgb_of(lower, dims) || !rgb_of(diffuse, 2) ||
+                     (r == Representation::Decomposed) != bool(diffuse))
                      throw std::invalid_argument("SurfaceRadiance: a " + kind + " surface needs RGB splines of " +
-                                                 std::to_string(dims) + " dimensions");
-                 return SurfaceRadiance{r, HemisphereMap(disc_radius), upper, std::move(lower)};
+                                                 std::to_string(dims) + " dimensions" +
+                                                 (r == Representation::Decomposed ? " and a 2D diffuse part" : ""));
+                 return SurfaceRadiance{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse)};
              }),
              py::arg("kind"), py::arg("disc_radius"), py::arg("upper"), py::arg("lower") = std::nullopt,
+             py::arg("diffuse") = std::nullopt,
              "Rebuilds a solved surface's radiance (as a solution file stores it).")
         .def_property_readonly("kind", [](const SurfaceRadiance& r) { return kind_name(r.kind); })
         .def_readonly("upper", &SurfaceRadiance::upper)
         .def_readonly("lower", &SurfaceRadiance::lower)
+        .def_readonly("diffuse", &SurfaceRadiance::diffuse)
         .def_property_readonly("disc_radius", [](const SurfaceRadiance& r) { return r.map.radius(); })
         .def(
             "evaluate",

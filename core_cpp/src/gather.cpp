@@ -39,9 +39,14 @@ void stratified(int m, int n, double* u) {
 
 }  // namespace
 
-Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local) const {
+Vec3 Receiver::own_radiance(Splines which, double u, double v, const Vec3& local) const {
     const int side = local.z >= 0 ? 0 : 1;
     return side < sides ? evaluate_side(kind, map, (this->*which)[side], u, v, local) : Vec3{0, 0, 0};
+}
+
+Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local) const {
+    const Vec3 L = own_radiance(which, u, v, local);
+    return partner ? L + partner->own_radiance(which, u, v, local) : L;
 }
 
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
@@ -243,7 +248,7 @@ void basis_terms(const TensorSpline& s, const double* x, std::vector<std::pair<s
 }  // namespace
 
 void Gatherer::transport_row(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
-                             const std::vector<int>& receiver_index, std::vector<TransportTerm>& row, size_t& rays) const {
+                             std::vector<TransportTerm>& row, size_t& rays) const {
     const SurfacePoint& p = r.nodes[j];
     const int nt = settings_.hemisphere_nodes_theta, np = settings_.hemisphere_nodes_phi;
     const double scale = kPi / (double(nt) * np);  // rho/pi * pi * mean; albedo applied later
@@ -255,15 +260,16 @@ void Gatherer::transport_row(const Receiver& r, size_t j, const std::vector<cons
             ++rays;
             const SurfaceHit hit = caster_.closest_hit(caster_.spawn(p.p, p.frame.z, dir), dir);
             if (hit.surface < 0 || !receiver_of[hit.surface]) continue;
-            const Receiver& h = *receiver_of[hit.surface];
             const Vec3 local = hit.frame.to_local(-dir);
             const int side = local.z >= 0 ? 0 : 1;
-            if (side >= h.sides) continue;
-            double x[4] = {hit.u, hit.v, 0, 0};
-            if (h.kind == Representation::Glossy) h.map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
-            basis_terms(h.L[side], x, terms);
-            for (const auto& [index, w] : terms)
-                raw.push_back({uint32_t(receiver_index[hit.surface]), uint32_t(index), uint8_t(side), float(w * scale)});
+            for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
+                if (side >= h->sides) continue;
+                double x[4] = {hit.u, hit.v, 0, 0};
+                if (h->kind != Representation::Diffuse) h->map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
+                basis_terms(h->L[side], x, terms);
+                for (const auto& [index, w] : terms)
+                    raw.push_back({uint32_t(h->index), uint32_t(index), uint8_t(side), float(w * scale)});
+            }
         }
     // Merge the terms of rays that land on the same coefficients.
     std::sort(raw.begin(), raw.end(), [](const TransportTerm& a, const TransportTerm& b) {

@@ -49,8 +49,23 @@ struct Plan {
     std::shared_ptr<const Bsdf> bsdf;
     int nu = 0, nv = 0, na = 1, sides = 1;
     std::string reason;
+    int partner_of = -1;  // the glossy part S of (38): index of the plan of its diffuse part D
     size_t coefficients() const { return size_t(nu) * nv * na * na * sides; }
 };
+
+// Directional albedo at normal incidence, integral of rho cos over the hemisphere: pi times the
+// mean of rho over cosine-weighted nodes.
+Vec3 directional_albedo(const Bsdf& b) {
+    const int nt = 16, np = 32;
+    Vec3 sum{0, 0, 0};
+    for (int i = 0; i < nt; ++i)
+        for (int k = 0; k < np; ++k) {
+            const double w = (i + 0.5) / nt, phi = 2 * 3.14159265358979323846 * (k + 0.5) / np;
+            const double s = std::sqrt(1 - w);
+            sum += b.eval({0, 0, 1}, {s * std::cos(phi), s * std::sin(phi), std::sqrt(w)});
+        }
+    return sum * (3.14159265358979323846 / (nt * np));
+}
 
 double scene_extent(const Scene& scene) {
     double extent = 0;
@@ -67,9 +82,18 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     p.bsdf = ss.material.bsdf ? ss.material.bsdf : std::make_shared<Lambert>(ss.material.albedo);
     const bool lambertian = dynamic_cast<const Lambert*>(p.bsdf.get()) != nullptr;
     std::ostringstream why;
+    const bool sum = p.bsdf->glossy_part() && max_component(p.bsdf->diffuse_albedo()) > 0;
+    // (38) is for mildly glossy surfaces: the glossy part then needs few spatial knots. Where
+    // the lobe reflects as much as the base (a strong coat), the full 4D spline is kept.
+    const bool mild = sum && max_component(directional_albedo(*p.bsdf->glossy_part())) <= 0.5 * max_component(p.bsdf->diffuse_albedo());
     if (ss.options.representation == Representation::Auto) {
-        p.kind = lambertian ? Representation::Diffuse : Representation::Glossy;
-        why << (lambertian ? "Lambertian material: 2D" : p.bsdf->name() + " BSDF: view-dependent 4D");
+        p.kind = lambertian ? Representation::Diffuse : (mild ? Representation::Decomposed : Representation::Glossy);
+        why << (lambertian ? "Lambertian material: 2D"
+                           : p.bsdf->name() + (mild ? " BSDF, a diffuse base under a mild glossy lobe: D(u,v) + S(u,v,alpha,beta) (38)"
+                                                    : " BSDF: view-dependent 4D"));
+    } else if (ss.options.representation == Representation::Decomposed && !sum) {
+        throw std::invalid_argument("surface '" + ss.surface->name() + "': the decomposition (38) needs a BSDF with a "
+                                    "diffuse base and a glossy lobe (e.g. DiffuseGgx), not " + p.bsdf->name());
     } else {
         p.kind = ss.options.representation;
         why << "representation set on the surface";
@@ -89,7 +113,7 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     p.nv = spatial(length(c.dpdv));
     why << "; " << p.nu << " x " << p.nv << " spatial coefficients";
     if (s.coeffs_from_size && !ss.options.spatial_coeffs) why << " (from its size)";
-    if (p.kind == Representation::Glossy) {
+    if (p.kind != Representation::Diffuse) {
         if (ss.options.angular_coeffs) {
             p.na = std::max(ss.options.angular_coeffs, s.angular_degree + 1);
         } else {
@@ -113,8 +137,28 @@ size_t plan_bytes(const Plan& p) {
 std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int spatial_scale) {
     const double extent = scene_extent(scene);
     std::vector<Plan> plans;
-    for (size_t i = 0; i < scene.size(); ++i)
-        if (scene[i].receiver) plans.push_back(plan_surface(scene, int(i), s, extent, spatial_scale));
+    for (size_t i = 0; i < scene.size(); ++i) {
+        if (!scene[i].receiver) continue;
+        Plan p = plan_surface(scene, int(i), s, extent, spatial_scale);
+        if (p.kind != Representation::Decomposed) {
+            plans.push_back(std::move(p));
+            continue;
+        }
+        // (38): D, the diffuse part, at the full spatial resolution, 2D; S, the glossy
+        // remainder, 4D on half as many spatial knots ("mildly glossy surfaces with detail").
+        Plan glossy = p;
+        glossy.kind = Representation::Glossy;
+        glossy.bsdf = p.bsdf->glossy_part();
+        glossy.nu = std::max(s.spatial_degree + 1, p.nu / 2);
+        glossy.nv = std::max(s.spatial_degree + 1, p.nv / 2);
+        glossy.partner_of = int(plans.size());
+        p.kind = Representation::Diffuse;
+        p.bsdf = std::make_shared<Lambert>(p.bsdf->diffuse_albedo());
+        p.na = 1;
+        p.reason += "; S on " + std::to_string(glossy.nu) + " x " + std::to_string(glossy.nv) + " spatial coefficients";
+        plans.push_back(std::move(p));
+        plans.push_back(std::move(glossy));
+    }
     return plans;
 }
 
@@ -268,13 +312,23 @@ std::vector<Receiver> build_receivers(const Scene& scene, const std::vector<Plan
         rays += probe_rays;
     }
     std::vector<Receiver> receivers;
-    for (size_t k = 0; k < plans.size(); ++k) receivers.push_back(make_receiver(scene, plans[k], knots[k].first, knots[k].second, settings));
+    for (size_t k = 0; k < plans.size(); ++k) {
+        receivers.push_back(make_receiver(scene, plans[k], knots[k].first, knots[k].second, settings));
+        receivers.back().index = int(k);
+    }
+    for (size_t k = 0; k < plans.size(); ++k)
+        if (plans[k].partner_of >= 0) {
+            receivers[k].is_partner = true;
+            receivers[plans[k].partner_of].partner = &receivers[k];
+        }
     return receivers;
 }
 
+// The receiver that answers for each surface (the diffuse part D of a decomposed one).
 std::vector<const Receiver*> index_by_surface(const Scene& scene, const std::vector<Receiver>& receivers) {
     std::vector<const Receiver*> of(scene.size(), nullptr);
-    for (const auto& r : receivers) of[r.surface] = &r;
+    for (const auto& r : receivers)
+        if (!r.is_partner) of[r.surface] = &r;
     return of;
 }
 
@@ -349,7 +403,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         throw std::runtime_error(msg.str());
     }
     for (const Plan& p : plans)
-        if (p.kind == Representation::Glossy && p.bsdf->lobe_width() <= 0)
+        if (p.kind != Representation::Diffuse && p.bsdf->lobe_width() <= 0)
             throw std::invalid_argument("surface '" + scene[p.surface].surface->name() +
                                         "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
                                         "give it a roughness");
@@ -385,8 +439,6 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     double previous[3] = {0, 0, 0}, previous_rho[3] = {2, 2, 2}, tail[3] = {0, 0, 0};
     bool converged = false;
     // With form factors, Lambertian receivers keep their rows of the transport operator.
-    std::vector<int> receiver_index(scene.size(), -1);
-    for (size_t k = 0; k < receivers.size(); ++k) receiver_index[receivers[k].surface] = int(k);
     std::vector<std::vector<std::vector<TransportTerm>>> rows(receivers.size());
     auto uses_rows = [&](const Receiver& r) {
         return settings.form_factors && r.kind == Representation::Diffuse && !r.bsdf->transmits();
@@ -404,7 +456,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
             size_t local = 0;
             for (size_t w = begin; w < end; ++w) {
                 const auto [k, j] = items[w];
-                gather.transport_row(receivers[k], j, receiver_of, receiver_index, rows[k][j], local);
+                gather.transport_row(receivers[k], j, receiver_of, rows[k][j], local);
             }
             row_rays += local;
             progress.advance(end - begin);
@@ -418,7 +470,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + ff_stage + bounce, stages,
                              node_count(receivers));
         rays += gather_all(receivers, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-            const size_t k = size_t(receiver_index[r.surface]);
+            const size_t k = size_t(r.index);
             if (!uses_rows(r)) {
                 gather.indirect(r, j, receiver_of, &Receiver::L, 1, out, n);
                 return;
@@ -505,17 +557,27 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     solution.radiance.resize(scene.size());
     for (size_t k = 0; k < result.size(); ++k) {
         Receiver& r = result[k];
+        if (r.is_partner) continue;  // consumed with its diffuse part
+        for (const Receiver* part = &r; part; part = part->is_partner ? nullptr : part->partner)
+            for (int side = 0; side < part->sides; ++side) solution.stats.coefficients += part->Le[side].coeffs().size() / 3;
         const Vec3 e = scene[r.surface].material.emission;
         auto& c = r.Le[0].coeffs();
         for (size_t i = 0; i < c.size(); i += 3) c[i] += e.x, c[i + 1] += e.y, c[i + 2] += e.z;
-        SurfaceRadiance out{r.kind, r.map, std::move(r.Le[0]), std::nullopt};
-        if (r.sides == 2) out.lower = std::move(r.Le[1]);
-        for (int side = 0; side < r.sides; ++side) solution.stats.coefficients += (side ? *out.lower : out.upper).coeffs().size() / 3;
+        std::optional<SurfaceRadiance> out;
+        std::string kind;
+        if (r.partner) {
+            Receiver& s = result[r.partner->index];
+            out = SurfaceRadiance{Representation::Decomposed, s.map, std::move(s.Le[0]), std::nullopt, std::move(r.Le[0])};
+            kind = "decomposed 2D + 4D (38)";
+        } else {
+            out = SurfaceRadiance{r.kind, r.map, std::move(r.Le[0]), std::nullopt, std::nullopt};
+            if (r.sides == 2) out->lower = std::move(r.Le[1]);
+            kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 ? "glossy 4D + transmission" : "glossy 4D");
+        }
         const Plan& p = (settings.final_gather ? final_plans : plans)[k];
         std::vector<int> shape;
-        for (size_t n : out.upper.shape()) shape.push_back(int(n));
+        for (size_t n : out->upper.shape()) shape.push_back(int(n));
         shape.pop_back();
-        const std::string kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 ? "glossy 4D + transmission" : "glossy 4D");
         solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason});
         solution.radiance[r.surface] = std::move(out);
     }

@@ -72,7 +72,8 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
         upper = surface.upper if surface else entry
         kinds.append(surface.kind if surface else ("glossy" if upper.dims == 4 else "diffuse"))
         radii.append(surface.disc_radius if surface else None)
-        sides = {"upper": upper, "lower": surface.lower if surface else None}
+        sides = {"upper": upper, "lower": surface.lower if surface else None,
+                 "diffuse": surface.diffuse if surface else None}
         for side, spline in sides.items():
             if spline is not None:
                 for key, value in spline_to_arrays(spline).items():
@@ -96,12 +97,12 @@ def load_solution(path) -> StoredSolution:
                 surfaces.append(None)
                 continue
             sides = {}
-            for side in ("upper", "lower"):
+            for side in ("upper", "lower", "diffuse"):
                 prefix = f"surface{i}/{side}/"
                 found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
                 sides[side] = spline_from_arrays(found) if found else None
             radiance.append(sides["upper"])
             radius = meta["disc_radii"][i]
             surfaces.append(_core.SurfaceRadiance(meta["kinds"][i], radius if radius is not None else 1.0,
-                                                  sides["upper"], sides["lower"]))
+                                                  sides["upper"], sides["lower"], sides["diffuse"]))
     return StoredSolution(radiance, surfaces, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])

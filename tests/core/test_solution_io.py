@@ -61,6 +61,8 @@ def test_glossy_and_transmitting_surfaces_round_trip(tmp_path):
     scene.add_bilinear_patch("glass", quad(0.5, 0.6), albedo=[0] * 3, emission=[0] * 3,
                              bsdf=bsgi.RoughDielectric(1.5, 0.4, 0.4), spatial_coeffs=4, angular_coeffs=6)
     scene.add_bilinear_patch("lamp", quad(1)[::-1].copy(), albedo=[0] * 3, emission=[3] * 3, receiver=False)
+    scene.add_bilinear_patch("plastic", quad(0.2, 0.3), albedo=[0] * 3, emission=[0] * 3,
+                             bsdf=bsgi.DiffuseGgx([0.5] * 3, 0.3, 0.3, [0.04] * 3), representation="decomposed")
     settings = bsgi.SolverSettings.preset("draft")
     settings.final_gather = False
     sol = bsgi.solve(scene, settings)
@@ -75,3 +77,5 @@ def test_glossy_and_transmitting_surfaces_round_trip(tmp_path):
     np.testing.assert_array_equal(a.evaluate(uv, d), b.evaluate(uv, d))
     assert np.abs(a.evaluate(uv, d)[d[:, 2] < 0]).max() > 0  # the lower spline carries light
     assert stored.surfaces[0].kind == "diffuse" and stored.surfaces[2] is None
+    assert stored.surfaces[3].kind == "decomposed" and stored.surfaces[3].diffuse is not None
+    np.testing.assert_array_equal(sol.surfaces[3].evaluate(uv, np.abs(d)), stored.surfaces[3].evaluate(uv, np.abs(d)))

@@ -105,6 +105,81 @@ def mitsuba_directional_albedo(alpha, cos_o, n=1024):
     return np.array(out)
 
 
+def furnace_floor(bsdf, representation="auto"):
+    """The floor of a closed unit cube whose other walls emit radiance 1 and reflect nothing."""
+    from test_solver_energy import CUBE_FACES
+
+    scene = bsgi.Scene()
+    for name, corners in CUBE_FACES.items():
+        if name == "bottom":
+            scene.add_bilinear_patch(name, np.array(corners, float), albedo=[0] * 3, emission=[0] * 3, bsdf=bsdf,
+                                     representation=representation)
+        else:
+            scene.add_bilinear_patch(name, np.array(corners, float), albedo=[0] * 3, emission=[1] * 3, receiver=False)
+    return scene
+
+
+def worst_error_against(solution, cos_o, expected, seed=2):
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    for c, want in zip(cos_o, expected):
+        phi = rng.uniform(0, 2 * np.pi, 20)
+        d = np.stack([np.sqrt(1 - c * c) * np.cos(phi), np.sqrt(1 - c * c) * np.sin(phi), np.full(20, c)], axis=1)
+        got = solution.surfaces[0].evaluate(rng.uniform(0.1, 0.9, (20, 2)), d)[:, 0]
+        worst = max(worst, np.abs(got / want - 1).max())
+    return worst
+
+
+def test_decomposed_surface_in_a_uniform_furnace():
+    # A Lambertian base (albedo 0.3) under a GGX coat (Fresnel 1): D F + S of (38) must give
+    # 0.3 + the coat's directional albedo (from Mitsuba's GGX) in every direction.
+    alpha = 0.3
+    scene = furnace_floor(bsgi.DiffuseGgx([0.3] * 3, alpha, alpha, [1, 1, 1]), representation="decomposed")
+    settings = bsgi.SolverSettings.preset("preview")
+    settings.max_bounces = 0
+    settings.final_gather = False
+    sol = bsgi.solve(scene, settings)
+    assert sol.surfaces[0].kind == "decomposed" and sol.surfaces[0].diffuse is not None
+    report = sol.reports[0]
+    assert report["representation"] == "decomposed 2D + 4D (38)" and "set on the surface" in report["reason"]
+    assert sol.surfaces[0].diffuse.coefficients.shape[0] == 2 * sol.surfaces[0].upper.coefficients.shape[0]
+    cos_o = np.array([1.0, 0.7, 0.35])
+    worst = worst_error_against(sol, cos_o, 0.3 + mitsuba_directional_albedo(alpha, cos_o))
+    print(f"\ndecomposed furnace: worst relative error {worst:.4f}")
+    assert worst <= 0.02
+
+
+def test_decomposition_for_mild_gloss_and_full_4d_for_strong():
+    # A plastic (base 0.5 under a coat with f0 0.04) is decomposed and agrees with the full 4D
+    # spline on half as many values; a strong coat (f0 0.5) keeps the full 4D spline.
+    spec = scene_spec.glossy_cornell_box(alpha=0.3)
+    back = [p.name for p in spec.patches].index("back")
+    settings = bsgi.SolverSettings.preset("preview")
+    settings.final_gather = False
+
+    def solve(f0, representation):
+        scene = bsgi.Scene()
+        for i, p in enumerate(spec.patches):
+            bsdf = bsgi.DiffuseGgx([0.5] * 3, 0.3, 0.3, [f0] * 3) if i == back else None
+            scene.add_bilinear_patch(p.name, p.corners, albedo=p.albedo, emission=p.emission, receiver=p.receiver,
+                                     bsdf=bsdf, representation=representation if i == back else "auto")
+        return bsgi.solve(scene, settings).surfaces[back]
+
+    dec, full = solve(0.04, "auto"), solve(0.04, "glossy")
+    assert dec.kind == "decomposed" and full.kind == "glossy"
+    assert solve(0.5, "auto").kind == "glossy"
+    rng = np.random.default_rng(5)
+    uv = rng.uniform(0.05, 0.95, (300, 2))
+    d = rng.normal(size=(300, 3))
+    d[:, 2] = np.abs(d[:, 2]) + 0.2
+    a, b = dec.evaluate(uv, d), full.evaluate(uv, d)
+    rel = np.sqrt(((a - b) ** 2).sum() / (b ** 2).sum())
+    values = lambda s: s.upper.coefficients.size + (s.diffuse.coefficients.size if s.diffuse is not None else 0)
+    print(f"\ndecomposed vs full 4D: relative difference {rel:.4f} with {values(dec)} against {values(full)} values")
+    assert rel <= 0.03
+    assert values(dec) < 0.5 * values(full)
+
+
 def test_glossy_surface_in_a_uniform_furnace_reflects_its_directional_albedo():
     # The floor of a closed cube whose other walls emit radiance 1: every direction above the
     # floor sees emission 1, so the floor's outgoing radiance is its BSDF's directional albedo,

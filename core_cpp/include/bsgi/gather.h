@@ -19,6 +19,11 @@ namespace bsgi {
 // side (the lower side only where the surface transmits, section 4.3).
 struct Receiver {
     int surface = -1;
+    int index = -1;                   // position among the receivers
+    // Decomposition (38): the diffuse part D is the surface's receiver, the glossy part S its
+    // partner; the light leaving the surface is their sum.
+    const Receiver* partner = nullptr;
+    bool is_partner = false;
     Representation kind = Representation::Diffuse;
     const Bsdf* bsdf = nullptr;
     int sides = 1;
@@ -39,8 +44,9 @@ struct Receiver {
     double* coefficient(Splines which, int side, size_t node, size_t a) {
         return &(this->*which)[side].coeffs()[3 * (node * per_node + a)];
     }
-    // Radiance leaving (u, v) along `local`, from one of the spline sets.
+    // Radiance leaving (u, v) along `local`, from one of the spline sets (with the partner's).
     Vec3 radiance(Splines which, double u, double v, const Vec3& local) const;
+    Vec3 own_radiance(Splines which, double u, double v, const Vec3& local) const;
 };
 
 // One term of a row of the transport operator (36)-(37): the weight of coefficient `index`
@@ -66,9 +72,8 @@ public:
     // Generalized form factors (36)-(37): for a Lambertian, opaque receiver, the row of the
     // transport operator at node j, so that its gathered light is albedo * sum(weight * coefficient)
     // over the receivers' incremental splines: the rays are cast once, not every bounce.
-    // `receiver_index` maps a surface id to its position in the receivers (-1: none).
     void transport_row(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
-                       const std::vector<int>& receiver_index, std::vector<TransportTerm>& row, size_t& rays) const;
+                       std::vector<TransportTerm>& row, size_t& rays) const;
     // Direct irradiance at a point (for probing where the light has detail).
     Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays) const;
 

@@ -31,13 +31,16 @@ inline Vec3 evaluate_side(Representation kind, const HemisphereMap& map, const T
 struct SurfaceRadiance {
     Representation kind = Representation::Diffuse;
     HemisphereMap map{1.0};
-    TensorSpline upper;                 // leaving the front side, emission included
-    std::optional<TensorSpline> lower;  // leaving the back side (transmitting surfaces)
+    TensorSpline upper;                   // leaving the front side (the glossy S of (38) if decomposed)
+    std::optional<TensorSpline> lower;    // leaving the back side (transmitting surfaces)
+    std::optional<TensorSpline> diffuse;  // D(u, v) of (38), emission included, if decomposed
 
     // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
     Vec3 evaluate(double u, double v, const Vec3& local) const {
-        if (local.z >= 0) return evaluate_side(kind, map, upper, u, v, local);
-        return lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
+        if (local.z < 0) return lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
+        Vec3 L = evaluate_side(kind, map, upper, u, v, local);
+        if (diffuse) L += evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local);
+        return L;
     }
 };
 

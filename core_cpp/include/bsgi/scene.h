@@ -21,8 +21,10 @@ struct Material {
 };
 
 // How a surface's radiance is represented: chosen by the solver from the material and the size
-// ("model only what the scene requires") unless given here.
-enum class Representation { Auto = 0, Diffuse = 1, Glossy = 2 };
+// ("model only what the scene requires") unless given here. Decomposed is (38): a 2D diffuse
+// part D(u, v) at the full spatial resolution plus a 4D glossy part S on coarser spatial knots,
+// for BSDFs that are a Lambertian base plus a glossy lobe.
+enum class Representation { Auto = 0, Diffuse = 1, Glossy = 2, Decomposed = 3 };
 
 struct SurfaceOptions {
     Representation representation = Representation::Auto;
