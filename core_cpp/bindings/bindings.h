@@ -4,5 +4,6 @@
 
 namespace bsgi::bindings {
 void bind_spline(pybind11::module_& m);
+void bind_fitting(pybind11::module_& m);
 void bind_scene(pybind11::module_& m);
 }  // namespace bsgi::bindings

@@ -156,7 +156,7 @@ void validate(const SolverSettings& s) {
     auto need = [](bool ok, const char* what) {
         if (!ok) throw std::invalid_argument(std::string("solver settings: ") + what);
     };
-    need(s.spatial_degree >= 0 && s.spatial_degree <= kMaxDegree, "spatial_degree must be in 0..15");
+    need(s.spatial_degree >= 0 && s.spatial_degree <= kMaxDegree, "spatial_degree must be in 0..5");
     need(s.spatial_coeffs >= s.spatial_degree + 1, "spatial_coeffs must be at least spatial_degree + 1");
     need(s.epsilon >= 0 && s.epsilon < 0.5, "epsilon must be in [0, 0.5)");
     need(s.emitter_nodes >= 1 && s.emitter_nodes_max >= s.emitter_nodes, "emitter_nodes must be >= 1 and <= emitter_nodes_max");

@@ -1,0 +1,73 @@
+// The disc-to-hemisphere map of paper section 3.2, (20)-(22): the angular spline parameters
+// (alpha, beta) live in the disc of radius R <= 1 in the tangent plane; a point is lifted to the
+// paraboloid z = 1 - r^2 and moved out horizontally to the unit hemisphere. Points outside the
+// disc are first pulled in radially to radius R, so the map is defined on the whole plane and
+// directions never reach beyond the polar angle theta_max = 2 asin(R / sqrt 2).
+//
+// Defined behaviour at the special places:
+// - pole: (0, 0) <-> (0, 0, 1), phi = 0 there;
+// - rim and beyond: directions with theta > theta_max, including those below the horizon, go to
+//   the rim point of their azimuth; the straight-down direction (0, 0, -1) goes to (R, 0);
+// - a zero, infinite or NaN input gives NaN.
+#pragma once
+#include <cmath>
+
+namespace bsgi {
+
+class HemisphereMap {
+public:
+    // 0 < R <= 1; throws std::invalid_argument otherwise.
+    explicit HemisphereMap(double R);
+
+    // The R whose cone is exactly theta <= pi/2 - delta: R = sqrt(1 - sin delta). The paper's
+    // R ~ sqrt(1 - delta) is its first-order form; it cuts slightly inside the cone.
+    static HemisphereMap for_max_angle(double delta);
+
+    double radius() const { return R_; }
+    double max_theta() const { return 2 * std::asin(R_ / std::sqrt(2.0)); }
+
+    // (alpha, beta) -> unit direction (x, y, z) in the local frame, (20)-(22) after the pull-in.
+    // sqrt(1 - z^2) / r = sqrt(2 - r^2), so nothing is singular at the pole.
+    void to_direction(double alpha, double beta, double* xyz) const {
+        double r2 = alpha * alpha + beta * beta;
+        if (r2 > R2_) {
+            const double s = R_ / std::sqrt(r2);
+            alpha *= s, beta *= s, r2 = R2_;
+        }
+        const double f = std::sqrt(2 - r2);
+        xyz[0] = f * alpha, xyz[1] = f * beta, xyz[2] = 1 - r2;
+    }
+
+    // Inverse: a local direction (any positive length n) -> (alpha, beta) in the disc of radius R.
+    // For the unit direction, r^2 = 1 - z and alpha = x / sqrt(1 + z); unnormalised that is
+    // alpha = x / sqrt(q) with q = n (n + z), and the cone test rho^2 <= R^2 (1 + z) becomes
+    // rho^2 <= R^2 q: no division, exact at the rim and below the horizon, two square roots.
+    void to_disc(double x, double y, double z, double* ab) const {
+        const double rho2 = x * x + y * y;
+        const double n = std::sqrt(rho2 + z * z);
+        const double q = n * (n + z);
+        if (rho2 <= R2_ * q) {
+            const double s = 1 / std::sqrt(q);
+            ab[0] = x * s, ab[1] = y * s;
+        } else if (rho2 > 0) {  // pulled in to the rim along the azimuth
+            const double s = R_ / std::sqrt(rho2);
+            ab[0] = x * s, ab[1] = y * s;
+        } else {  // straight down (0, 0, -1), or NaN
+            const bool down = rho2 == 0;
+            ab[0] = down ? R_ : NAN, ab[1] = down ? 0.0 : NAN;
+        }
+    }
+
+    // Local spherical angles (4), (5) of to_direction(alpha, beta): theta = 2 asin(r / sqrt 2)
+    // (accurate near the pole, unlike acos(1 - r^2)), phi = atan2(beta, alpha) in [-pi, pi].
+    void angles(double alpha, double beta, double* theta_phi) const {
+        const double r = std::fmin(std::sqrt(alpha * alpha + beta * beta), R_);
+        theta_phi[0] = std::isnan(alpha + beta) ? NAN : 2 * std::asin(r / std::sqrt(2.0));
+        theta_phi[1] = std::atan2(beta, alpha);
+    }
+
+private:
+    double R_, R2_;
+};
+
+}  // namespace bsgi
