@@ -9,11 +9,26 @@ The numpy-level API of the compiled core (no Blender needed)::
                              receiver=False, occluder=False)
     solution = bsgi.solve(scene, bsgi.SolverSettings())
     radiance = solution.radiance[0].evaluate(uv)     # (N, 3) outgoing radiance at (u, v)
+
+Splines on their own (paper sections 2 and 3)::
+
+    hemi = bsgi.HemisphereMap.for_max_angle(0.05)              # (20)-(22), R = sqrt(1 - sin 0.05)
+    s = bsgi.KnotVector.clamped_uniform(16, 2, 1e-3, 1 - 1e-3)  # (19) on [eps, 1 - eps]
+    a = bsgi.KnotVector.symmetric(16, 2, hemi.radius)           # (24) on [-R, R]
+    L = bsgi.TensorSpline([s, s, a, a], channels=3)
+    bsgi.fit(L, lambda x: f(x), method="quadratic")             # x: (N, 4) nodes -> (N, 3)
+    rgb = L.evaluate_directions(uv, directions, hemi)           # (N, 2), (N, 3) -> (N, 3)
+
+Errors are Python exceptions: ValueError for invalid input (knots, shapes, degrees),
+bsgi.MemoryBudgetError (a MemoryError) for splines over the memory budget.
 """
 from __future__ import annotations
 
 from ._core import (
+    FitRule,
+    HemisphereMap,
     KnotVector,
+    MemoryBudgetError,
     Progress,
     Scene,
     SolveCancelled,
@@ -21,11 +36,19 @@ from ._core import (
     SolverSettings,
     TensorSpline,
     estimate_solve_bytes,
+    fit_from_samples,
+    fitting_nodes,
+    memory_budget,
+    set_memory_budget,
 )
+from .fitting import fit
 from .solve import solve
 
 __all__ = [
+    "FitRule",
+    "HemisphereMap",
     "KnotVector",
+    "MemoryBudgetError",
     "Progress",
     "Scene",
     "SolveCancelled",
@@ -33,6 +56,11 @@ __all__ = [
     "SolverSettings",
     "TensorSpline",
     "estimate_solve_bytes",
+    "fit",
+    "fit_from_samples",
+    "fitting_nodes",
+    "memory_budget",
+    "set_memory_budget",
     "solve",
 ]
 __version__ = "0.1.0"
