@@ -220,21 +220,23 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
 
 def _area_light(scene, obj, warnings):
     light = obj.data
-    if light.shape not in {"SQUARE", "RECTANGLE"}:
-        warnings.append(f"light '{obj.name}': {light.shape.lower()} area lights are not supported yet; skipped")
-        return
     a = light.size / 2
-    b = (light.size if light.shape == "SQUARE" else light.size_y) / 2
+    b = (light.size_y if light.shape in {"RECTANGLE", "ELLIPSE"} else light.size) / 2
     m = obj.matrix_world
-    # Blender area lights emit along their local -Z: order the corners so s_u x s_v points there.
-    corners = np.array([m @ _v(-a, -b), m @ _v(-a, b), m @ _v(a, b), m @ _v(a, -b)], float)
-    area = np.linalg.norm(np.cross(corners[1] - corners[0], corners[3] - corners[0]))
+    centre = np.array(m @ _v(0, 0), float)
+    # Blender area lights emit along their local -Z: axes / corners ordered so the front is there.
+    axis_a, axis_b = np.array(m @ _v(a, 0), float) - centre, np.array(m @ _v(0, -b), float) - centre
+    area = np.linalg.norm(np.cross(axis_a, axis_b)) * (math.pi if light.shape in {"DISK", "ELLIPSE"} else 4)
     if not area > 0:
         raise ExportError(f"light '{obj.name}': zero size")
     # Cycles: an area light of power P watts emits radiance P / (pi * A) (checked against a render).
     radiance = light.energy / (math.pi * area)
     emission = [c * radiance for c in light.color]
-    scene.add_bilinear_patch(f"{obj.name}", corners, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
+    if light.shape in {"DISK", "ELLIPSE"}:
+        scene.add_disk(obj.name, centre, axis_a, axis_b, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
+    else:
+        corners = np.array([m @ _v(-a, -b), m @ _v(-a, b), m @ _v(a, b), m @ _v(a, -b)], float)
+        scene.add_bilinear_patch(obj.name, corners, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
 
 
 def _v(x, y):

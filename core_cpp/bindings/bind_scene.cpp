@@ -2,6 +2,7 @@
 #include <pybind11/stl.h>
 
 #include "bindings.h"
+#include "bsgi/disk_patch.h"
 #include "bsgi/radiance.h"
 #include "bsgi/solver.h"
 
@@ -22,7 +23,7 @@ std::vector<Vec3> points(const Array& a, size_t n, const char* what) {
 }
 
 Vec3 rgb(const Array& a, const char* what) {
-    if (a.size() != 3) throw std::invalid_argument(std::string(what) + " must have 3 values (RGB)");
+    if (a.size() != 3) throw std::invalid_argument(std::string(what) + " must have 3 values");
     return {a.data()[0], a.data()[1], a.data()[2]};
 }
 
@@ -84,6 +85,19 @@ void bind_scene(py::module_& m) {
             py::arg("name"), py::arg("corners"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true,
             py::arg("occluder") = true, py::arg("bsdf") = nullptr, py::arg("representation") = "auto",
             py::arg("spatial_coeffs") = 0, py::arg("angular_coeffs") = 0)
+        .def(
+            "add_disk",
+            [](Scene& s, const std::string& name, const Array& center, const Array& axis_a, const Array& axis_b,
+               const Array& albedo, const Array& emission, bool receiver, bool occluder, std::shared_ptr<const Bsdf> bsdf,
+               const std::string& representation, int spatial_coeffs, int angular_coeffs) {
+                return s.add(std::make_shared<DiskPatch>(name, rgb(center, "center"), rgb(axis_a, "axis_a"), rgb(axis_b, "axis_b")),
+                             material(albedo, emission, std::move(bsdf)), receiver, occluder,
+                             options(name, representation, spatial_coeffs, angular_coeffs));
+            },
+            py::arg("name"), py::arg("center"), py::arg("axis_a"), py::arg("axis_b"), py::arg("albedo"), py::arg("emission"),
+            py::arg("receiver") = true, py::arg("occluder") = true, py::arg("bsdf") = nullptr,
+            py::arg("representation") = "auto", py::arg("spatial_coeffs") = 0, py::arg("angular_coeffs") = 0,
+            "A disc or ellipse c + u (cos(2 pi v) a + sin(2 pi v) b), front along a x b (disk and ellipse area lights).")
         .def(
             "add_surface",
             [](Scene& s, std::shared_ptr<Surface> surface, const Array& albedo, const Array& emission, bool receiver,

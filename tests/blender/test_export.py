@@ -186,8 +186,6 @@ def test_unsupported_lights_and_world_are_warned_about(context):
     for kind in ("POINT", "SUN"):
         light = bpy.data.objects.new(kind, bpy.data.lights.new(kind, kind))
         context.scene.collection.objects.link(light)
-    disk = scenes.add_area_light("Disk", location=(0, 0, 2))
-    disk.data.shape = "DISK"
     world = bpy.data.worlds.new("Sky")
     world.color = (0.1, 0.2, 0.3)
     if world.node_tree is not None:
@@ -195,7 +193,7 @@ def test_unsupported_lights_and_world_are_warned_about(context):
     context.scene.world = world
     result = export.export_scene(context.evaluated_depsgraph_get())
     text = "\n".join(result.warnings)
-    for name in ("light 'POINT'", "light 'SUN'", "light 'Disk'", "world 'Sky'"):
+    for name in ("light 'POINT'", "light 'SUN'", "world 'Sky'"):
         assert name in text
     assert len(result.scene) == 2  # the floor and the square lamp
 
@@ -247,4 +245,37 @@ def test_area_light_lights_a_floor_as_cycles_does(context):
         # 2%: the convention is what is tested (another would be off by 25% or more); Schoenberg
         # smoothing of the peak under the lamp costs about 1%.
         assert spline.evaluate(np.array([[u, v]]))[0, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)
+    assert floor.name == "Floor"
+
+
+@pytest.mark.parametrize("shape, size_y", [("DISK", None), ("ELLIPSE", 0.5)])
+def test_disk_and_ellipse_lights_light_a_floor_as_cycles_does(context, shape, size_y):
+    from bsgi_addon import pipeline
+
+    floor = scenes.floor_under_lamp()  # grey 0.5 under a 50 W lamp at height 1
+    lamp = bpy.data.objects["Lamp"]
+    lamp.data.shape = shape
+    lamp.data.size = 1.0
+    if size_y:
+        lamp.data.size_y = size_y
+    context.scene.bsgi.max_bounces = 0
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    spline = solution.radiance[job.export.objects[0].patches[0][1]]
+    rx, ry = 0.5, (size_y or 1.0) / 2
+    radiance = 50.0 / (math.pi * math.pi * rx * ry)
+    got = spline.evaluate(np.array([[0.5, 0.5]]))[0, 0]
+    if shape == "DISK":  # coaxial closed form: pi L R^2 / (h^2 + R^2)
+        want = 0.5 / math.pi * math.pi * radiance * rx * rx / (1 + rx * rx)
+    else:  # Lambert's polygon formula on a 720-gon inscribed in the ellipse (error ~1e-5)
+        import sys
+
+        sys.path.insert(0, str(scenes.ROOT / "tests" / "core"))
+        from closed_forms import polygon_irradiance
+
+        t = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+        polygon = [(rx * np.cos(a), -ry * np.sin(a), 1.0) for a in t]
+        want = 0.5 / math.pi * polygon_irradiance([0, 0, 0], [0, 0, 1], polygon, radiance)
+    # Schoenberg smoothing of the peak under the lamp: about 1% (as for the square lamp)
+    assert got == pytest.approx(want, rel=0.02)
     assert floor.name == "Floor"

@@ -152,3 +152,31 @@ def test_adaptive_knots_cluster_at_the_penumbra_and_reduce_the_error():
     # Schoenberg's approximation smooths a shadow edge over about three spans: narrower spans
     # there shrink that band (measured 13% less RMS error here; no miracle for a tensor product).
     assert errors[True] < 0.92 * errors[False]
+
+
+@pytest.mark.parametrize("height", [0.25, 1.0, 3.0])
+def test_disc_emitter_matches_the_coaxial_closed_form(height):
+    # Irradiance under a disc of radius R and radiance L at height h on its axis: pi L R^2 / (h^2 + R^2).
+    R = 0.7
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("receiver", rect([0, 0, 0], [0.01, 0, 0], [0, 0.01, 0]), albedo=[ALBEDO] * 3, emission=[0] * 3)
+    scene.add_disk("disc", [0, 0, height], [R, 0, 0], [0, -R, 0], albedo=[0] * 3, emission=[1, 2, 3], receiver=False,
+                   occluder=False)
+    assert scene.area(1) == pytest.approx(np.pi * R * R)
+    settings = bsgi.SolverSettings()
+    settings.max_bounces = 0
+    sol = bsgi.solve(scene, settings)
+    got = sol.radiance[0].evaluate(np.array([[0.5, 0.5]]))[0]
+    want = ALBEDO / np.pi * np.pi * R * R / (height ** 2 + R * R) * np.array([1, 2, 3])
+    np.testing.assert_allclose(got, want, rtol=2e-3)
+
+
+def test_ellipse_emitter_faces_along_its_axes_cross_product():
+    scene = bsgi.Scene()
+    scene.add_disk("ellipse", [0, 0, 1], [0.5, 0, 0], [0, -0.2, 0], albedo=[0] * 3, emission=[1] * 3)
+    p = scene.evaluate_surface(0, 0.5, 0.25)
+    np.testing.assert_allclose(p["normal"], [0, 0, -1], atol=1e-12)
+    np.testing.assert_allclose(p["position"], [0, -0.1, 1], atol=1e-12)  # u = 0.5 along b at v = 1/4
+    assert scene.area(0) == pytest.approx(np.pi * 0.1)
+    with pytest.raises(ValueError, match="surface 'flat'.*zero area"):
+        scene.add_disk("flat", [0, 0, 0], [1, 0, 0], [2, 0, 0], albedo=[0] * 3, emission=[1] * 3)
