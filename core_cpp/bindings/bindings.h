@@ -4,6 +4,7 @@
 
 namespace bsgi::bindings {
 void bind_spline(pybind11::module_& m);
+void bind_fitting(pybind11::module_& m);
 void bind_scene(pybind11::module_& m);
 void bind_geometry(pybind11::module_& m);
 void bind_bsdf(pybind11::module_& m);

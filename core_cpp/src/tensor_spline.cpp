@@ -1,74 +1,223 @@
 #include "bsgi/tensor_spline.h"
 
+#include <cfloat>
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
+#include <string>
 
+#include "bsgi/memory_budget.h"
 #include "bsgi/parallel.h"
+#include "spline_kernels.h"
 
 namespace bsgi {
 
 namespace {
-constexpr int kMaxDims = 8;
+
+constexpr size_t kChunk = 2048;  // points per parallel work item
+
+size_t element_bytes(Precision p) { return p == Precision::Float32 ? sizeof(float) : sizeof(double); }
+
+std::vector<size_t> extents(const std::vector<KnotVector>& axes, int channels) {
+    std::vector<size_t> e;
+    for (const auto& a : axes) e.push_back(size_t(a.num_coeffs()));
+    e.push_back(size_t(channels));
+    return e;
 }
 
-size_t TensorSpline::coefficient_bytes(const std::vector<KnotVector>& axes, int channels) {
-    size_t n = static_cast<size_t>(channels) * sizeof(double);
-    for (const auto& a : axes) n *= static_cast<size_t>(a.num_coeffs());
-    return n;
+// Any shape, periodic axes, mixed degrees: the odometer over the (d_0+1) x ... x (d_{D-1}+1)
+// block of non-zero coefficients, with the KnotVector doing span search and basis.
+template <typename T, typename Loader>
+void evaluate_generic(const TensorSpline& s, const T* coeffs, const Loader& load, size_t begin, size_t end, double* out) {
+    const int D = s.dims(), C = s.channels();
+    constexpr int kMaxDims = TensorSpline::kMaxDims;
+    double x[kMaxDims], basis[kMaxDims][kMaxDegree + 1];
+    int first[kMaxDims], order[kMaxDims];
+    for (size_t i = begin; i < end; ++i) {
+        load(i, x);
+        bool finite = true;
+        for (int k = 0; k < D; ++k) {
+            const KnotVector& a = s.axis(k);
+            finite &= std::fabs(x[k]) <= DBL_MAX;
+            const double xk = a.to_domain(std::fabs(x[k]) <= DBL_MAX ? x[k] : a.domain_begin());
+            const int span = a.find_span(xk);
+            a.basis(xk, span, basis[k]);
+            first[k] = span - a.degree();
+            order[k] = a.degree() + 1;
+        }
+        double* o = out + i * C;
+        for (int c = 0; c < C; ++c) o[c] = 0.0;
+        int idx[kMaxDims] = {0};
+        for (;;) {
+            double w = 1.0;
+            size_t offset = 0;
+            for (int k = 0; k < D; ++k) {
+                w *= basis[k][idx[k]];
+                offset += size_t(s.axis(k).coeff_index(first[k] + idx[k])) * s.stride(k);
+            }
+            const T* a = coeffs + offset;
+            for (int c = 0; c < C; ++c) o[c] += w * double(a[c]);
+            int k = D - 1;
+            while (k >= 0 && ++idx[k] == order[k]) idx[k--] = 0;
+            if (k < 0) break;
+        }
+        if (!finite)
+            for (int c = 0; c < C; ++c) o[c] = NAN;
+    }
 }
 
-TensorSpline::TensorSpline(std::vector<KnotVector> axes, int channels) : axes_(std::move(axes)), channels_(channels) {
+}  // namespace
+
+size_t TensorSpline::coefficient_bytes(const std::vector<KnotVector>& axes, int channels, Precision precision) {
+    return array_bytes(extents(axes, channels), element_bytes(precision));
+}
+
+TensorSpline::TensorSpline(std::vector<KnotVector> axes, int channels, Precision precision)
+    : axes_(std::move(axes)), channels_(channels), precision_(precision) {
     if (axes_.empty() || axes_.size() > kMaxDims)
-        throw std::invalid_argument("tensor spline: needs 1.." + std::to_string(kMaxDims) + " dimensions");
+        throw std::invalid_argument("tensor spline: needs 1.." + std::to_string(kMaxDims) + " dimensions, got " +
+                                    std::to_string(axes_.size()));
     if (channels_ < 1) throw std::invalid_argument("tensor spline: needs at least one channel");
-    strides_.assign(axes_.size(), 1);
+    check_memory_budget("tensor spline coefficients", extents(axes_, channels_), element_bytes(precision_));
+    strides_.assign(axes_.size(), size_t(channels_));
     for (int i = dims() - 2; i >= 0; --i) strides_[i] = strides_[i + 1] * axes_[i + 1].num_coeffs();
-    coeffs_.assign(strides_[0] * axes_[0].num_coeffs() * channels_, 0.0);
+    const size_t n = strides_[0] * axes_[0].num_coeffs();
+    if (precision_ == Precision::Float32) coeffs32_.assign(n + kFloat32Padding, 0.0f);
+    else coeffs_.assign(n, 0.0);
 }
 
-std::vector<size_t> TensorSpline::shape() const {
-    std::vector<size_t> s;
-    for (const auto& a : axes_) s.push_back(a.num_coeffs());
-    s.push_back(channels_);
+std::vector<size_t> TensorSpline::shape() const { return extents(axes_, channels_); }
+size_t TensorSpline::num_values() const { return strides_[0] * axes_[0].num_coeffs(); }
+size_t TensorSpline::bytes() const { return num_values() * element_bytes(precision_); }
+
+std::vector<double>& TensorSpline::coeffs() {
+    if (precision_ != Precision::Float64) throw std::logic_error("tensor spline: coefficients are float32, use coeffs_f32()");
+    return coeffs_;
+}
+const std::vector<double>& TensorSpline::coeffs() const { return const_cast<TensorSpline*>(this)->coeffs(); }
+float* TensorSpline::coeffs_f32() {
+    if (precision_ != Precision::Float32) throw std::logic_error("tensor spline: coefficients are float64, use coeffs()");
+    return coeffs32_.data();
+}
+const float* TensorSpline::coeffs_f32() const { return const_cast<TensorSpline*>(this)->coeffs_f32(); }
+const void* TensorSpline::data() const {
+    return precision_ == Precision::Float32 ? static_cast<const void*>(coeffs32_.data()) : coeffs_.data();
+}
+
+TensorSpline TensorSpline::with_precision(Precision precision) const {
+    TensorSpline s(axes_, channels_, precision);
+    if (precision == Precision::Float32) {
+        if (precision_ == Precision::Float32) s.coeffs32_ = coeffs32_;
+        else
+            for (size_t i = 0; i < coeffs_.size(); ++i) s.coeffs32_[i] = float(coeffs_[i]);
+    } else {
+        if (precision_ == Precision::Float64) s.coeffs_ = coeffs_;
+        else
+            for (size_t i = 0; i < num_values(); ++i) s.coeffs_[i] = coeffs32_[i];
+    }
     return s;
 }
 
-void TensorSpline::evaluate(const double* x, double* out) const {
-    const int D = dims();
-    double basis[kMaxDims][kMaxDegree + 1];
-    size_t first[kMaxDims];  // index of the first non-zero coefficient per axis
-    int order[kMaxDims];
-    for (int k = 0; k < D; ++k) {
-        const KnotVector& a = axes_[k];
-        const int span = a.find_span(x[k]);
-        a.basis(x[k], span, basis[k]);
-        first[k] = static_cast<size_t>(span - a.degree());
-        order[k] = a.degree() + 1;
-    }
-    for (int c = 0; c < channels_; ++c) out[c] = 0.0;
-    // Odometer over the (d_0+1) x ... x (d_{D-1}+1) block of non-zero coefficients.
-    int idx[kMaxDims] = {0};
-    for (;;) {
-        double w = 1.0;
-        size_t offset = 0;
-        for (int k = 0; k < D; ++k) {
-            w *= basis[k][idx[k]];
-            offset += (first[k] + idx[k]) * strides_[k];
+bool TensorSpline::has_fast_kernel() const {
+    for (const auto& a : axes_)
+        if (a.is_periodic() || a.degree() != axes_[0].degree()) return false;
+    return detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32, false, false) != nullptr;
+}
+
+template <typename Loader>
+void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out, int threads, bool directions,
+                                 const HemisphereMap* map) const {
+    detail::Kernel kernel = nullptr;
+    std::vector<detail::AxisData> ax;
+    if (has_fast_kernel()) {
+        bool uniform = true;
+        for (const auto& a : axes_) uniform = uniform && a.uniform_spans();
+        kernel = detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32, directions,
+                                     uniform);
+        for (int k = 0; k < dims(); ++k) {
+            const KnotVector& a = axes_[k];
+            ax.push_back({a.knots().data(), a.span_polynomial(a.degree()), a.span_inverse_widths(),
+                          a.domain_begin(), a.domain_end(), a.uniform_spans() ? a.inverse_span_width() : 0.0, a.degree(),
+                          a.last_span(), strides_[k]});
         }
-        const double* a = &coeffs_[offset * channels_];
-        for (int c = 0; c < channels_; ++c) out[c] += w * a[c];
-        int k = D - 1;
-        while (k >= 0 && ++idx[k] == order[k]) idx[k--] = 0;
-        if (k < 0) break;
+    }
+    if (kernel) {
+        detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
+        loader.bind(args);
+        parallel_for(count, kChunk, threads, [&](size_t b, size_t e) { kernel(args, b, e, out); });
+    } else if (precision_ == Precision::Float32) {
+        parallel_for(count, kChunk, threads, [&](size_t b, size_t e) { evaluate_generic(*this, coeffs32_.data(), loader, b, e, out); });
+    } else {
+        parallel_for(count, kChunk, threads, [&](size_t b, size_t e) { evaluate_generic(*this, coeffs_.data(), loader, b, e, out); });
     }
 }
 
+namespace {
+
+struct ParamLoader {
+    const double* xs;
+    int dims;
+    void operator()(size_t i, double* x) const {
+        for (int k = 0; k < dims; ++k) x[k] = xs[i * dims + k];
+    }
+    void bind(detail::KernelArgs& a) const { a.params = xs; }
+};
+
+struct DirectionLoader {
+    const double* uv;
+    const double* dirs;
+    const HemisphereMap* map;
+    void operator()(size_t i, double* x) const {
+        x[0] = uv[2 * i], x[1] = uv[2 * i + 1];
+        map->to_disc(dirs[3 * i], dirs[3 * i + 1], dirs[3 * i + 2], x + 2);
+    }
+    void bind(detail::KernelArgs& a) const { a.uv = uv, a.dirs = dirs; }
+};
+
+}  // namespace
+
+void TensorSpline::evaluate(const double* x, double* out) const { evaluate_batch(x, 1, out, 1); }
+
 void TensorSpline::evaluate_batch(const double* xs, size_t count, double* out, int threads) const {
-    const int D = dims();
-    parallel_for(count, 4096, threads, [&](size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) evaluate(xs + i * D, out + i * channels_);
-    });
+    evaluate_with(ParamLoader{xs, dims()}, count, out, threads, false, nullptr);
+}
+
+void TensorSpline::evaluate_directions(const double* uv, const double* dirs, size_t count, const HemisphereMap& map,
+                                       double* out, int threads) const {
+    if (dims() != 4)
+        throw std::invalid_argument("evaluate_directions: needs a 4D spline L(u, v, alpha, beta), this one has " +
+                                    std::to_string(dims()) + " dimensions");
+    evaluate_with(DirectionLoader{uv, dirs, &map}, count, out, threads, true, &map);
+}
+
+// out[c] = sum over all coefficients of a[i_0 .. i_{D-1}, c] * prod_k weights[k][i_k], contracting
+// the last axis first so that the work is about one pass over the coefficients.
+void TensorSpline::contract(const std::vector<std::vector<double>>& weights, double* out) const {
+    const int C = channels_;
+    std::vector<double> cur;
+    if (precision_ == Precision::Float32) cur.assign(coeffs32_.begin(), coeffs32_.begin() + num_values());
+    else cur = coeffs_;
+    for (int k = dims() - 1; k >= 0; --k) {
+        const size_t n = size_t(axes_[k].num_coeffs()), outer = cur.size() / (n * C);
+        std::vector<double> next(outer * C, 0.0);
+        for (size_t o = 0; o < outer; ++o)
+            for (size_t i = 0; i < n; ++i)
+                for (int c = 0; c < C; ++c) next[o * C + c] += weights[k][i] * cur[(o * n + i) * C + c];
+        cur.swap(next);
+    }
+    for (int c = 0; c < C; ++c) out[c] = cur[c];
+}
+
+void TensorSpline::integral(double* out) const {
+    std::vector<std::vector<double>> w;
+    for (const auto& a : axes_)
+        w.push_back(a.clamped() || a.is_periodic() ? a.basis_integrals() : a.basis_integrals_over(a.domain_begin(), a.domain_end()));
+    contract(w, out);
+}
+
+void TensorSpline::integral_over(const double* lo, const double* hi, double* out) const {
+    std::vector<std::vector<double>> w;
+    for (int k = 0; k < dims(); ++k) w.push_back(axes_[k].basis_integrals_over(lo[k], hi[k]));
+    contract(w, out);
 }
 
 }  // namespace bsgi

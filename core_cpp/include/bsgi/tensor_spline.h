@@ -3,39 +3,89 @@
 #include <cstddef>
 #include <vector>
 
+#include "bsgi/hemisphere_map.h"
 #include "bsgi/knots.h"
 
 namespace bsgi {
 
+// Storage of the coefficients. Arithmetic is always double; float32 halves the memory (and the
+// cache traffic of evaluation) at a cost of at most 2^-24 max|a| per value (round to nearest).
+enum class Precision { Float64, Float32 };
+
 class TensorSpline {
 public:
+    static constexpr int kMaxDims = 8;
+
     // Coefficients start at zero. Their layout is C order over (n_0, ..., n_{D-1}, channels),
-    // the last axis fastest, so numpy sees them as an array of that shape.
-    TensorSpline(std::vector<KnotVector> axes, int channels);
+    // the last axis fastest, so numpy sees them as an array of that shape. The size is checked
+    // against the memory budget (memory_budget.h) before anything is allocated.
+    TensorSpline(std::vector<KnotVector> axes, int channels, Precision precision = Precision::Float64);
 
     int dims() const { return static_cast<int>(axes_.size()); }
     int channels() const { return channels_; }
+    Precision precision() const { return precision_; }
     const std::vector<KnotVector>& axes() const { return axes_; }
     const KnotVector& axis(int i) const { return axes_[i]; }
-    std::vector<double>& coeffs() { return coeffs_; }
-    const std::vector<double>& coeffs() const { return coeffs_; }
     std::vector<size_t> shape() const;  // (n_0, ..., n_{D-1}, channels)
+    size_t num_values() const;          // product of shape()
+    size_t bytes() const;               // of the coefficients
 
-    // Value at x (dims() parameters, clamped to the domain) into out (channels() values).
+    // The coefficients of a Float64 spline (std::logic_error for Float32), and the num_values()
+    // coefficients of a Float32 one (std::logic_error for Float64).
+    std::vector<double>& coeffs();
+    const std::vector<double>& coeffs() const;
+    float* coeffs_f32();
+    const float* coeffs_f32() const;
+    // Float32 storage ends with this many zeros, so that the kernels may load whole vectors.
+    static constexpr size_t kFloat32Padding = 16;
+    // Copy with the other storage.
+    TensorSpline with_precision(Precision precision) const;
+
+    // Value at x (dims() parameters) into out (channels() values). Parameters outside the domain
+    // are clamped to it (wrapped on periodic axes); a NaN or infinite parameter gives NaN in
+    // every channel.
     void evaluate(const double* x, double* out) const;
 
-    // Batched evaluation: xs is count x dims, out is count x channels; uses `threads` threads
-    // (0 = all hardware threads).
+    // Batched evaluation: xs is count x dims, out is count x channels, from `threads` threads
+    // (0 = all hardware threads). Same rules as evaluate().
     void evaluate_batch(const double* xs, size_t count, double* out, int threads = 0) const;
 
+    // Radiance L(u, v, alpha, beta) of a 4D spline at surface parameters uv (count x 2) seen along
+    // local directions dirs (count x 3, frame (1)-(3), any positive length), through the inverse
+    // hemisphere map: (alpha, beta) = map.to_disc(direction). A zero or non-finite direction
+    // gives NaN.
+    void evaluate_directions(const double* uv, const double* dirs, size_t count, const HemisphereMap& map, double* out,
+                             int threads = 0) const;
+
+    // Integral over the whole domain, per channel: (11) on clamped and periodic axes.
+    void integral(double* out) const;
+    // Integral over the box [lo_k, hi_k] (inside the domain) per channel.
+    void integral_over(const double* lo, const double* hi, double* out) const;
+
     // Bytes the coefficients of such a spline would take: checked before allocating.
-    static size_t coefficient_bytes(const std::vector<KnotVector>& axes, int channels);
+    static size_t coefficient_bytes(const std::vector<KnotVector>& axes, int channels,
+                                    Precision precision = Precision::Float64);
+
+    // Whether evaluate_batch uses a compiled kernel specialised for this shape (else the generic
+    // one): all axes open with one degree <= 3, 2 or 4 dimensions, 1 or 3 channels.
+    bool has_fast_kernel() const;
+
+    // Strides of the axes, in values (coefficients x channels).
+    size_t stride(int axis) const { return strides_[axis]; }
 
 private:
+    const void* data() const;
+    template <typename Loader>
+    void evaluate_with(const Loader& loader, size_t count, double* out, int threads, bool directions,
+                       const HemisphereMap* map) const;
+    void contract(const std::vector<std::vector<double>>& weights, double* out) const;
+
     std::vector<KnotVector> axes_;
     int channels_;
-    std::vector<size_t> strides_;  // in coefficients (not channels), per axis
+    Precision precision_;
+    std::vector<size_t> strides_;
     std::vector<double> coeffs_;
+    std::vector<float> coeffs32_;
 };
 
 }  // namespace bsgi
