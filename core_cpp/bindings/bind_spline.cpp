@@ -8,6 +8,7 @@
 #include "bsgi/hemisphere_map.h"
 #include "bsgi/memory_budget.h"
 #include "bsgi/tensor_spline.h"
+#include "../src/spline_kernels.h"
 
 namespace py = pybind11;
 
@@ -52,6 +53,8 @@ py::array_t<double> to_array(const std::vector<double>& v) { return py::array_t<
 
 void bind_spline(py::module_& m) {
     py::register_exception<MemoryBudgetExceeded>(m, "MemoryBudgetError", PyExc_MemoryError);
+    m.def("_fma_peak_per_second", &detail::measure_fma_rate,
+          "Benchmark helper: 256-bit double multiply-adds per second of one thread (a pure FMA loop).");
     m.def("memory_budget", &memory_budget, "Bytes one spline allocation may take (default 2 GiB).");
     m.def("set_memory_budget", &set_memory_budget, py::arg("bytes"),
           "Sets the byte budget; larger splines or fitting grids raise MemoryBudgetError before allocating.");

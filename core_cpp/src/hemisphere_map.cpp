@@ -5,7 +5,7 @@
 
 namespace bsgi {
 
-HemisphereMap::HemisphereMap(double R) : R_(R), R2_(R * R) {
+HemisphereMap::HemisphereMap(double R) : R_(R), R2_(R * R), inv_R2_(1 / (R * R)) {
     if (!(R > 0 && R <= 1))
         throw std::invalid_argument("hemisphere map: the disc radius R must be in (0, 1], got " + std::to_string(R));
 }

@@ -1,17 +1,26 @@
-// The hot path of spline evaluation: one kernel per (dimensions, order, channels, storage, input),
-// so that every loop has a compile-time trip count and the innermost contraction is a short
-// fixed-length multiply-add over contiguous coefficients.
+// The hot path of spline evaluation: one kernel per (dimensions, order, channels, storage, input,
+// uniform spans), so that every loop has a compile-time trip count and the contraction works on
+// whole vectors of contiguous coefficients. Written with GCC vector extensions; each kernel is
+// compiled for x86-64-v4, x86-64-v3 and the baseline (target_clones).
 //
-// Per point: for each axis the span and the d+1 non-zero basis values (Horner on the per-span
-// power form, no division); then (17)/(18) reassociated so that the first D-1 axes give
-// P^(D-1) weights (products of their basis values) and the last axis, whose P coefficients of
-// C channels are contiguous, is a row of P*C values: acc += weight * row over the P^(D-1) rows,
-// and finally out_c = sum_l B_l acc[l][c]. For the 4D quadratic RGB radiance spline that is 27
-// rows of 9 values: 243 multiply-adds, the least of any contraction order.
+// Per point:
+// - prepare: the D parameters as one vector; for uniform spans, span index and local parameter
+//   of all axes in a few vector instructions (else a binary search per axis); the d+1 non-zero
+//   basis values of each axis by Horner on the per-span power form (no division).
+// - contract: (17)/(18) nested. The last axis's P coefficients times C channels are contiguous:
+//   a row of P*C values, one vector (float32: 16 lanes) or a few (float64: 4 lanes, the last
+//   load overlapping so nothing past the row is read). For each (i, j) of axes 0, 1 the P rows of
+//   axis 2 are summed with weights B_j into P accumulators, those with weights B_i into P more;
+//   B_k folds them into one row and B_l with the channels gives the result, in registers.
+//   For the 4D quadratic RGB radiance spline: 27 rows of 9 values, 243 + 81 + 27 + 9 useful
+//   multiply-adds in 27 + 9 + 3 vector instructions (float32).
+// - the next point is prepared in the iteration that contracts this one (software pipeline), and
+//   directions are mapped to the disc a block at a time in a vectorised loop of their own.
 #include "spline_kernels.h"
 
 #include <algorithm>
 #include <cfloat>
+#include <chrono>
 #include <cmath>
 
 namespace bsgi::detail {
@@ -25,6 +34,7 @@ namespace {
 #define BSGI_CLONES
 #endif
 #define BSGI_INLINE inline __attribute__((always_inline))
+#define BSGI_LAMBDA_INLINE __attribute__((always_inline))
 // Loops with compile-time trip counts are unrolled completely, so small arrays live in registers.
 #define BSGI_UNROLL _Pragma("GCC unroll 64")
 
@@ -54,16 +64,6 @@ BSGI_INLINE int find_span(const AxisData& ax, double x, double& s) {
         }
         s = (x - t[lo]) * ax.inv_width[lo - d];
         return lo;
-    }
-}
-
-template <int D, bool Dirs>
-BSGI_INLINE void load(const KernelArgs& a, size_t i, double* x) {
-    if constexpr (Dirs) {
-        x[0] = a.uv[2 * i], x[1] = a.uv[2 * i + 1];
-        a.map->to_disc(a.dirs[3 * i], a.dirs[3 * i + 1], a.dirs[3 * i + 2], x + 2);
-    } else {
-        for (int k = 0; k < D; ++k) x[k] = a.params[i * D + k];
     }
 }
 
@@ -151,24 +151,10 @@ UniformLanes uniform_lanes(const AxisData* ax) {
     return u;
 }
 
-template <int D, int P, typename T, bool Dirs>
-BSGI_INLINE Prepared<D, T> prepare_uniform(const KernelArgs& args, const UniformLanes& u, const T* coeffs, size_t i) {
+template <int D, int P, typename T>
+BSGI_INLINE Prepared<D, T> prepare_uniform(v4d x, const UniformLanes& u, const T* coeffs) {
     static_assert(D <= 4, "one lane per axis");
     Prepared<D, T> p;
-    // The parameters as one vector, built in registers (a round trip through memory would stall
-    // store forwarding).
-    v4d x;
-    if constexpr (Dirs) {
-        double ab[2];
-        args.map->to_disc(args.dirs[3 * i], args.dirs[3 * i + 1], args.dirs[3 * i + 2], ab);
-        x = v4d{args.uv[2 * i], args.uv[2 * i + 1], ab[0], ab[1]};
-    } else if constexpr (D == 4) {
-        x = load_vec<v4d>(args.params + 4 * i);
-    } else {
-        x = v4d{0, 0, 0, 0};
-        BSGI_UNROLL
-        for (int k = 0; k < D; ++k) x[k] = args.params[D * i + k];
-    }
     const auto ok = (x < 0 ? -x : x) <= DBL_MAX;  // false for NaN and infinities
     p.finite = (ok[0] & ok[1] & ok[2] & ok[3]) != 0;
     x = ok ? x : u.lo;
@@ -193,117 +179,170 @@ BSGI_INLINE Prepared<D, T> prepare_uniform(const KernelArgs& args, const Uniform
     return p;
 }
 
-template <int D, int P, typename T, bool Dirs, bool Uniform>
-BSGI_INLINE Prepared<D, T> prepare(const KernelArgs& args, const AxisData* ax, const T* coeffs, size_t i) {
+template <int D, int P, typename T>
+BSGI_INLINE Prepared<D, T> prepare(v4d x, const AxisData* ax, const T* coeffs) {
     Prepared<D, T> p;
-    double x[D];
-    load<D, Dirs>(args, i, x);
     p.finite = true;
     p.block = coeffs;
     BSGI_UNROLL
-    for (int k = 0; k < D; ++k) p.block += axis_basis<P, Uniform>(ax[k], x[k], p.b[k], p.finite);
+    for (int k = 0; k < D; ++k) p.block += axis_basis<P, false>(ax[k], x[k], p.b[k], p.finite);
     return p;
 }
 
-template <int D, int P, int C, typename T>
-BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o) {
-    constexpr int G = ipow(P, D - 2);  // groups of rows: all index combinations of axes 0 .. D-3
-    constexpr int L = P * C;           // values per row (last axis x channels, contiguous)
-    using V = typename Lanes<T>::V;
-    constexpr int W = Lanes<T>::W;
-    // A row is covered by NV loads of W values (see Lanes); unpadded rows shorter than W are
-    // done in scalars.
-    constexpr bool padded = Lanes<T>::padded;
-    constexpr int NV = L < W && !padded ? 0 : (L + W - 1) / W;
-    const size_t row_stride = ax[D - 2].stride;
-    // Groups: index g of axes 0 .. D-3 (last fastest); its weight is the product of their basis
-    // values and its rows start at the sum of index * stride.
-    T w[G];
-    const T* group[G];
-    BSGI_UNROLL
-    for (int g = 0; g < G; ++g) {
-        double wg = 1.0;
-        const T* q = p.block;
-        int r = g;
-        BSGI_UNROLL
-        for (int k = D - 3; k >= 0; --k) wg *= p.b[k][r % P], q += (r % P) * ax[k].stride, r /= P;
-        if constexpr (D != 4) w[g] = T(wg);
-        group[g] = q;
-    }
-    if constexpr (D == 4) {  // the P x P products as P vector products, converted in one go
-        BSGI_UNROLL
-        for (int i = 0; i < P; ++i) {
-            const v4d wi = p.b[0][i] * p.b[1];
-            if constexpr (sizeof(T) == 4) {
-                const v4f f = __builtin_convertvector(wi, v4f);
-                BSGI_UNROLL
-                for (int j = 0; j < P; ++j) w[i * P + j] = f[j];
-            } else {
-                BSGI_UNROLL
-                for (int j = 0; j < P; ++j) w[i * P + j] = wi[j];
-            }
+// Where the parameters of point i come from, as one vector built in registers (a round trip
+// through memory would stall store forwarding): the rows of a (count x D) array ...
+template <int D>
+struct ParamSource {
+    const double* params;
+    BSGI_INLINE v4d operator()(size_t i) const {
+        if constexpr (D == 4) {
+            return load_vec<v4d>(params + 4 * i);
+        } else {
+            v4d x = {0, 0, 0, 0};
+            BSGI_UNROLL
+            for (int k = 0; k < D; ++k) x[k] = params[D * i + k];
+            return x;
         }
     }
-    // (18): in each group the P rows of axis D-2 go to P separate sums (independent chains)
-    // weighted by the group weight only; the basis values of axis D-2 are applied once at the
-    // end, then those of the last axis (within the row) per channel.
-    T row[NV * W > L ? NV * W : L];
-    if constexpr (NV > 0) {
-        V acc[P][NV] = {};
+};
+
+// ... or (u, v) and (alpha, beta) already mapped from the directions of a block of points.
+struct MappedSource {
+    const double* uv;
+    const double *alpha, *beta;  // of points first, first + 1, ...
+    size_t first;
+    BSGI_INLINE v4d operator()(size_t i) const {
+        return v4d{uv[2 * i], uv[2 * i + 1], alpha[i - first], beta[i - first]};
+    }
+};
+
+// Broadcast of lane j of the basis values, in the arithmetic type.
+template <typename V, typename T>
+BSGI_INLINE V splat(const v4d& b, int j) {
+    return V{} + T(b[j]);
+}
+
+// (17)/(18) as nested contractions with short independent chains: for each index i of axis 0
+// and j of axis 1 (4D), the P rows of axis 2 (each row: the P coefficients of axis 3 times the
+// channels, contiguous) are summed into P accumulators weighted by B_j, those into P more
+// weighted by B_i; then B_k combines the P accumulators into one row, and B_l with the
+// channels gives the result.
+template <int D, int P, int C, typename T>
+BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o) {
+    static_assert(D == 2 || D == 4, "kernels exist for 2D and 4D");
+    constexpr int L = P * C;  // values per row (last axis x channels, contiguous)
+    using V = typename Lanes<T>::V;
+    constexpr int W = Lanes<T>::W;
+    constexpr bool padded = Lanes<T>::padded;
+    // A row is covered by NV loads of W values (see Lanes); unpadded rows shorter than W are
+    // done in scalars.
+    constexpr int NV = L < W && !padded ? 0 : (L + W - 1) / W;
+    auto at = [](int v) constexpr { return v + 1 < NV || padded ? W * v : L - W; };
+    const size_t rs = ax[D - 2].stride;
+    if constexpr (NV == 0) {
+        // Short rows (fewer values than lanes, float64): scalars.
+        T row[L] = {};
+        for (int g = 0; g < (D == 4 ? P * P : 1); ++g) {
+            const int i = g / P, j = g % P;
+            const T* q = p.block + (D == 4 ? i * ax[0].stride + j * ax[1].stride : 0);
+            const T wg = D == 4 ? T(p.b[0][i] * p.b[1][j]) : T(1);
+            BSGI_UNROLL
+            for (int r = 0; r < P; ++r) {
+                const T wr = wg * T(p.b[D - 2][r]);
+                BSGI_UNROLL
+                for (int e = 0; e < L; ++e) row[e] += wr * q[r * rs + e];
+            }
+        }
         BSGI_UNROLL
-        for (int g = 0; g < G; ++g)
+        for (int c = 0; c < C; ++c) {
+            double v = 0;
+            BSGI_UNROLL
+            for (int l = 0; l < P; ++l) v += p.b[D - 1][l] * double(row[l * C + c]);
+            o[c] = p.finite ? v : NAN;
+        }
+        return;
+    } else {
+        V acc[P][NV];
+        if constexpr (D == 2) {
             BSGI_UNROLL
             for (int r = 0; r < P; ++r)
                 BSGI_UNROLL
-                for (int v = 0; v < NV; ++v)
-                    acc[r][v] += w[g] * load_vec<V>(group[g] + r * row_stride + (v + 1 < NV || padded ? W * v : L - W));
+                for (int v = 0; v < NV; ++v) acc[r][v] = load_vec<V>(p.block + r * rs + at(v));
+        } else {
+            const size_t s0 = ax[0].stride, s1 = ax[1].stride;
+            const T* pi = p.block;
+            BSGI_UNROLL
+            for (int i = 0; i < P; ++i, pi += s0) {
+                V acc_i[P][NV];
+                const T* pj = pi;
+                BSGI_UNROLL
+                for (int j = 0; j < P; ++j, pj += s1) {
+                    const V bj = splat<V, T>(p.b[1], j);
+                    BSGI_UNROLL
+                    for (int r = 0; r < P; ++r)
+                        BSGI_UNROLL
+                        for (int v = 0; v < NV; ++v) {
+                            const V row = load_vec<V>(pj + r * rs + at(v));
+                            acc_i[r][v] = j == 0 ? bj * row : acc_i[r][v] + bj * row;
+                        }
+                }
+                const V bi = splat<V, T>(p.b[0], i);
+                BSGI_UNROLL
+                for (int r = 0; r < P; ++r)
+                    BSGI_UNROLL
+                    for (int v = 0; v < NV; ++v) acc[r][v] = i == 0 ? bi * acc_i[r][v] : acc[r][v] + bi * acc_i[r][v];
+            }
+        }
+        V sum[NV];
         BSGI_UNROLL
         for (int v = 0; v < NV; ++v) {
-            V sum = T(p.b[D - 2][0]) * acc[0][v];
+            sum[v] = splat<V, T>(p.b[D - 2], 0) * acc[0][v];
             BSGI_UNROLL
-            for (int r = 1; r < P; ++r) sum += T(p.b[D - 2][r]) * acc[r][v];
-            BSGI_UNROLL
-            for (int e = 0; e < W; ++e) row[(v + 1 < NV || padded ? W * v : L - W) + e] = sum[e];
+            for (int r = 1; r < P; ++r) sum[v] += splat<V, T>(p.b[D - 2], r) * acc[r][v];
         }
-    } else {
-        BSGI_UNROLL
-        for (int e = 0; e < L; ++e) row[e] = 0;
-        BSGI_UNROLL
-        for (int g = 0; g < G; ++g)
+        if constexpr (padded && NV == 1) {
+            // The row in one register: out_c = sum_l B_l sum[l C + c] by a lane-wise product and
+            // P - 1 shifted adds. Lane e of the multiplier is B_{e / C} (lanes past the row are
+            // never read).
+            typedef int v16i __attribute__((vector_size(64)));
+            const v4f bf = __builtin_convertvector(p.b[D - 1], v4f);
+            const V b16 = {bf[0], bf[1], bf[2], bf[3]};
+            constexpr v16i lane = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+            const V prod = sum[0] * __builtin_shuffle(b16, (lane / C) & 3);
+            V out_c = prod;
             BSGI_UNROLL
-            for (int r = 0; r < P; ++r) {
-                const T wr = w[g] * T(p.b[D - 2][r]);
+            for (int l = 1; l < P; ++l) out_c += __builtin_shuffle(prod, (lane + l * C) & 15);
+            BSGI_UNROLL
+            for (int c = 0; c < C; ++c) o[c] = p.finite ? double(out_c[c]) : NAN;
+        } else {
+            T row[NV * W > L ? NV * W : L];
+            BSGI_UNROLL
+            for (int v = 0; v < NV; ++v)
                 BSGI_UNROLL
-                for (int e = 0; e < L; ++e) row[e] += wr * group[g][r * row_stride + e];
+                for (int e = 0; e < W; ++e) row[at(v) + e] = sum[v][e];
+            BSGI_UNROLL
+            for (int c = 0; c < C; ++c) {
+                double v = 0;
+                BSGI_UNROLL
+                for (int l = 0; l < P; ++l) v += p.b[D - 1][l] * double(row[l * C + c]);
+                o[c] = p.finite ? v : NAN;
             }
-    }
-    BSGI_UNROLL
-    for (int c = 0; c < C; ++c) {
-        double v = 0;
-        BSGI_UNROLL
-        for (int l = 0; l < P; ++l) v += p.b[D - 1][l] * double(row[l * C + c]);
-        o[c] = p.finite ? v : NAN;
+        }
     }
 }
 
-template <int D, int P, int C, typename T, bool Dirs, bool Uniform>
-BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t end, double* out) {
-    static_assert(D >= 2, "the last two axes are the rows and their accumulators");
-    static_assert(P <= 4, "one vector of basis values per axis");
+template <int D, int P, int C, typename T, bool Uniform, typename Source>
+BSGI_INLINE void evaluate_range(const Source& source, const AxisData* ax, const UniformLanes& lanes, const T* coeffs,
+                                size_t begin, size_t end, double* out) {
     if (begin >= end) return;
-    // Local copies: the compiler then knows the output stores cannot change them.
-    AxisData ax[D];
-    for (int k = 0; k < D; ++k) ax[k] = args.axes[k];
-    const T* const coeffs = static_cast<const T*>(args.coeffs);
     // Software pipeline: the spans and basis of the next point are computed in the same
     // iteration as the contraction of this one, two independent dependency chains that the
-    // out-of-order core overlaps.
-    const UniformLanes lanes = uniform_lanes<D>(ax);
-    auto prep = [&](size_t i) {
-        if constexpr (Uniform) return prepare_uniform<D, P, T, Dirs>(args, lanes, coeffs, i);
-        else return prepare<D, P, T, Dirs, false>(args, ax, coeffs, i);
+    // out-of-order core overlaps. Two states used in turn rather than copied, so that nothing
+    // goes through memory.
+    auto prep = [&](size_t i) BSGI_LAMBDA_INLINE {
+        if constexpr (Uniform) return prepare_uniform<D, P, T>(source(i), lanes, coeffs);
+        else return prepare<D, P, T>(source(i), ax, coeffs);
     };
-    // Two states used in turn rather than copied, so that nothing goes through memory.
     Prepared<D, T> a = prep(begin), b;
     for (size_t i = begin;;) {
         b = prep(i + 1 < end ? i + 1 : i);
@@ -312,6 +351,39 @@ BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t en
         a = prep(i + 1 < end ? i + 1 : i);
         contract<D, P, C, T>(b, ax, out + i * C);
         if (++i == end) break;
+    }
+}
+
+template <int D, int P, int C, typename T, bool Dirs, bool Uniform>
+BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t end, double* out) {
+    static_assert(D >= 2 && D <= 4, "the last two axes are the rows and their accumulators");
+    static_assert(P <= 4, "one vector of basis values per axis");
+    // Local copies: the compiler then knows the output stores cannot change them.
+    AxisData ax[D];
+    for (int k = 0; k < D; ++k) ax[k] = args.axes[k];
+    const UniformLanes lanes = uniform_lanes<D>(ax);
+    const T* const coeffs = static_cast<const T*>(args.coeffs);
+    if constexpr (Dirs) {
+        // The inverse hemisphere map of a block of directions first, in a loop of its own: its
+        // square roots and division are independent from point to point there (and vectorise),
+        // instead of lengthening each point's chain.
+        constexpr size_t B = 256;
+        double dx[B], dy[B], dz[B], alpha[B], beta[B];
+        const HemisphereMap map = *args.map;
+        for (size_t first = begin; first < end; first += B) {
+            const size_t n = std::min(end - first, B);
+            const double* d = args.dirs + 3 * first;
+            for (size_t i = 0; i < n; ++i) dx[i] = d[3 * i], dy[i] = d[3 * i + 1], dz[i] = d[3 * i + 2];
+            for (size_t i = 0; i < n; ++i) {  // element-wise, so it vectorises
+                double ab[2];
+                map.to_disc(dx[i], dy[i], dz[i], ab);
+                alpha[i] = ab[0], beta[i] = ab[1];
+            }
+            evaluate_range<D, P, C, T, Uniform>(MappedSource{args.uv, alpha, beta, first}, ax, lanes, coeffs, first,
+                                                first + n, out);
+        }
+    } else {
+        evaluate_range<D, P, C, T, Uniform>(ParamSource<D>{args.params}, ax, lanes, coeffs, begin, end, out);
     }
 }
 
@@ -341,7 +413,33 @@ BSGI_FOR_ALL(BSGI_KERNEL)
 
 const Entry kKernels[] = {BSGI_FOR_ALL(BSGI_ENTRY)};
 
+// Independent 256-bit multiply-adds, enough chains to cover their latency: the FMA pipes' peak.
+BSGI_CLONES double fma_loop(long n) {
+    v4d a[12];
+    for (int i = 0; i < 12; ++i) a[i] = v4d{1.0 + i, 1, 1, 1};
+    const v4d m = {0.999999, 0.999999, 0.999999, 0.999999}, c = {1e-7, 1e-7, 1e-7, 1e-7};
+    for (long k = 0; k < n; ++k) {
+        BSGI_UNROLL
+        for (int i = 0; i < 12; ++i) a[i] = a[i] * m + c;
+    }
+    double s = 0;
+    for (int i = 0; i < 12; ++i) s += a[i][0];
+    return s;
+}
+
 }  // namespace
+
+double measure_fma_rate() {
+    const long n = 20'000'000;
+    volatile double sink = 0;
+    double best = 1e300;
+    for (int r = 0; r < 3; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        sink = sink + fma_loop(n);
+        best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    }
+    return 12.0 * n / best;
+}
 
 Kernel find_kernel(int dims, int order, int channels, bool float32, bool directions, bool uniform) {
     for (const Entry& e : kKernels)

@@ -34,4 +34,8 @@ using Kernel = void (*)(const KernelArgs&, size_t begin, size_t end, double* out
 // with `uniform` every axis has uniform spans (AxisData::inv_h > 0).
 Kernel find_kernel(int dims, int order, int channels, bool float32, bool directions, bool uniform);
 
+// 256-bit (4 x double) multiply-adds per second on this thread: the arithmetic peak the
+// benchmark compares the kernels with.
+double measure_fma_rate();
+
 }  // namespace bsgi::detail

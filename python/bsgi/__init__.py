@@ -15,6 +15,18 @@ UV map), ``BilinearPatch``/``TrianglePatch``, all with ``evaluate(uv)`` giving p
 local frame (1)-(3); ``RayCaster(surfaces)`` for batched Embree hits returning (surface, u, v),
 point and frame; BSDFs ``Lambert``, ``NormalizedPhong``, ``AshikhminShirley``, ``GgxReflection``,
 ``SmoothDielectric``, ``RoughDielectric`` and ``Emission`` with eval/pdf/sample.
+
+Splines on their own (paper sections 2 and 3)::
+
+    hemi = bsgi.HemisphereMap.for_max_angle(0.05)              # (20)-(22), R = sqrt(1 - sin 0.05)
+    s = bsgi.KnotVector.clamped_uniform(16, 2, 1e-3, 1 - 1e-3)  # (19) on [eps, 1 - eps]
+    a = bsgi.KnotVector.symmetric(16, 2, hemi.radius)           # (24) on [-R, R]
+    L = bsgi.TensorSpline([s, s, a, a], channels=3)
+    bsgi.fit(L, lambda x: f(x), method="quadratic")             # x: (N, 4) nodes -> (N, 3)
+    rgb = L.evaluate_directions(uv, directions, hemi)           # (N, 2), (N, 3) -> (N, 3)
+
+Errors are Python exceptions: ValueError for invalid input (knots, shapes, degrees),
+bsgi.MemoryBudgetError (a MemoryError) for splines over the memory budget.
 """
 from __future__ import annotations
 
@@ -22,11 +34,14 @@ from ._core import (
     AshikhminShirley,
     BilinearPatch,
     Bsdf,
-    Emission,
     DiffuseGgx,
+    Emission,
+    FitRule,
     GgxReflection,
+    HemisphereMap,
     KnotVector,
     Lambert,
+    MemoryBudgetError,
     MeshChart,
     NormalizedPhong,
     NurbsSurface,
@@ -45,7 +60,12 @@ from ._core import (
     blender_knots,
     blender_nurbs_problem,
     estimate_solve_bytes,
+    fit_from_samples,
+    fitting_nodes,
+    memory_budget,
+    set_memory_budget,
 )
+from .fitting import fit
 from .solution_io import StoredSolution, load_solution, save_solution, spline_from_arrays, spline_to_arrays
 from .solve import solve
 
@@ -53,11 +73,14 @@ __all__ = [
     "AshikhminShirley",
     "BilinearPatch",
     "Bsdf",
-    "Emission",
     "DiffuseGgx",
+    "Emission",
+    "FitRule",
     "GgxReflection",
+    "HemisphereMap",
     "KnotVector",
     "Lambert",
+    "MemoryBudgetError",
     "MeshChart",
     "NormalizedPhong",
     "NurbsSurface",
@@ -76,8 +99,13 @@ __all__ = [
     "blender_knots",
     "blender_nurbs_problem",
     "estimate_solve_bytes",
+    "fit",
+    "fit_from_samples",
+    "fitting_nodes",
     "load_solution",
+    "memory_budget",
     "save_solution",
+    "set_memory_budget",
     "solve",
     "spline_from_arrays",
     "spline_to_arrays",

@@ -12,6 +12,14 @@
 #pragma once
 #include <cmath>
 
+// The evaluation kernels are compiled for several instruction sets (target_clones); the map
+// must be inlined into each of them rather than called in its baseline form.
+#if defined(__GNUC__)
+#define BSGI_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define BSGI_ALWAYS_INLINE inline
+#endif
+
 namespace bsgi {
 
 class HemisphereMap {
@@ -28,7 +36,7 @@ public:
 
     // (alpha, beta) -> unit direction (x, y, z) in the local frame, (20)-(22) after the pull-in.
     // sqrt(1 - z^2) / r = sqrt(2 - r^2), so nothing is singular at the pole.
-    void to_direction(double alpha, double beta, double* xyz) const {
+    BSGI_ALWAYS_INLINE void to_direction(double alpha, double beta, double* xyz) const {
         double r2 = alpha * alpha + beta * beta;
         if (r2 > R2_) {
             const double s = R_ / std::sqrt(r2);
@@ -41,21 +49,20 @@ public:
     // Inverse: a local direction (any positive length n) -> (alpha, beta) in the disc of radius R.
     // For the unit direction, r^2 = 1 - z and alpha = x / sqrt(1 + z); unnormalised that is
     // alpha = x / sqrt(q) with q = n (n + z), and the cone test rho^2 <= R^2 (1 + z) becomes
-    // rho^2 <= R^2 q: no division, exact at the rim and below the horizon, two square roots.
-    void to_disc(double x, double y, double z, double* ab) const {
+    // rho^2 <= R^2 q: no division, exact at the rim and below the horizon. Outside the cone
+    // alpha = R x / rho = x / sqrt(rho^2 / R^2). Branch-free (selects), so that a loop over
+    // directions vectorises: two square roots and a division per direction.
+    BSGI_ALWAYS_INLINE void to_disc(double x, double y, double z, double* ab) const {
         const double rho2 = x * x + y * y;
         const double n = std::sqrt(rho2 + z * z);
         const double q = n * (n + z);
-        if (rho2 <= R2_ * q) {
-            const double s = 1 / std::sqrt(q);
-            ab[0] = x * s, ab[1] = y * s;
-        } else if (rho2 > 0) {  // pulled in to the rim along the azimuth
-            const double s = R_ / std::sqrt(rho2);
-            ab[0] = x * s, ab[1] = y * s;
-        } else {  // straight down (0, 0, -1), or NaN
-            const bool down = rho2 == 0;
-            ab[0] = down ? R_ : NAN, ab[1] = down ? 0.0 : NAN;
-        }
+        const bool inside = rho2 <= R2_ * q && q > 0;
+        const double s = 1 / std::sqrt(inside ? q : rho2 * inv_R2_);
+        // Straight down (rho = 0, q = 0) has no azimuth: it goes to (R, 0). The zero vector
+        // gives 0 * inf = NaN.
+        const bool down = !inside && rho2 == 0 && n > 0;
+        ab[0] = down ? R_ : x * s;
+        ab[1] = down ? 0.0 : y * s;
     }
 
     // Local spherical angles (4), (5) of to_direction(alpha, beta): theta = 2 asin(r / sqrt 2)
@@ -67,7 +74,7 @@ public:
     }
 
 private:
-    double R_, R2_;
+    double R_, R2_, inv_R2_;
 };
 
 }  // namespace bsgi
