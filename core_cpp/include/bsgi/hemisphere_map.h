@@ -35,15 +35,17 @@ public:
     double max_theta() const { return 2 * std::asin(R_ / std::sqrt(2.0)); }
 
     // (alpha, beta) -> unit direction (x, y, z) in the local frame, (20)-(22) after the pull-in.
-    // sqrt(1 - z^2) / r = sqrt(2 - r^2), so nothing is singular at the pole.
+    // sqrt(1 - z^2) / r = sqrt(2 - r^2), so nothing is singular at the pole. Infinite or NaN
+    // input gives NaN.
     BSGI_ALWAYS_INLINE void to_direction(double alpha, double beta, double* xyz) const {
         double r2 = alpha * alpha + beta * beta;
+        const bool valid = r2 <= 1.7976931348623157e308;  // not infinite or NaN
         if (r2 > R2_) {
             const double s = R_ / std::sqrt(r2);
             alpha *= s, beta *= s, r2 = R2_;
         }
         const double f = std::sqrt(2 - r2);
-        xyz[0] = f * alpha, xyz[1] = f * beta, xyz[2] = 1 - r2;
+        xyz[0] = valid ? f * alpha : NAN, xyz[1] = valid ? f * beta : NAN, xyz[2] = valid ? 1 - r2 : NAN;
     }
 
     // Inverse: a local direction (any positive length n) -> (alpha, beta) in the disc of radius R.
@@ -58,11 +60,11 @@ public:
         const double q = n * (n + z);
         const bool inside = rho2 <= R2_ * q && q > 0;
         const double s = 1 / std::sqrt(inside ? q : rho2 * inv_R2_);
-        // Straight down (rho = 0, q = 0) has no azimuth: it goes to (R, 0). The zero vector
-        // gives 0 * inf = NaN.
-        const bool down = !inside && rho2 == 0 && n > 0;
-        ab[0] = down ? R_ : x * s;
-        ab[1] = down ? 0.0 : y * s;
+        // Straight down (rho = 0, q = 0) has no azimuth: it goes to (R, 0).
+        const bool down = !inside && rho2 == 0;
+        const bool valid = n > 0 && n <= 1.7976931348623157e308;  // not zero, infinite or NaN
+        ab[0] = valid ? (down ? R_ : x * s) : NAN;
+        ab[1] = valid ? (down ? 0.0 : y * s) : NAN;
     }
 
     // Local spherical angles (4), (5) of to_direction(alpha, beta): theta = 2 asin(r / sqrt 2)
