@@ -55,6 +55,9 @@ void bind_spline(py::module_& m) {
     py::register_exception<MemoryBudgetExceeded>(m, "MemoryBudgetError", PyExc_MemoryError);
     m.def("_fma_peak_per_second", &detail::measure_fma_rate,
           "Benchmark helper: 256-bit double multiply-adds per second of one thread (a pure FMA loop).");
+    m.def("_kernel_isa", &detail::kernel_isa,
+          "Instruction set of the evaluation kernels in use (x86-64-v4, x86-64-v3 or baseline; the "
+          "environment variable BSGI_ISA can lower it).");
     m.def("memory_budget", &memory_budget, "Bytes one spline allocation may take (default 2 GiB).");
     m.def("set_memory_budget", &set_memory_budget, py::arg("bytes"),
           "Sets the byte budget; larger splines or fitting grids raise MemoryBudgetError before allocating.");

@@ -22,6 +22,8 @@
 #include <cfloat>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <string>
 
 namespace bsgi::detail {
 
@@ -70,27 +72,41 @@ BSGI_INLINE int find_span(const AxisData& ax, double x, double& s) {
 // 32-byte vectors (GCC/Clang vector extension): AVX registers in the x86-64-v3 and v4 clones,
 // pairs of SSE2 registers in the baseline one.
 typedef double v4d __attribute__((vector_size(32)));
+typedef float v4f __attribute__((vector_size(16)));
+typedef float v8f __attribute__((vector_size(32)));
 typedef float v16f __attribute__((vector_size(64)));
 
-// Contraction arithmetic in the storage type. Double (float64 coefficients): 4 lanes, and a row
-// whose length is not a multiple of 4 ends with a load moved back to end at the row's end
-// (overlapping the one before), so nothing past the coefficients is read. Float (float32
-// coefficients): 16 lanes, one AVX-512 register (two AVX2 ones, four SSE ones) for a whole
-// row of up to 16 values; the row may be read past its end, which the storage allows
-// (TensorSpline pads float32 coefficients with kFloat32Padding zeros). See the bound in
-// tensor_spline.h for float arithmetic.
-template <typename T>
+// Contraction arithmetic in the storage type, with WF float lanes (the register width of the
+// instruction set the kernel is compiled for: 16 with AVX-512, 8 with AVX2, 4 with SSE2).
+// Double (float64 coefficients): 4 lanes, and a row whose length is not a multiple of 4 ends
+// with a load moved back to end at the row's end (overlapping the one before), so nothing past
+// the coefficients is read. Float (float32 coefficients): whole registers, the last one may read
+// past the row's end, which the storage allows (TensorSpline pads float32 coefficients with
+// kFloat32Padding zeros). See the bound in tensor_spline.h for float arithmetic.
+template <typename T, int WF>
 struct Lanes;
-template <>
-struct Lanes<double> {
+template <int WF>
+struct Lanes<double, WF> {
     using V = v4d;
     static constexpr int W = 4;
     static constexpr bool padded = false;
 };
 template <>
-struct Lanes<float> {
+struct Lanes<float, 16> {
     using V = v16f;
     static constexpr int W = 16;
+    static constexpr bool padded = true;
+};
+template <>
+struct Lanes<float, 8> {
+    using V = v8f;
+    static constexpr int W = 8;
+    static constexpr bool padded = true;
+};
+template <>
+struct Lanes<float, 4> {
+    using V = v4f;
+    static constexpr int W = 4;
     static constexpr bool padded = true;
 };
 
@@ -128,7 +144,6 @@ struct Prepared {
     bool finite;
 };
 
-typedef float v4f __attribute__((vector_size(16)));
 typedef int v4si __attribute__((vector_size(16)));
 
 // The axes of a uniform-span kernel as lanes of one vector (D <= 4): span and local parameter
@@ -227,13 +242,13 @@ BSGI_INLINE V splat(const v4d& b, int j) {
 // channels, contiguous) are summed into P accumulators weighted by B_j, those into P more
 // weighted by B_i; then B_k combines the P accumulators into one row, and B_l with the
 // channels gives the result.
-template <int D, int P, int C, typename T>
+template <int D, int P, int C, typename T, int WF>
 BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o) {
     static_assert(D == 2 || D == 4, "kernels exist for 2D and 4D");
     constexpr int L = P * C;  // values per row (last axis x channels, contiguous)
-    using V = typename Lanes<T>::V;
-    constexpr int W = Lanes<T>::W;
-    constexpr bool padded = Lanes<T>::padded;
+    using V = typename Lanes<T, WF>::V;
+    constexpr int W = Lanes<T, WF>::W;
+    constexpr bool padded = Lanes<T, WF>::padded;
     // A row is covered by NV loads of W values (see Lanes); unpadded rows shorter than W are
     // done in scalars.
     constexpr int NV = L < W && !padded ? 0 : (L + W - 1) / W;
@@ -300,7 +315,7 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
             BSGI_UNROLL
             for (int r = 1; r < P; ++r) sum[v] += splat<V, T>(p.b[D - 2], r) * acc[r][v];
         }
-        if constexpr (padded && NV == 1) {
+        if constexpr (padded && NV == 1 && W == 16) {
             // The row in one register: out_c = sum_l B_l sum[l C + c] by a lane-wise product and
             // P - 1 shifted adds. Lane e of the multiplier is B_{e / C} (lanes past the row are
             // never read).
@@ -331,7 +346,7 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
     }
 }
 
-template <int D, int P, int C, typename T, bool Uniform, typename Source>
+template <int D, int P, int C, typename T, int WF, bool Uniform, typename Source>
 BSGI_INLINE void evaluate_range(const Source& source, const AxisData* ax, const UniformLanes& lanes, const T* coeffs,
                                 size_t begin, size_t end, double* out) {
     if (begin >= end) return;
@@ -346,15 +361,15 @@ BSGI_INLINE void evaluate_range(const Source& source, const AxisData* ax, const 
     Prepared<D, T> a = prep(begin), b;
     for (size_t i = begin;;) {
         b = prep(i + 1 < end ? i + 1 : i);
-        contract<D, P, C, T>(a, ax, out + i * C);
+        contract<D, P, C, T, WF>(a, ax, out + i * C);
         if (++i == end) break;
         a = prep(i + 1 < end ? i + 1 : i);
-        contract<D, P, C, T>(b, ax, out + i * C);
+        contract<D, P, C, T, WF>(b, ax, out + i * C);
         if (++i == end) break;
     }
 }
 
-template <int D, int P, int C, typename T, bool Dirs, bool Uniform>
+template <int D, int P, int C, typename T, bool Dirs, bool Uniform, int WF>
 BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t end, double* out) {
     static_assert(D >= 2 && D <= 4, "the last two axes are the rows and their accumulators");
     static_assert(P <= 4, "one vector of basis values per axis");
@@ -379,27 +394,48 @@ BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t en
                 map.to_disc(dx[i], dy[i], dz[i], ab);
                 alpha[i] = ab[0], beta[i] = ab[1];
             }
-            evaluate_range<D, P, C, T, Uniform>(MappedSource{args.uv, alpha, beta, first}, ax, lanes, coeffs, first,
+            evaluate_range<D, P, C, T, WF, Uniform>(MappedSource{args.uv, alpha, beta, first}, ax, lanes, coeffs, first,
                                                 first + n, out);
         }
     } else {
-        evaluate_range<D, P, C, T, Uniform>(ParamSource<D>{args.params}, ax, lanes, coeffs, begin, end, out);
+        evaluate_range<D, P, C, T, WF, Uniform>(ParamSource<D>{args.params}, ax, lanes, coeffs, begin, end, out);
     }
 }
+
+// Each kernel is compiled three times, for x86-64-v4 (AVX-512: 16 float lanes), x86-64-v3 (AVX2
+// and FMA: 8) and the baseline (SSE2: 4); find_kernel picks one for the running CPU, so the wheel
+// keeps the x86-64 baseline. (target_clones would compile one source for all three, but the
+// float lane count has to follow the register width.)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define BSGI_MULTIVERSION 1
+#define BSGI_TARGET_V4 __attribute__((target("arch=x86-64-v4")))
+#define BSGI_TARGET_V3 __attribute__((target("arch=x86-64-v3")))
+#else
+#define BSGI_MULTIVERSION 0
+#define BSGI_TARGET_V4
+#define BSGI_TARGET_V3
+#endif
 
 struct Entry {
     int dims, order, channels;
     bool float32, directions, uniform;
-    Kernel kernel;
+    Kernel v4, v3, base;
 };
 
-#define BSGI_KERNEL(D, P, C, T, DIRS, U)                                                                     \
-    BSGI_CLONES void kernel_##D##_##P##_##C##_##T##_##DIRS##_##U(const KernelArgs& a, size_t b, size_t e,    \
-                                                                 double* o) {                               \
-        evaluate_points<D, P, C, T, DIRS, U>(a, b, e, o);                                                   \
+#define BSGI_NAME(L, D, P, C, T, DIRS, U) kernel_##L##_##D##_##P##_##C##_##T##_##DIRS##_##U
+#define BSGI_KERNEL(D, P, C, T, DIRS, U)                                                                  \
+    BSGI_TARGET_V4 void BSGI_NAME(v4, D, P, C, T, DIRS, U)(const KernelArgs& a, size_t b, size_t e, double* o) { \
+        evaluate_points<D, P, C, T, DIRS, U, 16>(a, b, e, o);                                                \
+    }                                                                                                        \
+    BSGI_TARGET_V3 void BSGI_NAME(v3, D, P, C, T, DIRS, U)(const KernelArgs& a, size_t b, size_t e, double* o) { \
+        evaluate_points<D, P, C, T, DIRS, U, 8>(a, b, e, o);                                                 \
+    }                                                                                                        \
+    void BSGI_NAME(base, D, P, C, T, DIRS, U)(const KernelArgs& a, size_t b, size_t e, double* o) {         \
+        evaluate_points<D, P, C, T, DIRS, U, 4>(a, b, e, o);                                                 \
     }
-#define BSGI_ENTRY(D, P, C, T, DIRS, U) \
-    {D, P, C, sizeof(T) == 4, DIRS, U, &kernel_##D##_##P##_##C##_##T##_##DIRS##_##U},
+#define BSGI_ENTRY(D, P, C, T, DIRS, U)                                                                    \
+    {D, P, C, sizeof(T) == 4, DIRS, U, &BSGI_NAME(v4, D, P, C, T, DIRS, U), &BSGI_NAME(v3, D, P, C, T, DIRS, U), \
+     &BSGI_NAME(base, D, P, C, T, DIRS, U)},
 
 // The shapes with kernels: 2D and 4D, degrees 0..3, 1 or 3 channels, both storages, uniform or
 // not, and for 4D also the (u, v, direction) input of radiance.
@@ -412,6 +448,28 @@ struct Entry {
 BSGI_FOR_ALL(BSGI_KERNEL)
 
 const Entry kKernels[] = {BSGI_FOR_ALL(BSGI_ENTRY)};
+
+// 2: x86-64-v4, 1: x86-64-v3, 0: baseline. BSGI_ISA in the environment may lower it (tests and
+// benchmarks of the other versions).
+int isa_level() {
+    static const int level = [] {
+        int l = 0;
+#if BSGI_MULTIVERSION
+        __builtin_cpu_init();
+        const bool v3 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi2");
+        const bool v4 = v3 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+                        __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
+        l = v4 ? 2 : (v3 ? 1 : 0);
+#endif
+        if (const char* env = std::getenv("BSGI_ISA")) {
+            const std::string want = env;
+            const int cap = want == "baseline" ? 0 : (want == "x86-64-v3" ? 1 : 2);
+            l = std::min(l, cap);
+        }
+        return l;
+    }();
+    return level;
+}
 
 // Independent 256-bit multiply-adds, enough chains to cover their latency: the FMA pipes' peak.
 BSGI_CLONES double fma_loop(long n) {
@@ -445,8 +503,13 @@ Kernel find_kernel(int dims, int order, int channels, bool float32, bool directi
     for (const Entry& e : kKernels)
         if (e.dims == dims && e.order == order && e.channels == channels && e.float32 == float32 &&
             e.directions == directions && e.uniform == uniform)
-            return e.kernel;
+            return isa_level() == 2 ? e.v4 : (isa_level() == 1 ? e.v3 : e.base);
     return nullptr;
+}
+
+const char* kernel_isa() {
+    static const char* names[] = {"baseline", "x86-64-v3", "x86-64-v4"};
+    return names[isa_level()];
 }
 
 }  // namespace bsgi::detail

@@ -34,6 +34,9 @@ using Kernel = void (*)(const KernelArgs&, size_t begin, size_t end, double* out
 // with `uniform` every axis has uniform spans (AxisData::inv_h > 0).
 Kernel find_kernel(int dims, int order, int channels, bool float32, bool directions, bool uniform);
 
+// The instruction set of the kernels find_kernel returns: "x86-64-v4", "x86-64-v3" or "baseline".
+const char* kernel_isa();
+
 // 256-bit (4 x double) multiply-adds per second on this thread: the arithmetic peak the
 // benchmark compares the kernels with.
 double measure_fma_rate();

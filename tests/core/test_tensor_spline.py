@@ -281,3 +281,53 @@ def test_absurd_sizes_do_not_overflow():
     k = bsgi.KnotVector.clamped_uniform(100000, 0, 0, 1)
     with pytest.raises(bsgi.MemoryBudgetError, match="more than 16 EiB"):
         bsgi.TensorSpline([k] * 8, 3)
+
+
+ISA_CHECK = r"""
+import numpy as np, bsgi
+from scipy.interpolate import NdBSpline
+rng = np.random.default_rng(11)
+worst = {}
+h = bsgi.HemisphereMap.for_max_angle(0.05)
+for dims, degree in ((2, 1), (2, 3), (4, 2), (4, 0)):
+    for uniform in (True, False):
+        axes = []
+        for _ in range(dims):
+            n = degree + 5
+            if uniform:
+                axes.append(bsgi.KnotVector.clamped_uniform(n, degree, 0.0, 1.0))
+            else:
+                inner = np.sort(rng.uniform(0, 1, n - degree - 1))
+                axes.append(bsgi.KnotVector(np.r_[[0.0] * (degree + 1), inner, [1.0] * (degree + 1)], degree))
+        for channels in (1, 3):
+            s = bsgi.TensorSpline(axes, channels)
+            s.coefficients = rng.uniform(0.5, 1.5, s.shape)
+            x = rng.uniform(0, 1, (3000, dims))
+            ref = NdBSpline(tuple(a.knots for a in axes), np.array(s.coefficients), degree)(x).reshape(3000, channels)
+            for p in ("float64", "float32"):
+                t = s.with_precision(p)
+                worst[p] = max(worst.get(p, 0), float(np.max(np.abs(t.evaluate(x) - ref) / ref)))
+            if dims == 4:
+                d = rng.normal(size=(3000, 3))
+                via_params = s.evaluate(np.column_stack([x[:, :2], h.to_disc(d)]))
+                worst["directions"] = max(worst.get("directions", 0),
+                                          float(np.max(np.abs(s.evaluate_directions(x[:, :2], d, h) - via_params) / via_params)))
+print(bsgi._core._kernel_isa(), worst["float64"], worst["float32"], worst["directions"])
+"""
+
+
+@pytest.mark.parametrize("isa", ["baseline", "x86-64-v3", "x86-64-v4"])
+def test_every_instruction_set_version_agrees_with_scipy(isa):
+    """The kernels are compiled for three instruction-set levels; BSGI_ISA selects a lower one."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, BSGI_ISA=isa)
+    out = subprocess.run([sys.executable, "-c", ISA_CHECK], env=env, capture_output=True, text=True, check=True).stdout.split()
+    if out[0] != isa:
+        pytest.skip(f"this CPU does not run {isa} (got {out[0]})")
+    f64, f32, directions = map(float, out[1:])
+    assert f64 <= 1e-10
+    assert f32 <= float32_bound(4, 3) * 3  # relative: values >= 0.5, max|a| <= 1.5
+    assert directions <= 1e-12
