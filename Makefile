@@ -21,7 +21,7 @@ VENV313    ?= .venv313
 PACKAGING_TOOLS := tools/build_wheel.py tools/isolate_embree.py tools/requirements-wheel.txt
 VERSION    := $(shell sed -n 's/^version = "\(.*\)"/\1/p' pyproject.toml)
 EXTENSIONS := dist/bsgi-$(VERSION)-linux-x64-py311.zip dist/bsgi-$(VERSION)-linux-x64-py313.zip
-CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name CMakeLists.txt \)) pyproject.toml
+CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name '*.pyi' -o -name CMakeLists.txt \)) pyproject.toml
 
 .PHONY: test test-fast demo bench apt venv venv313 build wheels extension clean
 

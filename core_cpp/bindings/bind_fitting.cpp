@@ -70,6 +70,25 @@ void bind_fitting(py::module_& m) {
         },
         py::arg("spline"), py::arg("method") = "schoenberg", "Per axis, the nodes where the method samples f.");
     m.def(
+        "_fit_pointwise",
+        [](TensorSpline& s, const py::function& f, const py::object& method) {
+            const auto rules = rules_of(s, method);
+            const int D = s.dims(), C = s.channels();
+            // The core's callback fit, on this thread (the callback is Python: it needs the GIL,
+            // which this thread holds).
+            fit(s, rules,
+                [&](const double* x, double* value) {
+                    auto v = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
+                        f(py::array_t<double>(D, x)));
+                    if (!v || v.size() != C)
+                        throw std::invalid_argument("fit: f must return " + std::to_string(C) + " values per point");
+                    std::copy(v.data(), v.data() + C, value);
+                },
+                1);
+        },
+        py::arg("spline"), py::arg("f"), py::arg("method") = "schoenberg",
+        "Fit from a Python function of one point (dims,) -> (channels,), called once per node.");
+    m.def(
         "fit_from_samples",
         [](TensorSpline& s, py::array_t<double, py::array::c_style | py::array::forcecast> samples, const py::object& method) {
             const auto rules = rules_of(s, method);

@@ -216,7 +216,9 @@ void bind_spline(py::module_& m) {
                 auto out = result(n, single, s.channels());
                 const double* xp = x.data();
                 double* op = out.mutable_data();
-                {
+                if (single) {
+                    s.evaluate(xp, op);  // the single-point path (no batch kernel)
+                } else {
                     py::gil_scoped_release release;
                     s.evaluate_batch(xp, n, op, threads);
                 }

@@ -42,35 +42,25 @@ namespace {
 
 constexpr int ipow(int b, int e) { return e == 0 ? 1 : b * ipow(b, e - 1); }
 
-// Span I and local parameter s = (x - t_I) / (t_{I+1} - t_I) of x (already in the domain).
-// Uniform spans: one multiplication, no knot is read; on a knot x may land at s = 1 of the span
-// on its left instead of s = 0 of the one on its right, the same value up to rounding since the
-// spline is continuous there (uniform spans have no repeated inner knots).
-template <int P, bool Uniform>
+// Span I (binary search for the last knot <= x among t_d .. t_last) and local parameter
+// s = (x - t_I) / (t_{I+1} - t_I) of x, already in the domain. (Uniform spans take the vector
+// path of prepare_uniform instead.)
+template <int P>
 BSGI_INLINE int find_span(const AxisData& ax, double x, double& s) {
     constexpr int d = P - 1;
-    if constexpr (Uniform) {
-        const double u = (x - ax.lo) * ax.inv_h;
-        int j = static_cast<int>(u);
-        j = std::min(j, ax.last_span - d);
-        s = u - j;
-        return d + j;
-    } else {
-        // Binary search for the last knot <= x among t_d .. t_last.
-        const double* t = ax.knots;
-        int lo = d, hi = ax.last_span;
-        while (lo < hi) {
-            const int mid = (lo + hi + 1) >> 1;
-            if (t[mid] <= x) lo = mid;
-            else hi = mid - 1;
-        }
-        s = (x - t[lo]) * ax.inv_width[lo - d];
-        return lo;
+    const double* t = ax.knots;
+    int lo = d, hi = ax.last_span;
+    while (lo < hi) {
+        const int mid = (lo + hi + 1) >> 1;
+        if (t[mid] <= x) lo = mid;
+        else hi = mid - 1;
     }
+    s = (x - t[lo]) * ax.inv_width[lo - d];
+    return lo;
 }
 
-// 32-byte vectors (GCC/Clang vector extension): AVX registers in the x86-64-v3 and v4 clones,
-// pairs of SSE2 registers in the baseline one.
+// GCC vector extensions: whole registers of the instruction set a kernel is compiled for (v4d:
+// one AVX register, or a pair of SSE2 ones in the baseline version).
 typedef double v4d __attribute__((vector_size(32)));
 typedef float v4f __attribute__((vector_size(16)));
 typedef float v8f __attribute__((vector_size(32)));
@@ -119,14 +109,14 @@ BSGI_INLINE V load_vec(const T* p) {
 
 // Basis values (lanes 0..P-1) of one parameter on one axis; returns the offset of the first
 // non-zero coefficient along the axis, in values.
-template <int P, bool Uniform>
+template <int P>
 BSGI_INLINE size_t axis_basis(const AxisData& ax, double x, v4d& b, bool& finite) {
     const bool ok = std::fabs(x) <= DBL_MAX;  // false for NaN and infinities
     finite &= ok;
     x = ok ? x : ax.lo;
     x = std::min(std::max(x, ax.lo), ax.hi);  // clamp to the domain
     double s;
-    const int span = find_span<P, Uniform>(ax, x, s);
+    const int span = find_span<P>(ax, x, s);
     // Horner on the power form: rows of the table are P apart, lanes >= P unused (the table is
     // padded so that the last load stays inside it).
     const double* c = ax.poly + size_t(span - (P - 1)) * P * P;
@@ -200,7 +190,7 @@ BSGI_INLINE Prepared<D, T> prepare(v4d x, const AxisData* ax, const T* coeffs) {
     p.finite = true;
     p.block = coeffs;
     BSGI_UNROLL
-    for (int k = 0; k < D; ++k) p.block += axis_basis<P, false>(ax[k], x[k], p.b[k], p.finite);
+    for (int k = 0; k < D; ++k) p.block += axis_basis<P>(ax[k], x[k], p.b[k], p.finite);
     return p;
 }
 

@@ -175,7 +175,12 @@ struct DirectionLoader {
 
 }  // namespace
 
-void TensorSpline::evaluate(const double* x, double* out) const { evaluate_batch(x, 1, out, 1); }
+void TensorSpline::evaluate(const double* x, double* out) const {
+    // One point (the solver's gathering calls this per ray): no kernel lookup, no threads.
+    const ParamLoader load{x, dims()};
+    if (precision_ == Precision::Float32) evaluate_generic(*this, coeffs32_.data(), load, 0, 1, out);
+    else evaluate_generic(*this, coeffs_.data(), load, 0, 1, out);
+}
 
 void TensorSpline::evaluate_batch(const double* xs, size_t count, double* out, int threads) const {
     evaluate_with(ParamLoader{xs, dims()}, count, out, threads, false, nullptr);

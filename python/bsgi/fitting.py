@@ -14,16 +14,22 @@ def fit(
     spline: _core.TensorSpline,
     f: Callable[[np.ndarray], np.ndarray],
     method: Method = "schoenberg",
+    vectorized: bool = True,
 ) -> _core.TensorSpline:
     """Sets the coefficients of ``spline`` from ``f`` by a local rule, one dimension at a time.
 
     ``method`` is ``"schoenberg"`` (values at the knot averages (12), (25)), ``"quadratic"``
     (the quasi-interpolant of section 2.2.1, degree 2) or ``"cubic"`` (Lee-Lyche-Morken, degree
     3), or one of them per dimension. ``f`` receives every node of the tensor grid at once as an
-    array of shape (N, dims) and returns (N, channels) (or (N,) for one channel). Returns the
-    spline. Raises ValueError if ``f`` returns the wrong shape, MemoryBudgetError if the grid
-    of nodes is over the memory budget.
+    array of shape (N, dims) and returns (N, channels) (or (N,) for one channel). With
+    ``vectorized=False`` it receives one point (dims,) at a time and returns (channels,) (the
+    core's callback fit: no grid of points is built in Python). Returns the spline. Raises
+    ValueError if ``f`` returns the wrong shape, MemoryBudgetError if the grid of nodes is over
+    the memory budget.
     """
+    if not vectorized:
+        _core._fit_pointwise(spline, f, method)
+        return spline
     nodes = _core.fitting_nodes(spline, method)
     shape = tuple(len(n) for n in nodes)
     # The grid (points and values) is checked against the budget before it is built.

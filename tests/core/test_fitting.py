@@ -229,3 +229,24 @@ def test_periodic_fits():
         errs.append(np.max(np.abs(sp.evaluate(x[:, None])[:, 0] - np.sin(x) - np.cos(3 * x))))
     slope = np.polyfit(np.log([1 / 16, 1 / 32, 1 / 64]), np.log(errs), 1)[0]
     assert abs(slope - 2) <= 0.3
+
+
+def test_pointwise_callback_fit_matches_the_vectorised_one():
+    rng = np.random.default_rng(9)
+    axes = [knots("random", 6, 2, rng), knots("random", 5, 2, rng), knots("uniform", 4, 2)]
+    f = lambda x: np.stack([np.sin(x[..., 0]) * x[..., 1], np.exp(x[..., 2]) - x[..., 0]], axis=-1)  # noqa: E731
+    a = bsgi.fit(bsgi.TensorSpline(axes, 2), f, "quadratic")
+    calls = []
+
+    def one_point(x):
+        assert x.shape == (3,)
+        calls.append(1)
+        return f(x)
+
+    b = bsgi.fit(bsgi.TensorSpline(axes, 2), one_point, "quadratic", vectorized=False)
+    np.testing.assert_allclose(b.coefficients, a.coefficients, atol=1e-15)
+    assert len(calls) == np.prod([len(n) for n in bsgi.fitting_nodes(b, "quadratic")])
+    with pytest.raises(ValueError, match="must return 2 values"):
+        bsgi.fit(bsgi.TensorSpline(axes, 2), lambda x: np.zeros(3), "quadratic", vectorized=False)
+    with pytest.raises(ZeroDivisionError):
+        bsgi.fit(bsgi.TensorSpline(axes, 2), lambda x: 1 / 0, "schoenberg", vectorized=False)

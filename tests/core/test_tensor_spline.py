@@ -86,9 +86,12 @@ def test_single_point_and_batch_shapes():
     rng = np.random.default_rng(1)
     s = random_spline(rng, 4, 2, "uniform")
     x = rng.uniform(0, 1, 4)
-    one = s.evaluate(x)
+    one = s.evaluate(x)  # the single-point path, not the batch kernel
     assert one.shape == (3,)
-    np.testing.assert_array_equal(one, s.evaluate(x[None, :])[0])
+    np.testing.assert_allclose(one, s.evaluate(x[None, :])[0], rtol=1e-14)
+    np.testing.assert_allclose(one, scipy_peer(s)(x[None, :])[0], rtol=1e-12)
+    for p in (np.array([np.nan, 0.5, 0.5, 0.5]), np.array([2.0, -1.0, 0.5, 7.0])):
+        np.testing.assert_allclose(s.evaluate(p), s.evaluate(p[None, :])[0], rtol=1e-14)
     with pytest.raises(ValueError, match=r"shape \(N, 4\)"):
         s.evaluate(np.zeros((3, 2)))
 
