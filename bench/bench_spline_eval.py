@@ -9,7 +9,8 @@ spline evaluation is timed, which favours scipy slightly.
 
 Figures: evaluations per second with one thread and with all threads, for float64 coefficients
 (the default: agrees with scipy to rounding) and float32 coefficients (half the memory, float
-arithmetic, error bound 18 * 2^-24 * max|a|), and the arithmetic limit of the kernel.
+arithmetic, error bound (D (d + 2) + 1) 2^-24 max|a| = 17 * 2^-24 * max|a| here), the same inputs
+ordered by (u, v) cell (coherent queries), and the arithmetic limits of the kernel.
 """
 from __future__ import annotations
 
@@ -86,10 +87,25 @@ def run() -> dict:
     r1, rall, rel = measure(spline, hemisphere, uv, dirs, reference, scipy_rate)
     f1, fall, frel = measure(spline32, hemisphere, uv, dirs, reference, scipy_rate)
 
-    # Arithmetic limit: the contraction of 3^4 coefficients x 3 channels is 243 multiply-adds
-    # per evaluation (81 AVX2 double / 27 AVX-512 float vector FMAs as the kernel issues them;
-    # 2 FMA pipes, a 512-bit one takes both). Measured here against a pure FMA loop.
-    fma_per_s = fma_peak()
+    # The same inputs ordered by their (u, v) knot cell: what coherent queries (a surface seen
+    # pixel by pixel) get from the caches. Not the headline figure.
+    cell = np.floor(np.clip(uv, 0, 1 - 1e-12) * (COEFFS - DEGREE)).astype(int) @ [COEFFS, 1]
+    order = np.argsort(cell, kind="stable")
+    uv_s, dirs_s = np.ascontiguousarray(uv[order]), np.ascontiguousarray(dirs[order])
+    s1 = N / best_time(lambda: spline.evaluate_directions(uv_s, dirs_s, hemisphere, threads=1))
+    s32 = N / best_time(lambda: spline32.evaluate_directions(uv_s, dirs_s, hemisphere, threads=1))
+
+    # Arithmetic limits of the contraction, from the measured peak of 256-bit FMAs on one thread:
+    # - useful work: 3^4 coefficients x 3 channels = 243 multiply-adds per evaluation, at 4
+    #   (float64) or 8 (float32) per 256-bit FMA;
+    # - issued work: the vector multiply-adds the kernel actually issues (rows of 9 values in
+    #   whole registers, the nested sums (18), the final products), in 256-bit equivalents:
+    #   float64 81 + 27 + 9 = 117; float32 with AVX-512 27 + 9 + 3 + 3 = 42 512-bit operations
+    #   = 84 (a 512-bit operation takes both 256-bit halves here), with AVX2 54 + 18 + 6 = 78.
+    fma = bsgi._core._fma_peak_per_second()
+    isa = bsgi._core._kernel_isa()
+    issued_f32 = 84 if isa == "x86-64-v4" else 78
+    print(f"  (kernels: {isa}; limits count only the contraction's multiply-adds)")
     return {
         "eval_per_s_1t": r1,
         "eval_per_s_all": rall,
@@ -103,16 +119,16 @@ def run() -> dict:
         "eval_f32_speedup_vs_scipy_1t": f1 / scipy_rate,
         "eval_f32_max_rel_diff_vs_scipy": frel,
         "eval_f32_thread_scaling": fall / f1,
-        "eval_fma_ymm_per_s_1t": fma_per_s,
-        "eval_limit_f64_per_s_1t": fma_per_s / 81,
-        "eval_limit_f32_per_s_1t": fma_per_s / 2 / 27,
+        "eval_per_s_1t_sorted_uv": s1,
+        "eval_f32_per_s_1t_sorted_uv": s32,
+        "eval_fma256_per_s_1t": fma,
+        "eval_limit_useful_per_s_1t": fma * 4 / 243,
+        "eval_limit_useful_f32_per_s_1t": fma * 8 / 243,
+        "eval_limit_issued_per_s_1t": fma / 117,
+        "eval_limit_issued_f32_per_s_1t": fma / issued_f32,
+        "eval_fraction_of_issued_limit_1t": r1 / (fma / 117),
+        "eval_f32_fraction_of_issued_limit_1t": f1 / (fma / issued_f32),
     }
-
-
-def fma_peak() -> float:
-    """256-bit FMAs per second on one thread, from numpy's dot product of long vectors resident
-    in L1 is not a pure FMA stream; the core's figure is measured by bsgi itself."""
-    return bsgi._core._fma_peak_per_second() if hasattr(bsgi._core, "_fma_peak_per_second") else float("nan")
 
 
 if __name__ == "__main__":
