@@ -169,12 +169,4 @@ class BSGI_OT_import_solution(bpy.types.Operator, ImportHelper):
 
 classes = (BSGI_OT_solve, BSGI_OT_clear, BSGI_OT_rebake, BSGI_OT_export_solution, BSGI_OT_import_solution)
 
-
-def register():
-    for c in classes:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(classes):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -70,12 +70,4 @@ class BSGI_PT_object(bpy.types.Panel):
 
 classes = (BSGI_PT_render, BSGI_PT_sidebar, BSGI_PT_object)
 
-
-def register():
-    for c in classes:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(classes):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(classes)
