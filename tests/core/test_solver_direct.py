@@ -180,3 +180,16 @@ def test_ellipse_emitter_faces_along_its_axes_cross_product():
     assert scene.area(0) == pytest.approx(np.pi * 0.1)
     with pytest.raises(ValueError, match="surface 'flat'.*zero area"):
         scene.add_disk("flat", [0, 0, 0], [1, 0, 0], [2, 0, 0], albedo=[0] * 3, emission=[1] * 3)
+
+
+@pytest.mark.parametrize("emitter", [rect([0.15, -0.1, 0.5], [0, 0.5, 0], [0.4, 0, 0]),   # parallel, above
+                                     rect([0, 0.5, 0.5], [0, 0.5, 0], [0, 0, 0.5])])      # perpendicular wall
+def test_final_preset_direct_light_within_half_a_percent(emitter):
+    receiver = rect([0.3, 0.5, 0], [0.1, 0, 0], [0, 0.1, 0]) if emitter[0][0] == 0 else rect([0, 0, 0], [0.1, 0, 0], [0, 0.1, 0])
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("receiver", receiver, albedo=[ALBEDO] * 3, emission=[0, 0, 0])
+    scene.add_bilinear_patch("lamp", emitter, albedo=[0, 0, 0], emission=[1.0, 2.0, 3.0], receiver=False, occluder=False)
+    sol = bsgi.solve(scene, bsgi.SolverSettings.preset("final"))
+    err = max_rel_error(sol, receiver, emitter, [0, 0, 1], np.vstack([UV, UV_EDGES]))
+    print(f"\nfinal preset, direct light: max relative error {err:.2e}")
+    assert err <= 0.005
