@@ -128,6 +128,18 @@ RoughDielectric::RoughDielectric(double eta, double alpha_x, double alpha_y) : e
     check_alpha(alpha_y);
 }
 
+// The microfacet normal that refracts wi (below, index n_i) into wo (above, index n_o), facing
+// up; false where no facet does (wi in the tangent plane, or not a refraction pair through h).
+static bool refraction_half_vector(const Vec3& wo, const Vec3& wi, double n_o, double n_i, Vec3& h) {
+    if (wi.z == 0) return false;
+    h = -(wo * n_o + wi * n_i);
+    const double lh = length(h);
+    if (!(lh > 0)) return false;
+    h = h / lh;
+    if (h.z < 0) h = -h;
+    return dot(wo, h) > 0 && dot(wi, h) < 0;
+}
+
 double RoughDielectric::eval_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const {
     double cos_t;
     if (wi.z > 0) {
@@ -135,15 +147,10 @@ double RoughDielectric::eval_up(const Vec3& wo, const Vec3& wi, double n_o, doub
         const double F = fresnel_dielectric(dot(wo, h), n_t / n_o, cos_t);
         return F * D_.D(h) * D_.G1(wo, h) * D_.G1(wi, h) / (4 * wo.z * wi.z);
     }
-    if (wi.z == 0) return 0;
     const double n_i = n_t;
-    Vec3 h = -(wo * n_o + wi * n_i);
-    const double lh = length(h);
-    if (!(lh > 0)) return 0;
-    h = h / lh;
-    if (h.z < 0) h = -h;
+    Vec3 h;
+    if (!refraction_half_vector(wo, wi, n_o, n_i, h)) return 0;
     const double oh = dot(wo, h), ih = dot(wi, h);
-    if (oh <= 0 || ih >= 0) return 0;  // not a refraction pair through facet h
     const double F = fresnel_dielectric(oh, n_i / n_o, cos_t);
     const double denom = n_i * ih + n_o * oh;
     const double g = D_.G1(wo, h) * D_.G1(wi, h);
@@ -159,15 +166,10 @@ double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, doubl
         const double F = fresnel_dielectric(oh, n_t / n_o, cos_t);
         return F * D_.visible_pdf(wo, h) / (4 * oh);
     }
-    if (wi.z == 0) return 0;
     const double n_i = n_t;
-    Vec3 h = -(wo * n_o + wi * n_i);
-    const double lh = length(h);
-    if (!(lh > 0)) return 0;
-    h = h / lh;
-    if (h.z < 0) h = -h;
+    Vec3 h;
+    if (!refraction_half_vector(wo, wi, n_o, n_i, h)) return 0;
     const double oh = dot(wo, h), ih = dot(wi, h);
-    if (oh <= 0 || ih >= 0) return 0;
     const double F = fresnel_dielectric(oh, n_i / n_o, cos_t);
     const double denom = n_i * ih + n_o * oh;
     // Jacobian of refraction: d omega_h / d omega_i = n_i^2 |wi.h| / (n_i wi.h + n_o wo.h)^2.
