@@ -39,6 +39,14 @@ void stratified(int m, int n, double* u) {
 
 }  // namespace
 
+Vec3 directional_albedo(const Bsdf& b) {
+    const int nt = 16, np = 32;
+    Vec3 sum{0, 0, 0};
+    for (int i = 0; i < nt; ++i)
+        for (int k = 0; k < np; ++k) sum += b.eval({0, 0, 1}, cosine_node(i, k, nt, np));
+    return sum * (kPi / (nt * np));  // pi times the mean of rho over cosine-weighted nodes
+}
+
 Vec3 Receiver::own_radiance(Splines which, double u, double v, const Vec3& local) const {
     const int side = local.z >= 0 ? 0 : 1;
     return side < sides ? evaluate_side(kind, map, (this->*which)[side], u, v, local) : Vec3{0, 0, 0};

@@ -53,20 +53,6 @@ struct Plan {
     size_t coefficients() const { return size_t(nu) * nv * na * na * sides; }
 };
 
-// Directional albedo at normal incidence, integral of rho cos over the hemisphere: pi times the
-// mean of rho over cosine-weighted nodes.
-Vec3 directional_albedo(const Bsdf& b) {
-    const int nt = 16, np = 32;
-    Vec3 sum{0, 0, 0};
-    for (int i = 0; i < nt; ++i)
-        for (int k = 0; k < np; ++k) {
-            const double w = (i + 0.5) / nt, phi = 2 * 3.14159265358979323846 * (k + 0.5) / np;
-            const double s = std::sqrt(1 - w);
-            sum += b.eval({0, 0, 1}, {s * std::cos(phi), s * std::sin(phi), std::sqrt(w)});
-        }
-    return sum * (3.14159265358979323846 / (nt * np));
-}
-
 double scene_extent(const Scene& scene) {
     double extent = 0;
     for (const auto& s : scene.surfaces()) extent = std::max(extent, s.surface->size());

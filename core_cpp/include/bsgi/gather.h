@@ -58,6 +58,10 @@ struct TransportTerm {
     float weight;
 };
 
+// Directional albedo at normal incidence, the integral of rho cos over the hemisphere, by the
+// gather's cosine-weighted node rule.
+Vec3 directional_albedo(const Bsdf& b);
+
 class Gatherer {
 public:
     Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster);
