@@ -1,6 +1,7 @@
 """Headless solve and bake, for farms, scripts and users of the `bpy` module.
 
-    python addon/cli.py scene.blend --out solved.blend [--render image.png]     (bpy module)
+    python -m addon scene.blend --out solved.blend [--render image.png]         (bpy module)
+    python addon/cli.py scene.blend --out solved.blend [--render image.png]     (the same)
     blender --background scene.blend --python addon/cli.py -- --out solved.blend (Blender)
 
 Prints progress as lines; exits with status 1 and a message naming the problem on failure."""
@@ -16,7 +17,10 @@ PACKAGE = "bsgi_addon"
 
 
 def load_addon():
-    """The add-on as a package, whether this file runs as a script or inside the package."""
+    """The add-on as a package, whether this file runs as a script or inside the package
+    (`python -m addon`: then it is the package already imported, not a second copy)."""
+    if __package__:
+        return sys.modules[__package__]
     if PACKAGE in sys.modules:
         return sys.modules[PACKAGE]
     here = pathlib.Path(__file__).resolve().parent
@@ -64,11 +68,15 @@ def main(argv=None) -> int:
         addon.register()
     except ValueError:
         pass  # already registered in this session
-    from bsgi_addon import pipeline
-    from bsgi_addon.export import ExportError
+    pipeline = importlib.import_module(f"{addon.__name__}.pipeline")
+    ExportError = importlib.import_module(f"{addon.__name__}.export").ExportError
 
     if args.blend:
-        bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(args.blend).resolve()))
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(args.blend).resolve()))
+        except RuntimeError as error:
+            print(f"bsgi: error: cannot open '{args.blend}': {error}", file=sys.stderr)
+            return 1
     context = bpy.context
     if args.preset:
         context.scene.bsgi.preset = args.preset.upper()
@@ -78,7 +86,7 @@ def main(argv=None) -> int:
 
     try:
         rep = pipeline.solve_and_bake(context, on_progress=on_progress)
-    except (ExportError, ValueError, RuntimeError) as error:
+    except (ExportError, ValueError, RuntimeError, MemoryError) as error:
         print(f"bsgi: error: {error}", file=sys.stderr)
         return 1
     for warning in rep["warnings"]:

@@ -14,6 +14,8 @@ from mathutils import Matrix
 
 import bsgi
 
+from . import charts
+
 # Blender's look for a surface with no material: a light grey diffuse.
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
 GEOMETRY_TYPES = {"MESH", "SURFACE", "CURVE", "FONT", "META"}
@@ -32,7 +34,8 @@ class ExportedObject:
     # Per polygon: ("quad" | "triangle" | "ngon", first scene index, number of patches);
     # for a SURFACE object per spline: ("nurbs", scene index, 1).
     patches: list = field(default_factory=list)
-    kind: str = "mesh"  # "mesh" | "nurbs"
+    kind: str = "mesh"  # "mesh" | "nurbs" | "chart" (one MeshChart: patches = [("chart", index, 1)])
+    chart_uvs: object = None  # a chart's UV coordinates per mesh loop, (loops, 2), for the bake
 
 
 @dataclass
@@ -255,18 +258,26 @@ def surface_options(obj) -> dict:
             "angular_coeffs": settings.angular_coeffs}
 
 
-def _slot_materials(obj, warnings) -> list:
-    from .bake import user_materials  # the bake's record of the slots, not the baked materials
+def _user_slots(obj) -> list:
+    """The user's material per slot (at least one slot, None for empty)."""
+    from .bake import is_baked, user_materials  # the bake's record of the slots, not the baked materials
 
-    slots = user_materials(obj.original) or [None]
-    return [solver_material(m, describe_material(m, warnings), warnings) for m in slots]
+    # The evaluated object's slots otherwise: a geometry-nodes instance's materials come with its
+    # instanced mesh, its original object is the instancer.
+    original = obj.original
+    return (user_materials(original) if is_baked(original) else [s.material for s in obj.material_slots]) or [None]
+
+
+def _slot_materials(obj, warnings) -> list:
+    return [solver_material(m, describe_material(m, warnings), warnings) for m in _user_slots(obj)]
 
 
 def _material_keywords(material: SolverMaterial, options: dict) -> dict:
     return dict(albedo=material.albedo, emission=material.emission, bsdf=material.bsdf, **options)
 
 
-def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObject:
+def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | None = None,
+                     pending_charts: list | None = None) -> ExportedObject:
     co = np.empty(len(mesh.vertices) * 3, np.float64)
     mesh.vertices.foreach_get("co", co)
     co = co.reshape(-1, 3)
@@ -275,6 +286,10 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObje
     options = surface_options(obj)
     materials = [_material_keywords(material, options) for material in _slot_materials(obj, warnings)]
     exported = ExportedObject(obj.name, len(mesh.polygons))
+    label = label or obj.name
+    if pending_charts is not None and _wants_chart(mesh, _user_slots(obj), label, warnings):
+        pending_charts.append(_chart_job(exported, mesh, world, materials, label))
+        return exported
     ngon_tris = {}
     if any(p.loop_total > 4 for p in mesh.polygons):
         mesh.calc_loop_triangles()
@@ -282,7 +297,7 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObje
             ngon_tris.setdefault(tri.polygon_index, []).append(tuple(tri.vertices))
     for poly in mesh.polygons:
         keywords = materials[min(poly.material_index, len(materials) - 1)]
-        name = f"{obj.name}: face {poly.index}"
+        name = f"{label}: face {poly.index}"
         verts = list(poly.vertices)
         first = len(scene)
         try:
@@ -299,6 +314,74 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings) -> ExportedObje
         except ValueError as error:
             raise ExportError(str(error)) from None
     return exported
+
+
+def chart_min_faces(scene) -> int:
+    settings = getattr(scene, "bsgi", None)
+    return settings.chart_min_faces if settings is not None else 0
+
+
+def _wants_chart(mesh, slots: list, label: str, warnings) -> bool:
+    """Above the scene's face count (0: never) a mesh of one material becomes a UV chart; a chart
+    is one surface with one BSDF, so a mesh of several materials stays per face."""
+    threshold = chart_min_faces(bpy.context.scene)
+    if not threshold or len(mesh.polygons) < threshold:
+        return False
+    indices = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("material_index", indices)
+    if len({slots[min(int(i), len(slots) - 1)] for i in np.unique(indices)}) > 1:
+        warnings.append(f"object '{label}': {len(mesh.polygons)} faces of several materials are solved per face, "
+                        "not as one UV chart (a chart has one material)")
+        return False
+    return True
+
+
+@dataclass
+class _ChartJob:
+    """What a chart needs, read while the depsgraph is iterated; built after (a generated UV map
+    needs a temporary object in the scene, which would disturb the iteration)."""
+
+    exported: ExportedObject
+    label: str
+    world: np.ndarray  # (V, 3) world positions
+    triangles: np.ndarray  # (T, 3) vertex indices
+    triangle_loops: np.ndarray  # (T, 3) loop indices
+    polygons: list  # vertex index tuples, for a generated UV map
+    uvs: np.ndarray | None  # per loop, from a suitable UV map of the user's, or None
+    keywords: dict
+    uv_reasons: list
+
+
+def _chart_job(exported, mesh, world, materials, label) -> _ChartJob:
+    triangles, loops = charts.loop_triangles(mesh)
+    name, found = charts.suitable_uv_map(mesh, loops)
+    indices = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("material_index", indices)
+    keywords = materials[min(int(indices[0]), len(materials) - 1)]
+    polygons = [tuple(p.vertices) for p in mesh.polygons] if name is None else []
+    return _ChartJob(exported, label, world, triangles, loops, polygons, found if name is not None else None,
+                     keywords, [] if name is not None else found)
+
+
+def _build_chart(scene, job: _ChartJob, warnings) -> None:
+    uvs = job.uvs
+    if uvs is None:
+        uvs = charts.generated_uvs(job.world, job.polygons, job.label)
+        why = "; ".join(job.uv_reasons) or "it has no UV map"
+        warnings.append(f"object '{job.label}': solved as one UV chart over a UV map generated by Smart UV Project "
+                        f"(no UV map of its own is a chart: {why}); the object's own UV maps are unchanged")
+        problem = charts.chart_problem(uvs[job.triangle_loops])
+        if problem:
+            raise ExportError(f"object '{job.label}': the generated UV map is not a chart ({problem})")
+    first = len(scene)
+    try:
+        chart = bsgi.MeshChart(f"{job.label}: chart 0", job.world, job.triangles, uvs[job.triangle_loops])
+        scene.add_surface(chart, **job.keywords)
+    except ValueError as error:
+        raise ExportError(str(error)) from None
+    job.exported.kind = "chart"
+    job.exported.chart_uvs = uvs.astype(np.float32)
+    job.exported.patches = [("chart", first, 1)]
 
 
 def nurbs_surface(name: str, spline, matrix: Matrix) -> "bsgi.NurbsSurface":
@@ -323,9 +406,10 @@ def _nurbs_problem(spline) -> str:
                                           spline.use_bezier_v, spline.use_cyclic_v))
 
 
-def _add_nurbs_object(scene, obj, matrix: Matrix, warnings) -> ExportedObject | None:
+def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = None) -> ExportedObject | None:
     """One exact NURBS surface per spline of a SURFACE object (not its tessellation)."""
     original = obj.original
+    label = label or obj.name
     if original.modifiers:
         warnings.append(f"object '{obj.name}': modifiers of NURBS surfaces are ignored (the splines are solved exactly)")
     options = surface_options(obj)
@@ -340,7 +424,7 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings) -> ExportedObject | 
             continue
         first = len(scene)
         try:
-            surface = nurbs_surface(f"{obj.name}: spline {k}", spline, matrix)
+            surface = nurbs_surface(f"{label}: spline {k}", spline, matrix)
             scene.add_surface(surface, **materials[min(spline.material_index, len(materials) - 1)])
         except ValueError as error:
             raise ExportError(str(error)) from None
@@ -353,6 +437,8 @@ def export_scene(depsgraph) -> Export:
     surfaces), every area light as an emitter."""
     scene = bsgi.Scene()
     objects, warnings = [], []
+    instances: dict = {}  # (object, instancer) -> count, for one warning per pair
+    pending_charts: list = []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -363,23 +449,39 @@ def export_scene(depsgraph) -> Export:
             continue
         if obj.type not in GEOMETRY_TYPES:
             continue
+        label = None
         if inst.is_instance:
-            warnings.append(f"object '{obj.name}': instances are not baked yet; skipped")
+            key = (obj.name, inst.parent.name if inst.parent is not None else "")
+            label = f"{obj.name} (instance {instances.get(key, 0)} of '{key[1]}')"
+        exported = _add_object(scene, obj, inst.matrix_world, warnings, label, pending_charts)
+        if exported is None:
             continue
-        if obj.type == "SURFACE":
-            exported = _add_nurbs_object(scene, obj, inst.matrix_world, warnings)
-            if exported is not None:
-                objects.append(exported)
-            continue
-        mesh = obj.to_mesh()
-        try:
-            if mesh is None or len(mesh.polygons) == 0:
-                continue
-            objects.append(_add_mesh_object(scene, obj, mesh, inst.matrix_world, warnings))
-        finally:
-            obj.to_mesh_clear()
+        if inst.is_instance:
+            instances[key] = instances.get(key, 0) + 1
+        else:
+            objects.append(exported)
+    for job in pending_charts:
+        _build_chart(scene, job, warnings)
+    for (name, parent), count in instances.items():
+        warnings.append(f"object '{name}': {count} instance{'s' if count > 1 else ''} from '{parent}' "
+                        f"{'are' if count > 1 else 'is'} solved (casting shadows and reflecting light) but not "
+                        "baked: instances share one mesh, which cannot show each instance's own light; make them "
+                        "real (Object > Apply > Make Instances Real) to bake them")
     _world_warning(depsgraph.scene, warnings)
     return Export(scene, objects, list(dict.fromkeys(warnings)))
+
+
+def _add_object(scene, obj, matrix: Matrix, warnings, label: str | None, pending_charts: list) -> ExportedObject | None:
+    """One evaluated geometry object (a real object or an instance) at its world matrix."""
+    if obj.type == "SURFACE":
+        return _add_nurbs_object(scene, obj, matrix, warnings, label)
+    mesh = obj.to_mesh()
+    try:
+        if mesh is None or len(mesh.polygons) == 0:
+            return None
+        return _add_mesh_object(scene, obj, mesh, matrix, warnings, label, pending_charts)
+    finally:
+        obj.to_mesh_clear()
 
 
 def _world_warning(scene, warnings):

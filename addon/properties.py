@@ -48,6 +48,11 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     hemisphere_nodes: IntProperty(
         name="Hemisphere Nodes", default=12, min=1, max=256,
         description="Integration nodes in the polar direction of the hemispherical gather (twice as many around)")
+    chart_min_faces: IntProperty(
+        name="Chart Above Faces", default=64, min=0, max=10**7,
+        description="A mesh with at least this many faces (of one material) is solved as one UV chart: one "
+        "radiance spline over its UV map (or a generated one; the mesh's own UV maps are not changed) instead of "
+        "a spline per face. 0: always per face")
     show_baked: BoolProperty(
         name="Show Baked Radiance", default=True, update=_show_baked_update,
         description="Show the solved radiance, or the objects' own materials")
