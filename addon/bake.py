@@ -16,6 +16,8 @@ UV_NAME = "BSGI Radiance"
 PROP_SLOTS = "bsgi_slot_links"  # the slots' links before the bake, to restore them
 PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
+PROP_SPLINE_MATERIALS = "bsgi_spline_materials"  # SURFACE objects of several splines: a material per spline
+PROP_SPLINE_INDICES = "bsgi_spline_material_indices"  # their splines' material indices before the bake
 PROP_RADIANCE = "bsgi_radiance"  # the faces' splines, for re-baking and solution export
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
@@ -76,12 +78,15 @@ def face_splines(exported, radiance) -> list:
     return [(kind, [radiance[first + k] for k in range(count)]) for kind, first, count in exported.patches]
 
 
-def bake_object(obj, faces) -> list:
-    """Bake one object: faces is, per polygon (per spline for a NURBS surface), (kind, splines)
-    as face_splines gives. The splines are also stored on the object, so the bake can be redone
-    without a solve. Returns warnings about what the bake approximates."""
+def bake_object(obj, faces, chart_uvs=None) -> list:
+    """Bake one object: faces is, per polygon (per spline for a NURBS surface, one entry for a
+    UV chart), (kind, splines) as face_splines gives; chart_uvs are a chart's UVs per loop (None:
+    the UV map of an earlier bake). The splines are also stored on the object, so the bake can be
+    redone without a solve. Returns warnings about what the bake approximates."""
     if obj.type == "SURFACE":
         return _bake_nurbs(obj, faces)
+    if faces and faces[0][0] == "chart":
+        return _bake_chart(obj, faces, chart_uvs)
     mesh = obj.data
     if len(mesh.polygons) != len(faces):
         raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
@@ -135,11 +140,9 @@ def nurbs_pixels(spline) -> np.ndarray:
 
 def _bake_nurbs(obj, faces) -> list:
     """A SURFACE object of one spline: its image laid out in parameter space, shown through the
-    UV map Blender gives the surface's mesh. Several splines share that UV map's square, so one
-    image cannot show them all: they are solved (they light each other) but not baked yet."""
+    UV map Blender gives the surface's mesh."""
     if len(faces) != 1:
-        return [f"object '{obj.name}': {len(faces)} NURBS splines are solved but not baked (they share one UV "
-                "square; one spline per object is baked)"]
+        return _bake_nurbs_splines(obj, faces)
     spline = faces[0][1][0]
     pixels = nurbs_pixels(spline)
     image = _radiance_image(f"BSGI {obj.name}", pixels.shape[1], pixels.shape[0], pixels)
@@ -147,6 +150,98 @@ def _bake_nurbs(obj, faces) -> list:
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
     return _view_dependence_warning(obj, faces)
+
+
+def chart_image_size(spline) -> int:
+    """Side of a chart's image: four texels per coefficient (a chart's islands are smaller than
+    the UV square they share), at least 64."""
+    return max(64, 4 * max(axis.num_coeffs for axis in spline.axes[:2]))
+
+
+def chart_pixels(spline) -> np.ndarray:
+    """(n, n, 4) image of a chart's spline over its UV square, texel centres at (i + 0.5) / n as
+    for NURBS. Texels outside the islands hold the spline's smooth continuation, so linear
+    filtering at an island's border never mixes in a neighbour's light."""
+    n = chart_image_size(spline)
+    u, v = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
+    pixels = np.ones((n, n, 4), np.float32)
+    pixels[..., :3] = radiance_along_normal(spline, np.stack([u.ravel(), v.ravel()], axis=1)).reshape(n, n, 3)
+    return pixels
+
+
+def _bake_chart(obj, faces, chart_uvs) -> list:
+    """A mesh solved as one UV chart: an image over the chart's UV square, shown through the UV
+    map `BSGI Radiance`, which holds the chart's UVs (the user's UV map it came from, or the
+    generated one); the user's own UV maps are not touched."""
+    mesh = obj.data
+    if chart_uvs is not None:
+        if len(chart_uvs) != len(mesh.loops):
+            raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
+        if mesh.uv_layers.get(UV_NAME) is None:
+            mesh.uv_layers.new(name=UV_NAME, do_init=False)
+        mesh.uv_layers[UV_NAME].data.foreach_set("uv", np.ascontiguousarray(chart_uvs, np.float32).ravel())
+    elif mesh.uv_layers.get(UV_NAME) is None:
+        raise ValueError(f"object '{obj.name}': its chart's UV map '{UV_NAME}' is gone; solve again")
+    pixels = chart_pixels(faces[0][1][0])
+    image = _radiance_image(f"BSGI {obj.name}", pixels.shape[1], pixels.shape[0], pixels)
+    material = _baked_material(f"BSGI {obj.name}", image, UV_NAME)
+    _link_baked_material(obj, material)
+    _store_splines(obj, faces)
+    return _view_dependence_warning(obj, faces)
+
+
+def _bake_nurbs_splines(obj, faces) -> list:
+    """A SURFACE object of several splines. Blender gives every spline's mesh the whole UV square
+    (UVMap = that spline's normalized parameters), so the splines' images cannot share one UV
+    map; the one per-face choice a material sees is the material slot. Each spline gets its own
+    image and material, in a slot of its own: while the bake is shown, spline k uses slot k (slots
+    are added if there are fewer than splines). The user's material indices are recorded and put
+    back when the originals are shown or the bake is cleared."""
+    from .export import baked_splines
+
+    splines = baked_splines(obj)
+    if len(splines) != len(faces):
+        raise ValueError(f"object '{obj.name}': it has {len(splines)} drawable splines, the solution {len(faces)}")
+    names = []
+    for k, (_, (spline,)) in enumerate(faces):
+        pixels = nurbs_pixels(spline)
+        image = _radiance_image(f"BSGI {obj.name} spline {k}", pixels.shape[1], pixels.shape[0], pixels)
+        names.append(_baked_material(f"BSGI {obj.name} spline {k}", image, NURBS_UV_NAME).name)
+    if PROP_SPLINE_INDICES not in obj:
+        obj[PROP_SPLINE_INDICES] = [int(s.material_index) for s in obj.data.splines]
+    added = 0
+    if PROP_SLOTS not in obj:
+        while len(obj.data.materials) < len(faces):
+            obj.data.materials.append(None)
+            added += 1
+    obj[PROP_SPLINE_MATERIALS] = names
+    _link_baked_material(obj, bpy.data.materials[names[0]])
+    if added:
+        obj[PROP_ADDED_SLOT] = int(obj.get(PROP_ADDED_SLOT, 0)) + added
+    _store_splines(obj, faces)
+    return _view_dependence_warning(obj, faces)
+
+
+def user_spline_material_index(obj, k: int) -> int:
+    """Spline k's material index as the user set it (the bake of several splines changes it)."""
+    indices = obj.get(PROP_SPLINE_INDICES)
+    return int(indices[k]) if indices is not None and k < len(indices) else int(obj.data.splines[k].material_index)
+
+
+def _show_spline_materials(obj, baked: bool) -> None:
+    """Spline k on slot k with its own baked material, or the user's material indices back."""
+    from .export import baked_splines
+
+    names = obj.get(PROP_SPLINE_MATERIALS)
+    if names is None:
+        return
+    drawn = baked_splines(obj)
+    for k, spline in enumerate(obj.data.splines):
+        spline.material_index = (drawn.index(spline) if baked and spline in drawn
+                                 else user_spline_material_index(obj, k))
+    if baked:
+        for k, slot in enumerate(obj.material_slots):
+            slot.material = bpy.data.materials.get(names[min(k, len(names) - 1)])
 
 
 def _store_splines(obj, faces) -> None:
@@ -273,6 +368,7 @@ def show_baked(obj, baked: bool) -> None:
         slot.material = material if baked else bpy.data.materials.get(object_material)
         if not baked:
             slot.link = link
+    _show_spline_materials(obj, baked)
 
 
 def clear_bake(obj) -> None:
@@ -281,19 +377,22 @@ def clear_bake(obj) -> None:
         return
     show_baked(obj, False)
     if obj.get(PROP_ADDED_SLOT):
-        obj.data.materials.pop()
+        for _ in range(int(obj[PROP_ADDED_SLOT])):
+            obj.data.materials.pop()
         del obj[PROP_ADDED_SLOT]
-    name = obj[PROP_MATERIAL]
-    del obj[PROP_SLOTS]
-    del obj[PROP_MATERIAL]
+    names = [obj[PROP_MATERIAL], *obj.get(PROP_SPLINE_MATERIALS, [])]
+    for prop in (PROP_SLOTS, PROP_MATERIAL, PROP_SPLINE_MATERIALS, PROP_SPLINE_INDICES):
+        if prop in obj:
+            del obj[prop]
     if PROP_RADIANCE in obj:
         del obj[PROP_RADIANCE]
     uv = obj.data.uv_layers.get(UV_NAME) if obj.type == "MESH" else None
     if uv is not None:
         obj.data.uv_layers.remove(uv)
-    material = bpy.data.materials.get(name)
-    if material is not None:
-        image = next((n.image for n in material.node_tree.nodes if n.type == "TEX_IMAGE"), None)
-        bpy.data.materials.remove(material)
-        if image is not None:
-            bpy.data.images.remove(image)
+    for name in dict.fromkeys(names):
+        material = bpy.data.materials.get(name)
+        if material is not None:
+            image = next((n.image for n in material.node_tree.nodes if n.type == "TEX_IMAGE"), None)
+            bpy.data.materials.remove(material)
+            if image is not None:
+                bpy.data.images.remove(image)

@@ -406,6 +406,11 @@ def _nurbs_problem(spline) -> str:
                                           spline.use_bezier_v, spline.use_cyclic_v))
 
 
+def baked_splines(obj) -> list:
+    """The splines of a SURFACE object that are solved and baked: NURBS ones Blender draws."""
+    return [s for s in obj.data.splines if s.type == "NURBS" and not _nurbs_problem(s)]
+
+
 def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = None) -> ExportedObject | None:
     """One exact NURBS surface per spline of a SURFACE object (not its tessellation)."""
     original = obj.original
@@ -415,17 +420,21 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = 
     options = surface_options(obj)
     materials = [_material_keywords(material, options) for material in _slot_materials(original, warnings)]
     exported = ExportedObject(obj.name, 0, kind="nurbs")
+    from .bake import user_spline_material_index
+
+    drawn = baked_splines(original)
     for k, spline in enumerate(original.data.splines):
         if spline.type != "NURBS":
             continue
-        if _nurbs_problem(spline):
+        if spline not in drawn:
             warnings.append(f"object '{obj.name}': spline {k} is skipped, Blender draws nothing for it "
                             f"({_nurbs_problem(spline)})")
             continue
         first = len(scene)
+        index = user_spline_material_index(original, k)
         try:
             surface = nurbs_surface(f"{label}: spline {k}", spline, matrix)
-            scene.add_surface(surface, **materials[min(spline.material_index, len(materials) - 1)])
+            scene.add_surface(surface, **materials[min(index, len(materials) - 1)])
         except ValueError as error:
             raise ExportError(str(error)) from None
         exported.patches.append(("nurbs", first, 1))

@@ -9,8 +9,9 @@ import bsgi
 
 from . import bake
 
-# Surface names as the exporter gives them: "<object>: face <i>[ triangle <k>]", "<object>: spline <i>".
-_FACE = re.compile(r"^(?P<object>.*): (?P<part>face|spline) (?P<face>\d+)(?: triangle (?P<k>\d+))?$")
+# Surface names as the exporter gives them: "<object>: face <i>[ triangle <k>]", "<object>: spline <i>",
+# "<object>: chart 0".
+_FACE = re.compile(r"^(?P<object>.*): (?P<part>face|spline|chart) (?P<face>\d+)(?: triangle (?P<k>\d+))?$")
 
 
 def export_solution(scene, path) -> int:
@@ -21,7 +22,7 @@ def export_solution(scene, path) -> int:
             continue
         for i, (kind, splines) in enumerate(bake.stored_faces(obj)):
             for k, spline in enumerate(splines):
-                part = "spline" if kind == "nurbs" else "face"
+                part = {"nurbs": "spline", "chart": "chart"}.get(kind, "face")
                 names.append(f"{obj.name}: {part} {i}" + (f" triangle {k}" if kind == "ngon" else ""))
                 radiance.append(spline)
     if not radiance:
@@ -34,16 +35,23 @@ def import_solution(scene, path) -> list:
     """Bake the splines of a solution file onto the objects they name; returns the objects."""
     stored = bsgi.load_solution(path)
     per_object: dict = {}
+    charts = set()  # objects solved as one UV chart: baked through the UV map of their solve
     for name, spline in zip(stored.names, stored.radiance):
         match = _FACE.match(name)
         if spline is None or match is None:
             continue  # lights and surfaces that are not object faces
         per_object.setdefault(match["object"], {}).setdefault(int(match["face"]), []).append(spline)
+        if match["part"] == "chart":
+            charts.add(match["object"])
     baked = []
     for obj_name, faces in per_object.items():
         obj = bpy.data.objects.get(obj_name)
         if obj is not None and obj.type == "SURFACE":
             bake.bake_object(obj, [("nurbs", faces[i]) for i in sorted(faces)])
+            baked.append(obj)
+            continue
+        if obj is not None and obj.type == "MESH" and obj_name in charts:
+            bake.bake_object(obj, [("chart", faces[0])])
             baked.append(obj)
             continue
         if obj is None or obj.type != "MESH":
