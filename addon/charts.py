@@ -91,7 +91,8 @@ def suitable_uv_map(mesh, loops: np.ndarray) -> tuple:
 def generated_uvs(positions: np.ndarray, polygons: list, label: str) -> np.ndarray:
     """Per-loop UVs by Smart UV Project on a temporary mesh built from positions and polygons
     (a copy: the user's mesh is never unwrapped). The temporary object is linked to the scene
-    only while the operator runs, then removed with its mesh; the active object is restored."""
+    only while the operator runs, then removed with its mesh; the active object and the selection
+    are restored."""
     context = bpy.context
     if context.mode != "OBJECT":
         raise ChartUnavailable(f"object '{label}': a UV map must be generated for it; switch to Object Mode to solve")
@@ -102,7 +103,12 @@ def generated_uvs(positions: np.ndarray, polygons: list, label: str) -> np.ndarr
     collection.objects.link(tmp)
     layer = context.view_layer
     active = layer.objects.active
+    # Edit mode takes every selected mesh along: only the copy may be selected meanwhile.
+    selected = [o for o in layer.objects if o.select_get()]
     try:
+        for o in selected:
+            o.select_set(False)
+        tmp.select_set(True)
         layer.objects.active = tmp
         bpy.ops.object.mode_set(mode="EDIT")
         bpy.ops.mesh.select_all(action="SELECT")
@@ -112,7 +118,11 @@ def generated_uvs(positions: np.ndarray, polygons: list, label: str) -> np.ndarr
             raise ChartUnavailable(f"object '{label}': Smart UV Project made no UV map")
         return np.clip(layer_uvs(data, data.uv_layers[0].name), 0.0, 1.0)
     finally:
+        if tmp.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")
         layer.objects.active = active
+        for o in selected:
+            o.select_set(True)
         collection.objects.unlink(tmp)
         bpy.data.objects.remove(tmp)
         bpy.data.meshes.remove(data)

@@ -1,0 +1,162 @@
+"""Meshes of many faces solved as one UV chart (addon/charts.py, export.py, bake.py `_bake_chart`):
+the user's UV map when it is a chart, else one generated on a copy; the result against Lambert's
+closed form and against the per-face export of the same mesh."""
+import math
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from bsgi_addon import bake, export, pipeline
+
+sys.path.insert(0, str(scenes.ROOT / "tests" / "core"))
+from closed_forms import polygon_irradiance  # noqa: E402
+
+LAMP = [(-0.5, -0.5, 1), (0.5, -0.5, 1), (0.5, 0.5, 1), (-0.5, 0.5, 1)]
+LAMP_RADIANCE = 50.0 / math.pi  # 50 W over 1 m^2, Cycles' convention (test_export.py)
+
+
+def grid_floor(cuts=8, name="Floor", material=None):
+    """A 2 x 2 floor of cuts x cuts quads at z = 0, with Blender's UV map (u, v) = ((x + 1) / 2, (y + 1) / 2)."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=cuts, y_subdivisions=cuts, size=2)
+    floor = bpy.context.object
+    floor.name = floor.data.name = name
+    floor.data.materials.append(material or scenes.diffuse_material("Grey", (0.5, 0.5, 0.5)))
+    return floor
+
+
+def uv_data(mesh, name):
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers[name].data.foreach_get("uv", uv)
+    return uv.reshape(-1, 2)
+
+
+def direct_light_setup(context, threshold):
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    context.scene.bsgi.chart_min_faces = threshold
+
+
+def test_grid_with_a_uv_map_is_one_chart_lit_as_the_closed_form(context):
+    floor = grid_floor()
+    scenes.add_area_light()
+    direct_light_setup(context, threshold=16)
+    job = pipeline.prepare(context)
+    (exported,) = job.export.objects
+    assert exported.kind == "chart" and len(job.export.scene) == 2
+    assert job.export.scene.name(exported.patches[0][1]) == "Floor: chart 0"
+    np.testing.assert_array_equal(exported.chart_uvs, uv_data(floor.data, "UVMap"))  # the user's own UV map
+    spline = pipeline.run(job).radiance[exported.patches[0][1]]
+    for u, v in [(0.5, 0.5), (0.2, 0.7), (0.85, 0.3)]:
+        e = polygon_irradiance([2 * u - 1, 2 * v - 1, 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
+        # 2% as for the single-quad floor (test_export.py): Schoenberg smoothing of the peak.
+        assert spline.evaluate(np.array([[u, v]]))[0, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)
+
+
+def test_chart_agrees_with_the_per_face_export_of_the_same_mesh(context):
+    """Same solve (one bounce off a wall), the floor per face and as a chart: the radiance at the
+    64 face centres agrees within 2% of its maximum."""
+    grey = scenes.diffuse_material("Grey", (0.5, 0.5, 0.5))
+    floor = grid_floor(material=grey)
+    wall = scenes.add_quad("Wall", [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], grey)
+    scenes.add_area_light()
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 1
+    uv = uv_data(floor.data, "UVMap")
+    centres_uv = np.array([uv[list(p.loop_indices)].mean(axis=0) for p in floor.data.polygons], np.float64)
+
+    context.scene.bsgi.chart_min_faces = 0
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    per_face = np.array([solution.radiance[first].evaluate(np.array([[0.5, 0.5]]))[0]
+                         for _, first, _ in job.export.objects[0].patches])
+    assert len(per_face) == 64
+
+    context.scene.bsgi.chart_min_faces = 64
+    job = pipeline.prepare(context)
+    assert job.export.objects[0].kind == "chart" and job.export.objects[1].kind == "mesh"
+    solution = pipeline.run(job)
+    chart = solution.radiance[job.export.objects[0].patches[0][1]].evaluate(centres_uv)
+    difference = np.abs(chart - per_face).max() / per_face.max()
+    print(f"chart vs per-face floor: max difference {difference:.4f} of the maximum radiance")
+    assert difference < 0.02
+    assert wall.name == "Wall"
+
+
+def test_mesh_without_a_chart_uv_map_gets_one_generated_on_a_copy(context):
+    floor = grid_floor(name="Plain")
+    floor.data.uv_layers.remove(floor.data.uv_layers["UVMap"])
+    scenes.add_area_light()
+    direct_light_setup(context, threshold=16)
+    objects, meshes = set(bpy.data.objects.keys()), set(bpy.data.meshes.keys())
+    job = pipeline.prepare(context)
+    (exported,) = job.export.objects
+    assert exported.kind == "chart"
+    assert any("object 'Plain'" in w and "Smart UV Project" in w and "no UV map" in w for w in job.export.warnings)
+    assert len(floor.data.uv_layers) == 0  # never unwrapped the user's mesh
+    assert set(bpy.data.objects.keys()) == objects and set(bpy.data.meshes.keys()) == meshes  # no leftovers
+    assert context.view_layer.objects.active == floor  # the active object and the selection are restored
+    assert floor.select_get() and not bpy.data.objects["Lamp"].select_get()
+    # A planar grid is one island: the generated chart covers it without overlap (checked by the
+    # exporter) and the solve agrees with the closed form at the face centres' world positions.
+    spline = pipeline.run(job).radiance[exported.patches[0][1]]
+    uv = exported.chart_uvs
+    for poly in list(floor.data.polygons)[::9]:
+        centre = np.mean([floor.data.vertices[v].co[:] for v in poly.vertices], axis=0)
+        e = polygon_irradiance([centre[0], centre[1], 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
+        got = spline.evaluate(uv[list(poly.loop_indices)].mean(axis=0)[None].astype(np.float64))[0, 0]
+        assert got == pytest.approx(0.5 / math.pi * e, rel=0.03)
+
+
+def test_overlapping_uv_map_is_not_used_and_stays_unchanged(context):
+    floor = grid_floor(name="Stacked")
+    layer = floor.data.uv_layers["UVMap"]
+    stacked = np.tile([[0, 0], [1, 0], [1, 1], [0, 1]], (len(floor.data.polygons), 1)).astype(np.float32)
+    layer.data.foreach_set("uv", stacked.ravel())  # every face on the whole square
+    scenes.add_area_light()
+    context.scene.bsgi.chart_min_faces = 16
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert result.objects[0].kind == "chart"
+    assert any("'Stacked'" in w and "UV map 'UVMap': its islands overlap" in w for w in result.warnings)
+    np.testing.assert_array_equal(uv_data(floor.data, "UVMap"), stacked)
+    assert list(floor.data.uv_layers.keys()) == ["UVMap"]
+
+
+def test_mesh_of_several_materials_stays_per_face(context):
+    floor = grid_floor(name="Tiles")
+    floor.data.materials.append(scenes.diffuse_material("White", (0.9, 0.9, 0.9)))
+    floor.data.polygons[5].material_index = 1
+    scenes.add_area_light()
+    context.scene.bsgi.chart_min_faces = 16
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert result.objects[0].kind == "mesh" and len(result.objects[0].patches) == 64
+    assert any("object 'Tiles'" in w and "several materials" in w for w in result.warnings)
+
+
+def test_chart_bake_shows_the_spline_through_the_charts_uv_map_and_clears(context):
+    floor = grid_floor()
+    scenes.add_area_light()
+    direct_light_setup(context, threshold=16)
+    pipeline.solve_and_bake(context)
+    mesh = floor.data
+    assert list(mesh.uv_layers.keys()) == ["UVMap", bake.UV_NAME]
+    np.testing.assert_array_equal(uv_data(mesh, bake.UV_NAME), uv_data(mesh, "UVMap"))
+    material = floor.material_slots[0].material
+    uv_node = next(n for n in material.node_tree.nodes if n.type == "UVMAP")
+    assert uv_node.uv_map == bake.UV_NAME
+    image = next(n.image for n in material.node_tree.nodes if n.type == "TEX_IMAGE")
+    n = image.size[0]
+    pixels = np.array(image.pixels[:], np.float32).reshape(n, n, 4)
+    # The texel nearest a UV point holds the solved radiance there (closed form, as above).
+    for u, v in [(0.5, 0.5), (0.3, 0.6)]:
+        i, j = int(u * n), int(v * n)
+        cu, cv = (i + 0.5) / n, (j + 0.5) / n
+        e = polygon_irradiance([2 * cu - 1, 2 * cv - 1, 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
+        assert pixels[j, i, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)
+    before = pixels.copy()
+    bake.rebake(floor)  # from the stored spline and the chart's UV map, no solve
+    np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(n, n, 4), before)
+    bake.clear_bake(floor)
+    assert list(mesh.uv_layers.keys()) == ["UVMap"]
