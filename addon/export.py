@@ -458,6 +458,8 @@ def export_scene(depsgraph) -> Export:
             continue
         if obj.type not in GEOMETRY_TYPES:
             continue
+        if _own_geometry(inst):
+            continue
         label = None
         if inst.is_instance:
             key = (obj.name, inst.parent.name if inst.parent is not None else "")
@@ -478,6 +480,13 @@ def export_scene(depsgraph) -> Export:
                         "real (Object > Apply > Make Instances Real) to bake them")
     _world_warning(depsgraph.scene, warnings)
     return Export(scene, objects, list(dict.fromkeys(warnings)))
+
+
+def _own_geometry(inst) -> bool:
+    """Whether an instance is the evaluated mesh of a curve, surface, text or metaball object,
+    which Blender also lists as an instance of the object itself: the object is exported already."""
+    return (inst.is_instance and inst.parent is not None and inst.parent.original == inst.object.original
+            and inst.parent.type in {"SURFACE", "CURVE", "FONT", "META"} and inst.persistent_id[1] == 2**31 - 1)
 
 
 def _add_object(scene, obj, matrix: Matrix, warnings, label: str | None, pending_charts: list) -> ExportedObject | None:

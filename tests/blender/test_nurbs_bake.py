@@ -195,3 +195,89 @@ def test_baked_nurbs_sphere_matches_cycles_path_tracing(context, tmp_path):
           f"lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size
     assert rel.mean() <= 0.10
+
+
+def two_patch_surface(context):
+    """One SURFACE object of two flat patches (joined primitives) side by side at z = 0, facing the
+    lamp above, with one material slot (both splines use it)."""
+    clay = scenes.diffuse_material("Clay", (0.6, 0.5, 0.4))
+    parts = []
+    for x in (-0.5, 0.5):
+        bpy.ops.surface.primitive_nurbs_surface_surface_add(radius=0.5, location=(x, 0, 0))
+        parts.append(bpy.context.active_object)
+    for part in parts:
+        part.select_set(True)
+    context.view_layer.objects.active = parts[0]
+    bpy.ops.object.join()
+    surface = context.view_layer.objects.active
+    for spline in surface.data.splines:  # the primitive is a bump: flatten it onto z = 0
+        for point in spline.points:
+            x, y, _, w = point.co
+            point.co = (x, y, 0.0, w)
+    surface.data.materials.append(clay)
+    assert len(surface.data.splines) == 2
+    return surface
+
+
+def faces_per_spline(obj):
+    """Per polygon of Blender's mesh of the surface: its material index, and its corners' (uv, world)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        index = np.empty(len(mesh.polygons), np.int64)
+        mesh.polygons.foreach_get("material_index", index)
+        loop_face = np.repeat(np.arange(len(mesh.polygons)), [p.loop_total for p in mesh.polygons])
+        return index, loop_face
+    finally:
+        evaluated.to_mesh_clear()
+
+
+def test_surface_of_several_splines_bakes_each_spline_through_its_own_slot(context):
+    """Blender gives each spline's mesh the whole UV square, so each spline is shown through its
+    own material slot: the value Blender's mesh shows at each corner (its face's slot's image at
+    the corner's UV) is the closed-form direct light there; the user's slots and material indices
+    come back when the originals are shown and when the bake is cleared."""
+    import sys
+
+    sys.path.insert(0, str(scenes.ROOT / "tests" / "core"))
+    from closed_forms import polygon_irradiance
+
+    surface = two_patch_surface(context)
+    scenes.add_area_light(location=(0, 0, 1), size=1.0, energy=50.0)
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    rep = pipeline.solve_and_bake(context)
+    assert not any("not baked" in w for w in rep["warnings"]), rep["warnings"]
+    assert [s.material_index for s in surface.data.splines] == [0, 1]
+    assert len(surface.material_slots) == 2
+    names = [slot.material.name for slot in surface.material_slots]
+    assert names == ["BSGI SurfPatch spline 0", "BSGI SurfPatch spline 1"]
+
+    index, loop_face = faces_per_spline(surface)
+    uv, world = mesh_corners(surface)
+    assert set(index) == {0, 1}
+    lamp = [(-0.5, -0.5, 1), (0.5, -0.5, 1), (0.5, 0.5, 1), (-0.5, 0.5, 1)]
+    worst = 0.0
+    for k, name in enumerate(names):
+        image = next(n.image for n in bpy.data.materials[name].node_tree.nodes if n.type == "TEX_IMAGE")
+        w, h = image.size
+        pixels = np.array(image.pixels[:], np.float32).reshape(h, w, 4)
+        corners = index[loop_face] == k
+        shown = sample_linear_extend(pixels, uv[corners])[:, 0]
+        want = np.array([0.6 / math.pi * polygon_irradiance(p, [0, 0, 1], lamp, 50.0 / math.pi)
+                         for p in world[corners]])
+        worst = max(worst, float(np.max(np.abs(shown - want)) / want.max()))
+    print(f"\ntwo-spline surface: shown vs closed form, max difference {worst:.4f} of the maximum")
+    assert worst < 0.03
+
+    surface_state = lambda: ([s.material_index for s in surface.data.splines],  # noqa: E731
+                             [(slot.link, slot.material.name if slot.material else None)
+                              for slot in surface.material_slots])
+    context.scene.bsgi.show_baked = False
+    assert surface_state() == ([0, 0], [("DATA", "Clay"), ("DATA", None)])
+    context.scene.bsgi.show_baked = True
+    assert surface_state()[0] == [0, 1]
+    bake.clear_bake(surface)
+    assert surface_state() == ([0, 0], [("DATA", "Clay")])
+    assert not any(m.name.startswith("BSGI") for m in bpy.data.materials)
