@@ -104,6 +104,9 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         return SurfaceMaterial(albedo=_socket_color(node, "Color"))
     if kind == "EMISSION":
         return SurfaceMaterial(emission=_scale(_socket_color(node, "Color"), _socket_value(node, "Strength", 1.0)))
+    if getattr(node, "distribution", "GGX") in {"BECKMANN", "ASHIKHMIN_SHIRLEY"}:
+        warnings.append(f"material '{material.name}': {node.name}'s {node.distribution.replace('_', '-').title()} "
+                        "microfacet distribution is solved as GGX")
     if kind in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC"}:
         return SurfaceMaterial(specular=_socket_color(node, "Color"), roughness=_socket_value(node, "Roughness", 0.5),
                                anisotropy=_socket_value(node, "Anisotropy", 0.0))
@@ -123,6 +126,14 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         diffuse_weight = 1 - metallic - transmission
         specular = tuple(metallic * c + (1 - metallic) * f0 for c in base)
         emission = _scale(_socket_color(node, "Emission Color"), _socket_value(node, "Emission Strength"))
+        layers = [label for label, name in (("subsurface", "Subsurface Weight"), ("coat", "Coat Weight"),
+                                            ("sheen", "Sheen Weight"), ("thin film", "Thin Film Thickness"))
+                  if _socket_value(node, name) > 0]
+        if _socket_value(node, "Alpha", 1.0) < 1:
+            layers.append("alpha (transparency)")
+        if layers:
+            warnings.append(f"material '{material.name}': {node.name}'s {', '.join(layers)} "
+                            f"{'is' if len(layers) == 1 else 'are'} not solved; the base layers are")
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
                                roughness=_socket_value(node, "Roughness", 0.5),
                                anisotropy=_socket_value(node, "Anisotropic"), transmission=transmission, ior=ior,
@@ -223,6 +234,14 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
 
 def _area_light(scene, obj, warnings):
     light = obj.data
+    if getattr(getattr(light, "cycles", None), "is_portal", False):
+        warnings.append(f"light '{obj.name}': a portal emits no light of its own; skipped")
+        return
+    if getattr(light, "spread", math.pi) < math.pi - 1e-6:
+        warnings.append(f"light '{obj.name}': its spread of {math.degrees(light.spread):.0f} degrees is solved as "
+                        "180 (a Lambertian emitter)")
+    if getattr(light, "use_nodes", False) and light.node_tree is not None:
+        warnings.append(f"light '{obj.name}': its shader nodes are ignored; its colour and power are used")
     a = light.size / 2
     b = (light.size_y if light.shape in {"RECTANGLE", "ELLIPSE"} else light.size) / 2
     m = obj.matrix_world

@@ -279,3 +279,75 @@ def test_disk_and_ellipse_lights_light_a_floor_as_cycles_does(context, shape, si
     # Schoenberg smoothing of the peak under the lamp: about 1% (as for the square lamp)
     assert got == pytest.approx(want, rel=0.02)
     assert floor.name == "Floor"
+
+
+def test_principled_anisotropy_and_unsolved_layers_are_named_in_warnings(context):
+    m = principled("Brushed", **{"Metallic": 1.0, "Roughness": 0.4, "Anisotropic": 0.6, "Coat Weight": 0.5,
+                                 "Sheen Weight": 0.2})
+    got, warnings = solver_material(m)
+    assert got.kind == "ggx" and got.alpha == pytest.approx(0.16)
+    text = "\n".join(warnings)
+    assert "material 'Brushed': anisotropy is solved as isotropic" in text
+    assert "material 'Brushed'" in text and "coat, sheen are not solved" in text
+    _, warnings = solver_material(principled("Veil", **{"Alpha": 0.5}))
+    assert any("material 'Veil'" in w and "alpha (transparency)" in w for w in warnings)
+    m, node = shader_material("Beckmann", "ShaderNodeBsdfGlossy", Roughness=0.5)
+    node.distribution = "BECKMANN"
+    _, warnings = solver_material(m)
+    assert any("material 'Beckmann'" in w and "Beckmann" in w and "as GGX" in w for w in warnings)
+
+
+def test_mix_of_diffuse_and_glossy_names_what_is_dropped(context):
+    m = bpy.data.materials.new("Half and half")
+    if m.node_tree is None:
+        m.use_nodes = True
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    nodes.clear()
+    out, mix = nodes.new("ShaderNodeOutputMaterial"), nodes.new("ShaderNodeMixShader")
+    diffuse, glossy = nodes.new("ShaderNodeBsdfDiffuse"), nodes.new("ShaderNodeBsdfGlossy")
+    diffuse.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1)
+    glossy.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1)
+    glossy.inputs["Roughness"].default_value = 0.4
+    links.new(diffuse.outputs[0], mix.inputs[1])
+    links.new(glossy.outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], out.inputs["Surface"])
+    got, warnings = solver_material(m)
+    # 0.5 * 0.9 glossy against 0.5 * 0.5 diffuse: the glossy part dominates, the diffuse is dropped.
+    assert got.kind == "ggx" and got.f0 == pytest.approx((0.45, 0.45, 0.45))
+    assert any("material 'Half and half'" in w and "diffuse part is dropped" in w for w in warnings)
+
+
+def test_unknown_shader_is_approximated_by_the_viewport_colour_with_a_warning(context):
+    m, _ = shader_material("Leaf", "ShaderNodeBsdfTranslucent", Color=(0.2, 0.8, 0.2, 1))
+    m.diffuse_color = (0.1, 0.6, 0.1, 1)
+    d, warnings = describe(m)
+    assert d.albedo == pytest.approx((0.1, 0.6, 0.1))
+    assert any("material 'Leaf'" in w and "ShaderNodeBsdfTranslucent" in w for w in warnings)
+
+
+@pytest.mark.parametrize("kind", ["POINT", "SPOT", "SUN"])
+def test_point_spot_and_sun_lights_are_skipped_by_name(context, kind):
+    scenes.floor_under_lamp()
+    light = bpy.data.objects.new(f"My {kind}", bpy.data.lights.new(kind, kind))
+    context.scene.collection.objects.link(light)
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert any(f"light 'My {kind}'" in w and "skipped" in w for w in result.warnings)
+    assert len(result.scene) == 2
+
+
+def test_area_light_portal_spread_and_textured_world_are_named(context):
+    scenes.floor_under_lamp()
+    portal = scenes.add_area_light(name="Window", location=(0, 0, 2))
+    portal.data.cycles.is_portal = True
+    bpy.data.objects["Lamp"].data.spread = math.radians(60)
+    world = bpy.data.worlds.new("Studio")
+    context.scene.world = world
+    if world.node_tree is None:
+        world.use_nodes = True
+    sky = world.node_tree.nodes.new("ShaderNodeTexSky")
+    world.node_tree.links.new(sky.outputs[0], world.node_tree.nodes["Background"].inputs["Color"])
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    text = "\n".join(result.warnings)
+    assert "light 'Window': a portal" in text and "light 'Lamp': its spread of 60 degrees" in text
+    assert "world 'Studio': only a constant background" in text
+    assert len(result.scene) == 2  # the floor and the lamp, not the portal
