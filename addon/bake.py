@@ -181,7 +181,15 @@ def _bake_chart(obj, faces, chart_uvs) -> list:
             mesh.uv_layers.new(name=UV_NAME, do_init=False)
         mesh.uv_layers[UV_NAME].data.foreach_set("uv", np.ascontiguousarray(chart_uvs, np.float32).ravel())
     elif mesh.uv_layers.get(UV_NAME) is None:
-        raise ValueError(f"object '{obj.name}': its chart's UV map '{UV_NAME}' is gone; solve again")
+        # A solution file baked onto a cleared object: the chart came from the user's UV map if
+        # that is a chart; a generated one cannot be recovered.
+        from . import charts
+
+        name, uvs = charts.suitable_uv_map(mesh, charts.loop_triangles(mesh)[1])
+        if name is None:
+            raise ValueError(f"object '{obj.name}': its chart's UV map '{UV_NAME}' is gone and none of its own UV "
+                             "maps is a chart; solve again")
+        return _bake_chart(obj, faces, uvs)
     pixels = chart_pixels(faces[0][1][0])
     image = _radiance_image(f"BSGI {obj.name}", pixels.shape[1], pixels.shape[0], pixels)
     material = _baked_material(f"BSGI {obj.name}", image, UV_NAME)

@@ -160,3 +160,21 @@ def test_chart_bake_shows_the_spline_through_the_charts_uv_map_and_clears(contex
     np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(n, n, 4), before)
     bake.clear_bake(floor)
     assert list(mesh.uv_layers.keys()) == ["UVMap"]
+
+
+def test_chart_solution_file_round_trip(context, tmp_path):
+    from bsgi_addon import solution_file
+
+    floor = grid_floor()
+    scenes.add_area_light()
+    direct_light_setup(context, threshold=16)
+    pipeline.solve_and_bake(context)
+    image = bpy.data.images["BSGI Floor"]
+    before = np.array(image.pixels[:], np.float32)
+    path = tmp_path / "chart.npz"
+    assert solution_file.export_solution(context.scene, str(path)) == 1
+    bake.clear_bake(floor)
+    assert "BSGI Floor" not in bpy.data.images
+    assert solution_file.import_solution(context.scene, str(path)) == [floor]
+    np.testing.assert_array_equal(np.array(bpy.data.images["BSGI Floor"].pixels[:], np.float32), before)
+    np.testing.assert_array_equal(uv_data(floor.data, bake.UV_NAME), uv_data(floor.data, "UVMap"))
