@@ -477,7 +477,7 @@ def export_scene(depsgraph) -> Export:
             continue
         if obj.type not in GEOMETRY_TYPES:
             continue
-        if _own_geometry(inst):
+        if _own_geometry(inst) or not inst.show_self:  # show_self: e.g. a particle emitter set not to show
             continue
         label = None
         if inst.is_instance:

@@ -108,3 +108,23 @@ def test_geometry_nodes_instances_carry_their_meshs_material(context):
     solution = bsgi.solve(result.scene, context.scene.bsgi.solver_settings())
     lower = solution.radiance[ids[0]].evaluate(np.array([[0.5, 0.5]]))[0]
     assert lower[0] > 4 * lower[1] > 0
+
+
+def test_particle_instances_are_solved(context):
+    scenes.floor_under_lamp()
+    _, blocker = blocker_collection()
+    emitter = scenes.add_quad("Emitter", [(-1, -1, 0.3), (1, -1, 0.3), (1, 1, 0.3), (-1, 1, 0.3)])
+    emitter.modifiers.new("Particles", "PARTICLE_SYSTEM")
+    settings = emitter.particle_systems[0].settings
+    settings.type = "HAIR"  # static positions, no simulation
+    settings.count = 3
+    settings.render_type = "OBJECT"
+    settings.instance_object = blocker
+    emitter.show_instancer_for_render = emitter.show_instancer_for_viewport = False
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    ids = surfaces(result, "Blocker (instance")
+    assert len(ids) == 3
+    assert not surfaces(result, "Emitter")  # the instancer is not shown, so not solved
+    heights = [result.scene.evaluate_surface(i, 0.5, 0.5)["position"][2] for i in ids]
+    assert heights == pytest.approx([0.3] * 3, abs=1e-6)  # on the emitter's surface
+    assert any("object 'Blocker': 3 instances from 'Emitter'" in w for w in result.warnings)
