@@ -178,3 +178,14 @@ def test_chart_solution_file_round_trip(context, tmp_path):
     assert solution_file.import_solution(context.scene, str(path)) == [floor]
     np.testing.assert_array_equal(np.array(bpy.data.images["BSGI Floor"].pixels[:], np.float32), before)
     np.testing.assert_array_equal(uv_data(floor.data, bake.UV_NAME), uv_data(floor.data, "UVMap"))
+
+
+def test_failed_solve_of_a_generated_chart_leaves_the_scene_as_it_was(context):
+    from test_pipeline import _assert_clear_error
+
+    floor = grid_floor(name="Plain")  # no light: the solve fails after the UV map was generated
+    floor.data.uv_layers.remove(floor.data.uv_layers["UVMap"])
+    context.scene.bsgi.chart_min_faces = 16
+    meshes = sorted(bpy.data.meshes.keys())
+    _assert_clear_error(context, "no emitter")  # compares objects, slots, UV maps, materials, images
+    assert sorted(bpy.data.meshes.keys()) == meshes
