@@ -306,7 +306,7 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
     materials = [_material_keywords(material, options) for material in _slot_materials(obj, warnings)]
     exported = ExportedObject(obj.name, len(mesh.polygons))
     label = label or obj.name
-    if pending_charts is not None and _wants_chart(mesh, _user_slots(obj), label, warnings):
+    if pending_charts is not None and _wants_chart(obj, mesh, _user_slots(obj), label, warnings):
         pending_charts.append(_chart_job(exported, mesh, world, materials, label))
         return exported
     ngon_tris = {}
@@ -340,11 +340,13 @@ def chart_min_faces(scene) -> int:
     return settings.chart_min_faces if settings is not None else 0
 
 
-def _wants_chart(mesh, slots: list, label: str, warnings) -> bool:
-    """Above the scene's face count (0: never) a mesh of one material becomes a UV chart; a chart
-    is one surface with one BSDF, so a mesh of several materials stays per face."""
+def _wants_chart(obj, mesh, slots: list, label: str, warnings) -> bool:
+    """From the scene's face count (0: never) a mesh of one material becomes a UV chart, unless
+    the object says otherwise; a chart is one surface with one BSDF, so a mesh of several
+    materials stays per face."""
+    choice = getattr(getattr(obj.original, "bsgi", None), "mesh_surfaces", "AUTO")
     threshold = chart_min_faces(bpy.context.scene)
-    if not threshold or len(mesh.polygons) < threshold:
+    if choice == "FACES" or (choice == "AUTO" and (not threshold or len(mesh.polygons) < threshold)):
         return False
     indices = np.empty(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", indices)

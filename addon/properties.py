@@ -85,6 +85,14 @@ class BSGIObjectSettings(bpy.types.PropertyGroup):
     spatial_coeffs: IntProperty(
         name="Spatial Coefficients", default=0, min=0, max=256,
         description="Coefficients per surface direction for this object (0: the scene's quality setting)")
+    mesh_surfaces: EnumProperty(
+        name="Mesh Surfaces", default="AUTO",
+        items=[("AUTO", "Automatic", "One UV chart if the mesh has at least the scene's Chart Above Faces faces, "
+                "else a surface per face"),
+               ("FACES", "Per Face", "A surface and a spline per face (exact for few faces, costly for many)"),
+               ("CHART", "UV Chart", "One surface over a UV map, one spline for the whole mesh (its UV map if it "
+                "is a chart, else one generated on a copy); meshes of several materials stay per face")],
+        description="How a mesh object's faces become surfaces of the solve")
     angular_coeffs: IntProperty(
         name="Angular Coefficients", default=0, min=0, max=64,
         description="Coefficients per direction of the hemisphere disc of glossy surfaces (0: from the "

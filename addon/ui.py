@@ -67,6 +67,8 @@ class BSGI_PT_object(bpy.types.Panel):
         row = col.row()
         row.enabled = settings.representation != "DIFFUSE"
         row.prop(settings, "angular_coeffs")
+        if context.object.type == "MESH":
+            layout.prop(settings, "mesh_surfaces")
 
 
 classes = (BSGI_PT_render, BSGI_PT_sidebar, BSGI_PT_object)

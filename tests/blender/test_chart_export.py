@@ -226,3 +226,21 @@ def test_baked_chart_sphere_matches_cycles_path_tracing(context, tmp_path, uv_ma
           f"lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size
     assert rel.mean() <= 0.10
+
+
+def test_object_setting_forces_a_chart_or_faces(context):
+    floor = grid_floor(cuts=4)  # 16 faces, under the default threshold of 64
+    scenes.add_area_light()
+    assert context.scene.bsgi.chart_min_faces == 64
+
+    def kind():
+        return export.export_scene(context.evaluated_depsgraph_get()).objects[0].kind
+
+    assert kind() == "mesh"
+    floor.bsgi.mesh_surfaces = "CHART"
+    assert kind() == "chart"
+    context.scene.bsgi.chart_min_faces = 8
+    floor.bsgi.mesh_surfaces = "AUTO"
+    assert kind() == "chart"
+    floor.bsgi.mesh_surfaces = "FACES"
+    assert kind() == "mesh"
