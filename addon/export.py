@@ -505,9 +505,11 @@ def export_scene(depsgraph) -> Export:
 
 def _own_geometry(inst) -> bool:
     """Whether an instance is the evaluated mesh of a curve, surface, text or metaball object,
-    which Blender also lists as an instance of the object itself: the object is exported already."""
-    return (inst.is_instance and inst.parent is not None and inst.parent.original == inst.object.original
-            and inst.parent.type in {"SURFACE", "CURVE", "FONT", "META"} and inst.persistent_id[1] == 2**31 - 1)
+    which Blender lists beside the object itself (also inside collection instances): the object
+    is exported already. (Geometry-nodes instances made by such an object look the same and are
+    skipped too.)"""
+    obj = inst.object
+    return inst.is_instance and obj.type == "MESH" and obj.original.type in {"SURFACE", "CURVE", "FONT", "META"}
 
 
 def _add_object(scene, obj, matrix: Matrix, warnings, label: str | None, pending_charts: list) -> ExportedObject | None:

@@ -128,3 +128,18 @@ def test_particle_instances_are_solved(context):
     heights = [result.scene.evaluate_surface(i, 0.5, 0.5)["position"][2] for i in ids]
     assert heights == pytest.approx([0.3] * 3, abs=1e-6)  # on the emitter's surface
     assert any("object 'Blocker': 3 instances from 'Emitter'" in w for w in result.warnings)
+
+
+def test_instanced_nurbs_surface_is_solved_once_exactly(context):
+    """Blender lists a SURFACE object's evaluated mesh beside it (also inside a collection
+    instance): the surface is solved once, as its exact NURBS, not again as that mesh."""
+    scenes.floor_under_lamp()
+    bpy.ops.surface.primitive_nurbs_surface_surface_add(radius=0.3)
+    patch = bpy.context.active_object
+    collection = bpy.data.collections.new("Patches")
+    collection.objects.link(patch)
+    context.scene.collection.objects.unlink(patch)
+    collection_instance(collection, "Holder", (0, 0, 0.5))
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    names = [result.scene.name(i) for i in range(len(result.scene))]
+    assert sorted(names) == ["Floor: face 0", "Lamp", "SurfPatch (instance 0 of 'Holder'): spline 0"]
