@@ -1,6 +1,8 @@
 """Instances from the depsgraph (collection instances, geometry-nodes instances): solved at their
 world matrices with their own materials (they cast shadows and reflect light), not baked (their
 mesh is shared), with a warning naming the object and its instancer."""
+import math
+
 import bpy
 import numpy as np
 import pytest
@@ -143,3 +145,27 @@ def test_instanced_nurbs_surface_is_solved_once_exactly(context):
     result = export.export_scene(context.evaluated_depsgraph_get())
     names = [result.scene.name(i) for i in range(len(result.scene))]
     assert sorted(names) == ["Floor: face 0", "Lamp", "SurfPatch (instance 0 of 'Holder'): spline 0"]
+
+
+def test_instances_made_real_are_baked_each_with_its_own_light(context):
+    """What the warning advises: Make Instances Real gives objects sharing one mesh; each bakes
+    its own image (the bake's UV layout depends on the mesh only), lit as its place is."""
+    scenes.floor_under_lamp()
+    collection, _ = blocker_collection()
+    for name, x in (("Near", 0.0), ("Far", 1.5)):
+        collection_instance(collection, name, (x, 0, 0.5)).rotation_euler = (math.pi, 0, 0)  # facing the floor
+    holders = [bpy.data.objects["Near"], bpy.data.objects["Far"]]
+    with context.temp_override(selected_editable_objects=holders, active_object=holders[0]):
+        assert bpy.ops.object.duplicates_make_real() == {"FINISHED"}
+    real = [o for o in context.scene.objects if o.type == "MESH" and o.name.startswith("Blocker")]
+    assert len(real) == 2 and real[0].data == real[1].data
+    context.scene.bsgi.preset = "DRAFT"
+    rep = pipeline.solve_and_bake(context)
+    assert not any("instance" in w for w in rep["warnings"])
+    radiance = {o.name: bake.stored_faces(o)[0][1][0].evaluate(np.array([[0.5, 0.5]]))[0, 0] for o in real}
+    images = {o.name: o.material_slots[0].material.name for o in real}
+    assert len(set(images.values())) == 2
+    near = min(real, key=lambda o: abs(o.matrix_world.translation.x))
+    far = max(real, key=lambda o: abs(o.matrix_world.translation.x))
+    # Both see the floor below; the one right under the lamp sees it brightest.
+    assert radiance[near.name] > radiance[far.name] > 0
