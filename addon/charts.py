@@ -54,24 +54,44 @@ def chart_problem(corner_uvs: np.ndarray) -> str:
 
 def _overlaps(corner_uvs: np.ndarray) -> bool:
     """Whether any texel centre of a fine grid lies inside two UV triangles (edges excluded, so
-    triangles sharing an edge do not count)."""
+    triangles sharing an edge do not count). Triangles are tested a batch at a time, each batch
+    as one flat array of (triangle, texel of its bounding box) candidates; the first overlap ends it."""
     n = OVERLAP_GRID
-    cover = np.zeros((n, n), np.uint8)
-    lo = np.clip(np.floor(corner_uvs.min(axis=1) * n - 0.5), 0, n - 1).astype(int)
-    hi = np.clip(np.ceil(corner_uvs.max(axis=1) * n - 0.5), 0, n - 1).astype(int)
-    for t, (a, b, c) in enumerate(corner_uvs):
-        xs = (np.arange(lo[t, 0], hi[t, 0] + 1) + 0.5) / n
-        ys = (np.arange(lo[t, 1], hi[t, 1] + 1) + 0.5) / n
-        px, py = np.meshgrid(xs, ys, indexing="xy")
-        d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-        w1 = ((px - a[0]) * (c[1] - a[1]) - (py - a[1]) * (c[0] - a[0])) / d
-        w2 = ((b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0])) / d
-        eps = 1e-9
-        inside = (w1 > eps) & (w2 > eps) & (1 - w1 - w2 > eps)
-        cover[lo[t, 1]:hi[t, 1] + 1, lo[t, 0]:hi[t, 0] + 1] += inside
+    lo = np.clip(np.floor(corner_uvs.min(axis=1) * n - 0.5), 0, n - 1).astype(np.int64)
+    hi = np.clip(np.ceil(corner_uvs.max(axis=1) * n - 0.5), 0, n - 1).astype(np.int64)
+    counts = (hi[:, 0] - lo[:, 0] + 1) * (hi[:, 1] - lo[:, 1] + 1)
+    ends = np.cumsum(counts)
+    cover = np.zeros(n * n, np.int64)
+    start = 0
+    while start < len(counts):
+        # About CANDIDATES_PER_BATCH candidates per batch; a triangle is never split.
+        stop = max(start + 1, int(np.searchsorted(ends, ends[start] - counts[start] + CANDIDATES_PER_BATCH, "right")))
+        cover += _covered_texels(corner_uvs[start:stop], lo[start:stop], hi[start:stop], n)
         if cover.max() > 1:
             return True
+        start = stop
     return False
+
+
+CANDIDATES_PER_BATCH = 1 << 20
+
+
+def _covered_texels(corner_uvs, lo, hi, n) -> np.ndarray:
+    """How many of the triangles hold each texel centre, as a flat (n * n) count."""
+    width, height = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
+    counts = width * height
+    tri = np.repeat(np.arange(len(corner_uvs)), counts)
+    local = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    ix = lo[tri, 0] + local % width[tri]
+    iy = lo[tri, 1] + local // width[tri]
+    a, b, c = corner_uvs[tri, 0], corner_uvs[tri, 1], corner_uvs[tri, 2]
+    px, py = (ix + 0.5) / n, (iy + 0.5) / n
+    d = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    w1 = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (py - a[:, 1]) * (c[:, 0] - a[:, 0])) / d
+    w2 = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (b[:, 1] - a[:, 1]) * (px - a[:, 0])) / d
+    eps = 1e-9
+    inside = (w1 > eps) & (w2 > eps) & (1 - w1 - w2 > eps)
+    return np.bincount(iy[inside] * n + ix[inside], minlength=n * n)
 
 
 def suitable_uv_map(mesh, loops: np.ndarray) -> tuple:

@@ -244,3 +244,22 @@ def test_object_setting_forces_a_chart_or_faces(context):
     assert kind() == "chart"
     floor.bsgi.mesh_surfaces = "FACES"
     assert kind() == "mesh"
+
+
+def test_chart_problems_of_uv_triangles():
+    from bsgi_addon import charts
+
+    square = np.array([[[0.1, 0.1], [0.9, 0.1], [0.9, 0.9]], [[0.1, 0.1], [0.9, 0.9], [0.1, 0.9]]])
+    assert charts.chart_problem(square) == ""  # sharing an edge is no overlap
+    shifted = square.copy()
+    shifted[1, :, 0] += 0.02  # across the shared diagonal: a sliver over the first triangle
+    assert charts.chart_problem(shifted) == "its islands overlap"
+    assert charts.chart_problem(square * 1.2) == "it leaves the square [0, 1]"
+    flat = square.copy()
+    flat[0, 2] = flat[0, 1]
+    assert charts.chart_problem(flat) == "1 of its triangles have no UV area"
+    # Many small triangles (a 300 x 300 grid) are tested in batches: a duplicated last one is found.
+    x = np.linspace(0, 1, 301)
+    cells = np.array([[[x[i], x[j]], [x[i + 1], x[j]], [x[i + 1], x[j + 1]]] for i in range(300) for j in range(300)])
+    assert charts.chart_problem(cells) == ""
+    assert charts.chart_problem(np.concatenate([cells, cells[-1:]])) == "its islands overlap"
