@@ -132,7 +132,10 @@ def generated_uvs(positions: np.ndarray, polygons: list, label: str) -> np.ndarr
         layer.objects.active = tmp
         bpy.ops.object.mode_set(mode="EDIT")
         bpy.ops.mesh.select_all(action="SELECT")
-        bpy.ops.uv.smart_project(angle_limit=np.radians(UNWRAP_ANGLE_DEGREES), island_margin=UNWRAP_MARGIN)
+        # Every option given: an operator otherwise reuses the values of its last call.
+        bpy.ops.uv.smart_project(angle_limit=np.radians(UNWRAP_ANGLE_DEGREES), margin_method="SCALED",
+                                 rotate_method="AXIS_ALIGNED_Y", island_margin=UNWRAP_MARGIN, area_weight=0.0,
+                                 correct_aspect=True, scale_to_bounds=False)
         bpy.ops.object.mode_set(mode="OBJECT")
         if not data.uv_layers:
             raise ChartUnavailable(f"object '{label}': Smart UV Project made no UV map")
