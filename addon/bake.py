@@ -1,16 +1,23 @@
-"""Solved radiance splines -> what Blender shows: per object a float image atlas (one tile per
-face), a UV map laying the faces on their tiles, and an emission material showing it.
+"""Solved radiance -> what Blender shows: per object a float image atlas of its radiance (one
+tile per face, or a NURBS surface's parameter square), repeated for each angular sample of a
+glossy surface's disc (20)-(22); two images of the surfaces' frames (1)-(3); a UV map laying
+the faces on their tiles (a UV chart's own UVs; a NURBS surface's mesh has its UVMap); and an
+emission material that looks the atlas up through the node
+group of view_radiance.py with the direction the point is seen from.
 
 The user's materials stay on the mesh untouched: the baked material is linked to the object's
 material slots (slot.link = 'OBJECT'), and switching the slots back to 'DATA' shows the originals."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 import bsgi
+
+from . import export, view_radiance
 
 UV_NAME = "BSGI Radiance"
 PROP_SLOTS = "bsgi_slot_links"  # the slots' links before the bake, to restore them
@@ -18,31 +25,72 @@ PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
 PROP_SPLINE_MATERIALS = "bsgi_spline_materials"  # SURFACE objects of several splines: a material per spline
 PROP_SPLINE_INDICES = "bsgi_spline_material_indices"  # their splines' material indices before the bake
-PROP_RADIANCE = "bsgi_radiance"  # the faces' splines, for re-baking and solution export
+PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and solution export
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
+# Largest radiance atlas per object, in texels (256 MiB of float RGBA): past it the angular
+# samples are thinned, with a warning.
+MAX_ATLAS_TEXELS = 1 << 24
 
 
-def tile_size(spline) -> int:
+def tile_size(radiance) -> int:
     """Texels per face side: two per coefficient, so the image resolves the spline's knots."""
-    return max(8, 2 * max(axis.num_coeffs for axis in spline.axes[:2]))
+    return max(8, 2 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]))
 
 
-def radiance_along_normal(spline, uv: np.ndarray) -> np.ndarray:
-    """(N, 3) radiance at the (u, v) rows of uv. A glossy (4D) spline is evaluated at the
-    centre of the hemisphere's disc, (alpha, beta) = (0, 0), which the map (20)-(22) sends to
-    the surface normal: until view-dependent baking exists, the bake shows the radiance seen
-    head-on."""
-    if spline.dims == 4:
-        uv = np.concatenate([uv, np.zeros((len(uv), 2))], axis=1)
-    return spline.evaluate(np.ascontiguousarray(uv, np.float64))
+def _upper(radiance):
+    return radiance.upper if isinstance(radiance, bsgi.SurfaceRadiance) else radiance
 
 
-def _view_dependence_warning(obj, faces) -> list:
-    if any(s.dims == 4 for _, splines in faces for s in splines):
-        return [f"object '{obj.name}': glossy radiance is baked as seen along the surface normal (the bake is not "
-                "view-dependent yet)"]
-    return []
+def _splines(radiance):
+    return [s for s in (radiance.upper, radiance.lower, radiance.diffuse) if s is not None]
+
+
+def angular_samples(faces) -> int:
+    """Angular samples per disc axis: three per knot span of the glossy splines' angular knot
+    vectors (the knots and two points between), 1 where every face is diffuse. The bilinear
+    blend between samples is second order: two per span left 5.9% mean error on a rough glass
+    sheet's transmitted lamp (tests/blender/test_bake_view.py), three 2.9%, four 1.7%, at
+    (4/3)^2 and 2^2 the texels of three."""
+    samples = 1
+    for _, radiances in faces:
+        for r in radiances:
+            for s in ([] if r is None else _splines(r)):
+                for axis in s.axes[2:]:
+                    samples = max(samples, 3 * (axis.num_coeffs - axis.degree) + 1)
+    return samples
+
+
+def _disc_radius(obj, faces) -> float:
+    radii = {r.disc_radius for _, radiances in faces for r in radiances if r is not None and r.kind != "diffuse"}
+    if len(radii) > 1:
+        raise ValueError(f"object '{obj.name}': its glossy faces use different disc radii {sorted(radii)}; "
+                         "solve them together")
+    return radii.pop() if radii else 1.0
+
+
+def _sides(faces) -> int:
+    """2 if a face transmits (a lower-hemisphere spline, paper 4.3), else 1."""
+    return 2 if any(r is not None and r.lower is not None for _, radiances in faces for r in radiances) else 1
+
+
+def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool) -> np.ndarray:
+    """(len(disc), len(uv), 3): the radiance leaving the (u, v) rows of uv at each disc point
+    (alpha, beta), on the upper or the lower side, as SurfaceRadiance::evaluate gives it along
+    the direction that the map (20)-(22) sends (alpha, beta) to. No lower spline: black."""
+    out = np.zeros((len(disc), len(uv), 3))
+    if radiance is None:
+        return out
+    for spline in ([radiance.lower] if lower else [radiance.upper, radiance.diffuse]):
+        if spline is None:
+            continue
+        if spline.dims == 2:
+            out += spline.evaluate(np.ascontiguousarray(uv, np.float64))[None]
+            continue
+        points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
+                                 np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
+        out += spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+    return out
 
 
 def _tile_parameters(kind: str, t: int) -> np.ndarray:
@@ -52,7 +100,10 @@ def _tile_parameters(kind: str, t: int) -> np.ndarray:
     x = i / (t - 1), y = j / (t - 1) in the face's UV square. Quads are bilinear: (u, v) = (x, y).
     Triangles lie in the half y <= x of the square with corners (0, 0), (1, 0), (1, 1); the
     collapsed-square parameterization gives u = x, v = y / x (texels above the diagonal repeat
-    the diagonal, so texture filtering never mixes in another face)."""
+    the diagonal, so texture filtering never mixes in another face). N-gons, solved as
+    triangle fans, show the mean of their triangles at (0.5, 0.5) until charts land."""
+    if kind == "ngon":
+        return np.full((t * t, 2), 0.5)
     x, y = np.meshgrid(np.linspace(0, 1, t), np.linspace(0, 1, t))
     if kind == "quad":
         u, v = x, y
@@ -65,108 +116,203 @@ def _tile_parameters(kind: str, t: int) -> np.ndarray:
 
 def _face_uvs(kind: str, tile_origin, t: int, size: int, corners: int):
     """UV coordinates of a face's loops on its tile, matching _tile_parameters."""
-    if kind == "quad":
-        square = [(0, 0), (1, 0), (1, 1), (0, 1)]
-    else:
-        square = [(0, 0), (1, 0), (1, 1)]
     ox, oy = tile_origin
+    if kind == "ngon":
+        return [((ox + t / 2) / size, (oy + t / 2) / size)] * corners
+    square = [(0, 0), (1, 0), (1, 1), (0, 1)] if kind == "quad" else [(0, 0), (1, 0), (1, 1)]
     return [((ox + 0.5 + sx * (t - 1)) / size, (oy + 0.5 + sy * (t - 1)) / size) for sx, sy in square[:corners]]
 
 
-def face_splines(exported, radiance) -> list:
-    """Per polygon of an exported object: (kind, its splines) from a solution's radiance list."""
-    return [(kind, [radiance[first + k] for k in range(count)]) for kind, first, count in exported.patches]
+def face_splines(exported, surfaces) -> list:
+    """Per polygon of an exported object: (kind, its SurfaceRadiance list) from a solution's
+    `surfaces` (None for a surface that only emits)."""
+    return [(kind, [surfaces[first + k] for k in range(count)]) for kind, first, count in exported.patches]
+
+
+@dataclass
+class Layout:
+    """Where each texel of an object's spatial atlas (height x width) lies: the face and the
+    surface parameters (u, v), face -1 for unused texels; the core surfaces whose frames the
+    texels show; the UV map the material reads."""
+    face: np.ndarray  # (height, width) int
+    uv: np.ndarray  # (height, width, 2)
+    surfaces: list
+    uv_map: str
+
+    @property
+    def shape(self):
+        return self.face.shape
+
+
+def _world_points(obj):
+    """The evaluated mesh of obj (what the exporter solved): world vertex positions, and per
+    polygon its vertex indices and (n-gons) its triangles."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        co = np.empty(len(mesh.vertices) * 3, np.float64)
+        mesh.vertices.foreach_get("co", co)
+        m = np.array(evaluated.matrix_world, float)
+        world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        polygons = [list(p.vertices) for p in mesh.polygons]
+        mesh.calc_loop_triangles()
+        first_triangle = {}
+        for tri in mesh.loop_triangles:
+            first_triangle.setdefault(tri.polygon_index, list(tri.vertices))
+        return world, polygons, first_triangle
+    finally:
+        evaluated.to_mesh_clear()
+
+
+def _mesh_layout(obj, faces):
+    """Per face a t x t tile (t from the splines' knots) on a square grid of tiles; writes the
+    bake's UV map laying each face on its tile."""
+    mesh = obj.data
+    if len(mesh.polygons) != len(faces):
+        raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
+    t = max((tile_size(r) for _, radiances in faces for r in radiances if r is not None), default=8)
+    grid = math.ceil(math.sqrt(len(faces)))
+    size = grid * t
+    face = np.full((size, size), -1)
+    uv = np.zeros((size, size, 2))
+    uvs = np.zeros((len(mesh.loops), 2), np.float32)
+    world, polygons, first_triangle = _world_points(obj)
+    surfaces = []
+    for index, (kind, _) in enumerate(faces):
+        ox, oy = (index % grid) * t, (index // grid) * t
+        face[oy:oy + t, ox:ox + t] = index
+        uv[oy:oy + t, ox:ox + t] = _tile_parameters(kind, t).reshape(t, t, 2)
+        poly = mesh.polygons[index]
+        for loop, corner in zip(poly.loop_indices, _face_uvs(kind, (ox, oy), t, size, poly.loop_total)):
+            uvs[loop] = corner
+        corners = world[polygons[index] if kind != "ngon" else first_triangle[index]]
+        name = f"{obj.name}: face {index}"
+        surfaces.append(bsgi.BilinearPatch(name, corners) if kind == "quad" else bsgi.TrianglePatch(name, corners))
+    if mesh.uv_layers.get(UV_NAME) is None:
+        mesh.uv_layers.new(name=UV_NAME, do_init=False)
+    mesh.uv_layers[UV_NAME].data.foreach_set("uv", uvs.ravel())  # looked up by name again after creating it
+    return Layout(face, uv, surfaces, UV_NAME)
+
+
+def nurbs_image_size(radiance) -> tuple:
+    """(width, height) of a NURBS surface's image: two texels per coefficient in u and v, at least 16."""
+    return tuple(max(16, 2 * axis.num_coeffs) for axis in _upper(radiance).axes[:2])
+
+
+def _nurbs_layout(obj, spline, radiance):
+    """Blender's mesh of the surface has UVs = normalized (u, v), and a linear image lookup at
+    UV x reads texel centres at (i + 0.5) / width: each texel holds the radiance at its
+    centre's parameters, so the image interpolates the spline there."""
+    w, h = nurbs_image_size(radiance)
+    u, v = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
+    surface = export.nurbs_surface(f"{obj.name}: spline", spline, obj.matrix_world)
+    return Layout(np.zeros((h, w), int), np.stack([u, v], axis=2), [surface], NURBS_UV_NAME)
+
+
+def chart_image_size(radiance) -> int:
+    """Side of a chart's image: four texels per coefficient (a chart's islands are smaller than
+    the UV square they share), at least 64."""
+    return max(64, 4 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]))
+
+
+def _chart_layout(obj, radiance):
+    """A chart's image over its UV square, texel centres at (i + 0.5) / n as for NURBS. Texels
+    outside the islands hold the spline's smooth continuation (and the frame of the nearest
+    point of the chart), so filtering at an island's border never mixes in a neighbour's light."""
+    from . import charts
+
+    n = chart_image_size(radiance)
+    u, v = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
+    world, _, _ = _world_points(obj)
+    triangles, loops = charts.loop_triangles(obj.data)
+    corner_uvs = charts.layer_uvs(obj.data, UV_NAME)[loops]
+    surface = bsgi.MeshChart(f"{obj.name}: chart 0", world, triangles, corner_uvs)
+    return Layout(np.zeros((n, n), int), np.stack([u, v], axis=2), [surface], UV_NAME)
+
+
+def frame_pixels(layout: Layout):
+    """(tangent, normal) images, (height, width, 4) each: the frame (1)-(3) of the core's
+    surface at each texel, x along s_u and z the normal."""
+    tangent = np.zeros((*layout.shape, 4), np.float32)
+    normal = np.zeros((*layout.shape, 4), np.float32)
+    tangent[..., 3] = normal[..., 3] = 1
+    for index, surface in enumerate(layout.surfaces):
+        mask = layout.face == index
+        frames = surface.evaluate(np.ascontiguousarray(layout.uv[mask]))
+        tangent[mask, :3], normal[mask, :3] = frames["x"], frames["normal"]
+    return tangent, normal
+
+
+def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int) -> np.ndarray:
+    """(sides * A * height, A * width, 4): the spatial atlas once per angular sample, tile (i, j)
+    at the disc point (alpha_i, beta_j) = -R + 2R (i, j) / (A - 1) (the centre for A = 1); the
+    lower hemisphere's tiles in the rows above the upper ones'. Samples outside the disc hold
+    the spline's own values there (its domain is the square [-R, R]^2), so blending towards
+    the rim stays smooth."""
+    grid = np.linspace(-radius, radius, samples) if samples > 1 else np.zeros(1)
+    beta, alpha = np.meshgrid(grid, grid, indexing="ij")
+    disc = np.stack([alpha.ravel(), beta.ravel()], axis=1)  # row j * A + i
+    h, w = layout.shape
+    values = np.zeros((sides, samples * samples, h, w, 3))
+    for index, (_, radiances) in enumerate(faces):
+        mask = layout.face == index
+        uv = layout.uv[mask]
+        for side in range(sides):
+            values[side][:, mask] = np.mean([_radiance_at(r, uv, disc, side == 1) for r in radiances], axis=0)
+    values = values.reshape(sides, samples, samples, h, w, 3).transpose(0, 1, 3, 2, 4, 5)
+    pixels = np.ones((sides * samples * h, samples * w, 4), np.float32)
+    pixels[..., :3] = values.reshape(sides * samples * h, samples * w, 3)
+    return pixels
+
+
+def _bake_layout(obj, name: str, layout: Layout, faces):
+    """The images and the material of one spatial layout: (material, warnings)."""
+    warnings = []
+    samples, sides = angular_samples(faces), _sides(faces)
+    h, w = layout.shape
+    fitting = max(1, math.isqrt(MAX_ATLAS_TEXELS // (sides * h * w)))
+    if samples > fitting:
+        warnings.append(f"object '{obj.name}': its view-dependent radiance is baked at {fitting} x {fitting} "
+                        f"directions instead of {samples} x {samples} (the image would pass "
+                        f"{MAX_ATLAS_TEXELS} texels); glossy highlights are blurred")
+        samples = fitting
+    radius = _disc_radius(obj, faces)
+    tangent, normal = frame_pixels(layout)
+    atlas = atlas_pixels(layout, faces, samples, radius, sides)
+    material = view_radiance.material(
+        name, layout.uv_map, _radiance_image(name, atlas), _radiance_image(f"{name} tangent", tangent),
+        _radiance_image(f"{name} normal", normal), spatial_size=(w, h), disc_radius=radius,
+        angular_samples=samples, sides=sides)
+    return material, warnings
 
 
 def bake_object(obj, faces, chart_uvs=None) -> list:
     """Bake one object: faces is, per polygon (per spline for a NURBS surface, one entry for a
-    UV chart), (kind, splines) as face_splines gives; chart_uvs are a chart's UVs per loop (None:
-    the UV map of an earlier bake). The splines are also stored on the object, so the bake can be
-    redone without a solve. Returns warnings about what the bake approximates."""
+    UV chart), (kind, its SurfaceRadiance list) as face_splines gives; chart_uvs are a chart's
+    UVs per loop (None: the UV map of an earlier bake). The radiance is also stored on the
+    object, so the bake can be redone without a solve. Returns warnings about what the bake
+    approximates."""
     if obj.type == "SURFACE":
         return _bake_nurbs(obj, faces)
     if faces and faces[0][0] == "chart":
         return _bake_chart(obj, faces, chart_uvs)
-    mesh = obj.data
-    if len(mesh.polygons) != len(faces):
-        raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
-    t = tile_size(faces[0][1][0])
-    grid = math.ceil(math.sqrt(len(faces)))
-    size = grid * t
-    pixels = np.zeros((size, size, 4), np.float32)
-    pixels[..., 3] = 1
-    uvs = np.zeros((len(mesh.loops), 2), np.float32)
-    for index, (kind, splines) in enumerate(faces):
-        ox, oy = (index % grid) * t, (index // grid) * t
-        poly = mesh.polygons[index]
-        if kind == "ngon":
-            # N-gons are solved as triangle fans; show their mean radiance until charts land.
-            centre = np.full((1, 2), 0.5)
-            pixels[oy:oy + t, ox:ox + t, :3] = np.mean([radiance_along_normal(s, centre)[0] for s in splines], axis=0)
-            uvs[list(poly.loop_indices)] = ((ox + t / 2) / size, (oy + t / 2) / size)
-            continue
-        values = radiance_along_normal(splines[0], _tile_parameters(kind, t))
-        pixels[oy:oy + t, ox:ox + t, :3] = values.reshape(t, t, 3)
-        for loop, uv in zip(poly.loop_indices, _face_uvs(kind, (ox, oy), t, size, poly.loop_total)):
-            uvs[loop] = uv
-
-    uv_layer = mesh.uv_layers.get(UV_NAME) or mesh.uv_layers.new(name=UV_NAME, do_init=False)
-    mesh.uv_layers[UV_NAME].data.foreach_set("uv", uvs.ravel())
-    del uv_layer  # look layers up by name again after creating one
-
-    image = _radiance_image(f"BSGI {obj.name}", size, size, pixels)
-    material = _baked_material(f"BSGI {obj.name}", image, UV_NAME)
+    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _mesh_layout(obj, faces), faces)
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
-    return _view_dependence_warning(obj, faces)
-
-
-def nurbs_image_size(spline) -> tuple:
-    """(width, height) of a NURBS surface's image: two texels per coefficient in u and v, at least 16."""
-    return tuple(max(16, 2 * axis.num_coeffs) for axis in spline.axes[:2])
-
-
-def nurbs_pixels(spline) -> np.ndarray:
-    """(height, width, 4) image of a spline over the surface's parameter square. Blender's mesh
-    of the surface has UVs = normalized (u, v), and a linear image lookup at UV x reads texel
-    centres at (i + 0.5) / width: each texel holds the radiance at its centre's parameters, so
-    the image interpolates the spline there."""
-    w, h = nurbs_image_size(spline)
-    u, v = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
-    pixels = np.ones((h, w, 4), np.float32)
-    pixels[..., :3] = radiance_along_normal(spline, np.stack([u.ravel(), v.ravel()], axis=1)).reshape(h, w, 3)
-    return pixels
+    return warnings
 
 
 def _bake_nurbs(obj, faces) -> list:
-    """A SURFACE object of one spline: its image laid out in parameter space, shown through the
+    """A SURFACE object of one spline: its images laid out in parameter space, shown through the
     UV map Blender gives the surface's mesh."""
     if len(faces) != 1:
         return _bake_nurbs_splines(obj, faces)
-    spline = faces[0][1][0]
-    pixels = nurbs_pixels(spline)
-    image = _radiance_image(f"BSGI {obj.name}", pixels.shape[1], pixels.shape[0], pixels)
-    material = _baked_material(f"BSGI {obj.name}", image, NURBS_UV_NAME)
+    spline = export.baked_splines(obj)[0]
+    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _nurbs_layout(obj, spline, faces[0][1][0]), faces)
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
-    return _view_dependence_warning(obj, faces)
-
-
-def chart_image_size(spline) -> int:
-    """Side of a chart's image: four texels per coefficient (a chart's islands are smaller than
-    the UV square they share), at least 64."""
-    return max(64, 4 * max(axis.num_coeffs for axis in spline.axes[:2]))
-
-
-def chart_pixels(spline) -> np.ndarray:
-    """(n, n, 4) image of a chart's spline over its UV square, texel centres at (i + 0.5) / n as
-    for NURBS. Texels outside the islands hold the spline's smooth continuation, so linear
-    filtering at an island's border never mixes in a neighbour's light."""
-    n = chart_image_size(spline)
-    u, v = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
-    pixels = np.ones((n, n, 4), np.float32)
-    pixels[..., :3] = radiance_along_normal(spline, np.stack([u.ravel(), v.ravel()], axis=1)).reshape(n, n, 3)
-    return pixels
+    return warnings
 
 
 def _bake_chart(obj, faces, chart_uvs) -> list:
@@ -190,12 +336,10 @@ def _bake_chart(obj, faces, chart_uvs) -> list:
             raise ValueError(f"object '{obj.name}': its chart's UV map '{UV_NAME}' is gone and none of its own UV "
                              "maps is a chart; solve again")
         return _bake_chart(obj, faces, uvs)
-    pixels = chart_pixels(faces[0][1][0])
-    image = _radiance_image(f"BSGI {obj.name}", pixels.shape[1], pixels.shape[0], pixels)
-    material = _baked_material(f"BSGI {obj.name}", image, UV_NAME)
+    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _chart_layout(obj, faces[0][1][0]), faces)
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
-    return _view_dependence_warning(obj, faces)
+    return warnings
 
 
 def _bake_nurbs_splines(obj, faces) -> list:
@@ -205,16 +349,15 @@ def _bake_nurbs_splines(obj, faces) -> list:
     image and material, in a slot of its own: while the bake is shown, spline k uses slot k (slots
     are added if there are fewer than splines). The user's material indices are recorded and put
     back when the originals are shown or the bake is cleared."""
-    from .export import baked_splines
-
-    splines = baked_splines(obj)
+    splines = export.baked_splines(obj)
     if len(splines) != len(faces):
         raise ValueError(f"object '{obj.name}': it has {len(splines)} drawable splines, the solution {len(faces)}")
-    names = []
-    for k, (_, (spline,)) in enumerate(faces):
-        pixels = nurbs_pixels(spline)
-        image = _radiance_image(f"BSGI {obj.name} spline {k}", pixels.shape[1], pixels.shape[0], pixels)
-        names.append(_baked_material(f"BSGI {obj.name} spline {k}", image, NURBS_UV_NAME).name)
+    names, warnings = [], []
+    for k, face in enumerate(faces):
+        layout = _nurbs_layout(obj, splines[k], face[1][0])
+        material, spline_warnings = _bake_layout(obj, f"BSGI {obj.name} spline {k}", layout, [face])
+        names.append(material.name)
+        warnings += spline_warnings
     if PROP_SPLINE_INDICES not in obj:
         obj[PROP_SPLINE_INDICES] = [int(s.material_index) for s in obj.data.splines]
     added = 0
@@ -227,7 +370,7 @@ def _bake_nurbs_splines(obj, faces) -> list:
     if added:
         obj[PROP_ADDED_SLOT] = int(obj.get(PROP_ADDED_SLOT, 0)) + added
     _store_splines(obj, faces)
-    return _view_dependence_warning(obj, faces)
+    return warnings
 
 
 def user_spline_material_index(obj, k: int) -> int:
@@ -238,12 +381,10 @@ def user_spline_material_index(obj, k: int) -> int:
 
 def _show_spline_materials(obj, baked: bool) -> None:
     """Spline k on slot k with its own baked material, or the user's material indices back."""
-    from .export import baked_splines
-
     names = obj.get(PROP_SPLINE_MATERIALS)
     if names is None:
         return
-    drawn = baked_splines(obj)
+    drawn = export.baked_splines(obj)
     for k, spline in enumerate(obj.data.splines):
         spline.material_index = (drawn.index(spline) if baked and spline in drawn
                                  else user_spline_material_index(obj, k))
@@ -255,29 +396,53 @@ def _show_spline_materials(obj, baked: bool) -> None:
 def _store_splines(obj, faces) -> None:
     # ID properties from float64 arrays: exact, and saved in the .blend.
     group = {"kinds": ",".join(kind for kind, _ in faces)}
-    for i, (_, splines) in enumerate(faces):
-        for k, spline in enumerate(splines):
-            arrays = bsgi.spline_to_arrays(spline)
-            arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
-            group[f"{i}.{k}"] = arrays
+    for i, (_, radiances) in enumerate(faces):
+        for k, r in enumerate(radiances):
+            entry = {"kind": "emitter"}
+            if r is not None:
+                entry = {"kind": r.kind, "disc_radius": r.disc_radius}
+                for side in ("upper", "lower", "diffuse"):
+                    spline = getattr(r, side)
+                    if spline is not None:
+                        arrays = bsgi.spline_to_arrays(spline)
+                        arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
+                        entry[side] = arrays
+            group[f"{i}.{k}"] = entry
     obj[PROP_RADIANCE] = group
 
 
 def stored_faces(obj) -> list:
-    """The faces' splines stored by the last bake, as bake_object takes them."""
+    """The faces' radiance stored by the last bake, as bake_object takes it."""
     group = obj.get(PROP_RADIANCE)
     if group is None:
         raise ValueError(f"object '{obj.name}': no stored radiance; solve first")
     faces = []
     for i, kind in enumerate(group["kinds"].split(",")):
-        splines, k = [], 0
+        radiances, k = [], 0
         while f"{i}.{k}" in group:
-            arrays = {name: np.frombuffer(memoryview(value), _dtype(value)) if hasattr(value, "typecode") else value
-                      for name, value in group[f"{i}.{k}"].items()}
-            splines.append(bsgi.spline_from_arrays(_shaped(arrays)))
+            radiances.append(_stored_radiance(group[f"{i}.{k}"]))
             k += 1
-        faces.append((kind, splines))
+        faces.append((kind, radiances))
     return faces
+
+
+def _stored_radiance(entry):
+    if "kind" not in entry:
+        # Stored by the add-on before view-dependent baking: the upper spline alone, its angular
+        # knots on [-R, R] (24).
+        upper = _spline(entry)
+        kind = "glossy" if upper.dims == 4 else "diffuse"
+        return bsgi.SurfaceRadiance(kind, upper.axes[2].knots[-1] if upper.dims == 4 else 1.0, upper)
+    if entry["kind"] == "emitter":
+        return None
+    return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
+                                *(_spline(entry[side]) if side in entry else None for side in ("upper", "lower", "diffuse")))
+
+
+def _spline(stored):
+    arrays = {name: np.frombuffer(memoryview(value), _dtype(value)) if hasattr(value, "typecode") else value
+              for name, value in stored.items()}
+    return bsgi.spline_from_arrays(_shaped(arrays))
 
 
 def _dtype(value):
@@ -293,46 +458,24 @@ def _shaped(arrays):
 
 
 def rebake(obj) -> list:
-    """Regenerate an object's image from its stored splines (no solve)."""
+    """Regenerate an object's images from its stored radiance (no solve)."""
     return bake_object(obj, stored_faces(obj))
 
 
-def _radiance_image(name: str, width: int, height: int, pixels: np.ndarray):
+def _radiance_image(name: str, pixels: np.ndarray):
+    height, width = pixels.shape[:2]
     image = bpy.data.images.get(name)
     if image is not None and (image.size[0] != width or image.size[1] != height):
         bpy.data.images.remove(image)
         image = None
     if image is None:
         image = bpy.data.images.new(name, width, height, alpha=False, float_buffer=True)
-    # Radiance is scene-linear data: the colour space is set before the pixels, since
-    # changing it afterwards discards them.
+    # Radiance and frames are scene-linear data: the colour space is set before the pixels,
+    # since changing it afterwards discards them.
     image.colorspace_settings.name = "Non-Color"
     image.pixels.foreach_set(pixels.ravel())
     image.pack()
     return image
-
-
-def _baked_material(name: str, image, uv_map: str):
-    material = bpy.data.materials.get(name) or bpy.data.materials.new(name)
-    material.use_fake_user = True  # kept in the .blend while the originals are shown
-    tree = material.node_tree
-    if tree is None:
-        material.use_nodes = True
-        tree = material.node_tree
-    tree.nodes.clear()
-    out = tree.nodes.new("ShaderNodeOutputMaterial")
-    emission = tree.nodes.new("ShaderNodeEmission")
-    tex = tree.nodes.new("ShaderNodeTexImage")
-    uv = tree.nodes.new("ShaderNodeUVMap")
-    uv.uv_map = uv_map
-    tex.image = image
-    tex.interpolation = "Linear"
-    tex.extension = "EXTEND"
-    tree.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-    tree.links.new(tex.outputs["Color"], emission.inputs["Color"])
-    tree.links.new(emission.outputs["Emission"], out.inputs["Surface"])
-    uv.location, tex.location, emission.location, out.location = (-600, 0), (-350, 0), (-50, 0), (200, 0)
-    return material
 
 
 def _link_baked_material(obj, material) -> None:
@@ -400,7 +543,7 @@ def clear_bake(obj) -> None:
     for name in dict.fromkeys(names):
         material = bpy.data.materials.get(name)
         if material is not None:
-            image = next((n.image for n in material.node_tree.nodes if n.type == "TEX_IMAGE"), None)
+            images = {n.image.name for n in material.node_tree.nodes if n.type == "TEX_IMAGE" and n.image}
             bpy.data.materials.remove(material)
-            if image is not None:
-                bpy.data.images.remove(image)
+            for image in images:
+                bpy.data.images.remove(bpy.data.images[image])

@@ -44,7 +44,7 @@ def finish(context, job: Job, solution: bsgi.Solution) -> None:
     """Main thread: bake the solution into the scene; the bake's warnings join the export's."""
     warnings = job.export.warnings
     for exported in job.export.objects:
-        warnings += bake.bake_object(bpy.data.objects[exported.name], bake.face_splines(exported, solution.radiance),
+        warnings += bake.bake_object(bpy.data.objects[exported.name], bake.face_splines(exported, solution.surfaces),
                                      exported.chart_uvs)
     job.export.warnings = list(dict.fromkeys(warnings))
     context.scene.bsgi.show_baked = True

@@ -15,16 +15,17 @@ _FACE = re.compile(r"^(?P<object>.*): (?P<part>face|spline|chart) (?P<face>\d+)(
 
 
 def export_solution(scene, path) -> int:
-    """Write every baked object's splines; returns the number of surfaces written."""
+    """Write every baked object's radiance (all its splines: upper, lower, diffuse part);
+    returns the number of surfaces written."""
     radiance, names = [], []
     for obj in scene.objects:
         if bake.PROP_RADIANCE not in obj:
             continue
-        for i, (kind, splines) in enumerate(bake.stored_faces(obj)):
-            for k, spline in enumerate(splines):
+        for i, (kind, surfaces) in enumerate(bake.stored_faces(obj)):
+            for k, surface in enumerate(surfaces):
                 part = {"nurbs": "spline", "chart": "chart"}.get(kind, "face")
                 names.append(f"{obj.name}: {part} {i}" + (f" triangle {k}" if kind == "ngon" else ""))
-                radiance.append(spline)
+                radiance.append(surface)
     if not radiance:
         raise ValueError("no baked objects: solve first")
     bsgi.save_solution(path, radiance, names, scene.bsgi.solver_settings())
@@ -36,11 +37,11 @@ def import_solution(scene, path) -> list:
     stored = bsgi.load_solution(path)
     per_object: dict = {}
     charts = set()  # objects solved as one UV chart: baked through the UV map of their solve
-    for name, spline in zip(stored.names, stored.radiance):
+    for name, surface in zip(stored.names, stored.surfaces):
         match = _FACE.match(name)
-        if spline is None or match is None:
+        if surface is None or match is None:
             continue  # lights and surfaces that are not object faces
-        per_object.setdefault(match["object"], {}).setdefault(int(match["face"]), []).append(spline)
+        per_object.setdefault(match["object"], {}).setdefault(int(match["face"]), []).append(surface)
         if match["part"] == "chart":
             charts.add(match["object"])
     baked = []

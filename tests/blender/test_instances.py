@@ -162,7 +162,7 @@ def test_instances_made_real_are_baked_each_with_its_own_light(context):
     context.scene.bsgi.preset = "DRAFT"
     rep = pipeline.solve_and_bake(context)
     assert not any("instance" in w for w in rep["warnings"])
-    radiance = {o.name: bake.stored_faces(o)[0][1][0].evaluate(np.array([[0.5, 0.5]]))[0, 0] for o in real}
+    radiance = {o.name: bake.stored_faces(o)[0][1][0].upper.evaluate(np.array([[0.5, 0.5]]))[0, 0] for o in real}
     images = {o.name: o.material_slots[0].material.name for o in real}
     assert len(set(images.values())) == 2
     near = min(real, key=lambda o: abs(o.matrix_world.translation.x))

@@ -7,6 +7,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
+import bsgi
 import scenes
 from bsgi_addon import bake, pipeline
 from bsgi_addon.export import ExportError
@@ -216,7 +217,7 @@ def _metal(name, roughness):
     return m
 
 
-def test_glossy_quad_solves_and_bakes_the_radiance_along_its_normal(context):
+def test_glossy_quad_bakes_its_radiance_per_angular_sample(context):
     floor = scenes.floor_under_lamp()
     floor.data.materials[0] = _metal("Steel", 0.5)
     context.scene.bsgi.preset = "DRAFT"
@@ -227,24 +228,36 @@ def test_glossy_quad_solves_and_bakes_the_radiance_along_its_normal(context):
     assert rep["representations"]["counts"] == {"glossy": 1, "emitter": 1}
     assert rep["representations"]["largest"]["name"] == "Floor: face 0"
     assert "1 glossy" in pipeline.summary_text(rep)
-    view = [w for w in rep["warnings"] if "not view-dependent" in w]
-    assert len(view) == 1 and "'Floor'" in view[0]
+    assert not [w for w in rep["warnings"] if "'Floor'" in w]
 
     index = job.export.objects[0].patches[0][1]
-    assert solution.radiance[index].dims == 4
+    surface = solution.surfaces[index]
+    assert surface.upper.dims == 4
     image = bpy.data.images["BSGI Floor"]
-    size = image.size[0]
-    pixels = np.array(image.pixels[:], np.float32).reshape(size, size, 4)
-    t = bake.tile_size(solution.radiance[index])
-    uv = np.array([[0.0, 0.0], [1.0, 1.0], [0.5, 0.5]])
-    head_on = solution.surfaces[index].evaluate(uv, np.tile([0.0, 0.0, 1.0], (3, 1)))
-    texels = pixels[[0, t - 1, (t - 1) // 2], [0, t - 1, (t - 1) // 2], :3]
-    np.testing.assert_allclose(texels[:2], head_on[:2], rtol=1e-5)
+    t = bake.tile_size(surface)
+    a = bake.angular_samples(bake.face_splines(job.export.objects[0], solution.surfaces))
+    # Three samples per angular knot span.
+    assert a == 3 * (surface.upper.axes[2].num_coeffs - surface.upper.axes[2].degree) + 1
+    assert image.size[:] == (a * t, a * t)
+    pixels = np.array(image.pixels[:], np.float32).reshape(a * t, a * t, 4)
+    # Angular tile (i, j) holds the radiance leaving towards the direction the map (20)-(22)
+    # sends (alpha_i, beta_j) to: compare with the core's evaluation along that direction
+    # (at samples inside the disc; outside it the tiles hold the spline's own extension).
+    hemisphere = bsgi.HemisphereMap(surface.disc_radius)
+    grid = np.linspace(-surface.disc_radius, surface.disc_radius, a)
+    uv = np.array([[0.0, 0.0], [1.0, 1.0]])
+    for i, j in [(a // 2, a // 2), (a // 2 + 2, a // 2 - 1), (a // 4, 3 * a // 4)]:
+        assert math.hypot(grid[i], grid[j]) < surface.disc_radius
+        direction = np.asarray(hemisphere.to_direction(np.array([[grid[i], grid[j]]])))[0]
+        solved = surface.evaluate(uv, np.tile(direction, (2, 1)))
+        texels = pixels[[j * t, j * t + t - 1], [i * t, i * t + t - 1], :3]
+        np.testing.assert_allclose(texels, solved, rtol=1e-5)
     # The lamp straight above the middle: a metal seen head-on there reflects it brightly.
-    assert head_on[2, 0] > 5 * head_on[0, 0] > 0
+    head_on = surface.evaluate(np.array([[0.0, 0.0], [0.5, 0.5]]), np.tile([0.0, 0.0, 1.0], (2, 1)))
+    assert head_on[1, 0] > 5 * head_on[0, 0] > 0
     # Re-baking from the stored (4D) splines gives the same image.
     bpy.ops.bsgi.rebake()
-    np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(size, size, 4), pixels)
+    np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(a * t, a * t, 4), pixels)
 
 
 def test_a_second_solve_reads_the_users_materials_not_the_baked_ones(context):
@@ -297,4 +310,4 @@ def test_solve_operator_reports_the_representations(context, capfd):
     out = capfd.readouterr()
     text = out.out + out.err
     assert "1 glossy, 1 emitter; largest 'Floor: face 0'" in text, text[-2000:]
-    assert "not view-dependent" in text
+    assert "not view-dependent" not in text  # glossy surfaces are baked view-dependently
