@@ -16,7 +16,7 @@ import pytest
 
 import bsgi
 import scenes
-from bsgi_addon import bake, export, pipeline
+from bsgi_addon import bake, charts, export, pipeline
 from subprocess_render import run_bpy
 
 SIZE = 64
@@ -108,6 +108,10 @@ def core_reference(scene, cam, job, solution) -> Reference:
             if kind == "nurbs":
                 spline = next(s for s in obj.data.splines if s.type == "NURBS")
                 surfaces.append(export.nurbs_surface(f"{obj.name}", spline, obj.matrix_world))
+            elif kind == "chart":
+                triangles, loops = charts.loop_triangles(obj.data)
+                world = np.array([obj.matrix_world @ v.co for v in obj.data.vertices])
+                surfaces.append(bsgi.MeshChart(obj.name, world, triangles, exported.chart_uvs[loops]))
             else:
                 co = np.array([obj.matrix_world @ obj.data.vertices[v].co for v in obj.data.polygons[index].vertices])
                 surfaces.append(bsgi.BilinearPatch(obj.name, co) if kind == "quad" else bsgi.TrianglePatch(obj.name, co))
@@ -376,3 +380,29 @@ def test_rebake_reads_splines_stored_before_view_dependent_baking(context):
     bake.rebake(floor)
     np.testing.assert_array_equal(np.array(bpy.data.images["BSGI Floor"].pixels[:], np.float32), first)
     assert bake.stored_faces(floor)[0][1][0].kind == "glossy"
+
+
+def test_cycles_shows_a_glossy_uv_chart(context, tmp_path):
+    """A glossy floor of 6 x 6 faces solved as one UV chart (its own UV map): one spline, one
+    atlas of angular tiles over the chart's UV square, seen through the chart's UVs."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=6, y_subdivisions=6, size=2)
+    floor = bpy.context.active_object
+    floor.name = "Floor"
+    floor.data.materials.append(_metal("Steel", 0.5))
+    floor.bsgi.mesh_surfaces = "CHART"
+    scenes.add_quad("Wall", [(-1, 1, 0), (1, 1, 0), (1, 1, 1.5), (-1, 1, 1.5)],
+                    scenes.diffuse_material("Grey", (0.6, 0.6, 0.6)))
+    scenes.add_area_light(location=(0, 0, 1.2), size=0.6, energy=120.0).visible_camera = False
+    context.scene.bsgi.preset = "DRAFT"
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    pipeline.finish(context, job, solution)
+    setup_render(context.scene)
+    assert job.export.objects[0].patches[0][0] == "chart"
+    assert bake.angular_samples(bake.stored_faces(floor)) > 1
+    scene = context.scene
+    where = []
+    for view, location in VIEWS.items():
+        ref = core_reference(scene, camera_at(scene, location), job, solution)
+        where.append(check_view("Cycles, UV chart", view, render_cycles(scene, tmp_path / f"{view}.exr"), ref, job))
+    assert np.linalg.norm(where[0] - where[1]) > 0.3
