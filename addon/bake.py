@@ -1,9 +1,9 @@
 """Solved radiance -> what Blender shows: per object a float image atlas of its radiance (one
-tile per face, or a NURBS surface's parameter square), repeated for each angular sample of a
-glossy surface's disc (20)-(22); two images of the surfaces' frames (1)-(3); a UV map laying
-the faces on their tiles (a UV chart's own UVs; a NURBS surface's mesh has its UVMap); and an
-emission material that looks the atlas up through the node
-group of view_radiance.py with the direction the point is seen from.
+tile per face, a UV chart's square or a NURBS surface's parameter square), repeated for each
+angular sample of a glossy surface's disc (20)-(22); two images of the surfaces' frames (1)-(3);
+a UV map laying the faces on their tiles (a chart's own UVs; a NURBS surface's mesh has its
+UVMap); and an emission material that looks the atlas up, through the node groups of
+view_radiance.py, with the direction the point is seen from.
 
 The user's materials stay on the mesh untouched: the baked material is linked to the object's
 material slots (slot.link = 'OBJECT'), and switching the slots back to 'DATA' shows the originals."""
@@ -17,7 +17,7 @@ import numpy as np
 
 import bsgi
 
-from . import export, view_radiance
+from . import charts, export, view_radiance
 
 UV_NAME = "BSGI Radiance"
 PROP_SLOTS = "bsgi_slot_links"  # the slots' links before the bake, to restore them
@@ -220,8 +220,6 @@ def _chart_layout(obj, radiance):
     """A chart's image over its UV square, texel centres at (i + 0.5) / n as for NURBS. Texels
     outside the islands hold the spline's smooth continuation (and the frame of the nearest
     point of the chart), so filtering at an island's border never mixes in a neighbour's light."""
-    from . import charts
-
     n = chart_image_size(radiance)
     u, v = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
     world, _, _ = _world_points(obj)
@@ -329,8 +327,6 @@ def _bake_chart(obj, faces, chart_uvs) -> list:
     elif mesh.uv_layers.get(UV_NAME) is None:
         # A solution file baked onto a cleared object: the chart came from the user's UV map if
         # that is a chart; a generated one cannot be recovered.
-        from . import charts
-
         name, uvs = charts.suitable_uv_map(mesh, charts.loop_triangles(mesh)[1])
         if name is None:
             raise ValueError(f"object '{obj.name}': its chart's UV map '{UV_NAME}' is gone and none of its own UV "
