@@ -7,6 +7,7 @@ and each hit surface's SurfaceRadiance is evaluated at the hit's (u, v) along th
 the camera in the hit's frame (1)-(3). Pixels on silhouettes and face edges are left out: a
 pixel counts only if the rays through its centre and its four corners all hit the same face
 (a pixel straddling two faces blends them in neither a render nor a point evaluation)."""
+import math
 from dataclasses import dataclass
 
 import bpy
@@ -406,3 +407,32 @@ def test_cycles_shows_a_glossy_uv_chart(context, tmp_path):
         ref = core_reference(scene, camera_at(scene, location), job, solution)
         where.append(check_view("Cycles, UV chart", view, render_cycles(scene, tmp_path / f"{view}.exr"), ref, job))
     assert np.linalg.norm(where[0] - where[1]) > 0.3
+
+
+def test_atlas_tiles_hold_the_decomposed_and_lower_radiance_along_their_directions(context):
+    """Without a solve: a decomposed surface (D(u, v) + S(u, v, alpha, beta), (38)) and a
+    transmitting one (a lower-hemisphere spline). Each angular tile holds what the core's
+    SurfaceRadiance.evaluate gives along the direction the map sends its sample to (upper tiles),
+    and along that direction mirrored below the surface (lower tiles)."""
+    rng = np.random.default_rng(7)
+    glossy = _glossy_radiance(rng)
+    diffuse = bsgi.TensorSpline([bsgi.KnotVector.clamped_uniform(4, 2)] * 2)
+    diffuse.coefficients[...] = rng.uniform(0.1, 1.0, diffuse.coefficients.shape)
+    decomposed = bsgi.SurfaceRadiance("decomposed", glossy.disc_radius, glossy.upper, None, diffuse)
+    transmitting = bsgi.SurfaceRadiance("glossy", glossy.disc_radius, glossy.upper, _glossy_radiance(rng).upper)
+    hemisphere = bsgi.HemisphereMap(glossy.disc_radius)
+    for name, radiance, sides in (("Plastic", decomposed, 1), ("Frosted", transmitting, 2)):
+        quad = scenes.add_quad(name, [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+        faces = [("quad", [radiance])]
+        bake.bake_object(quad, faces)
+        t, a = bake.tile_size(radiance), bake.angular_samples(faces)
+        pixels = np.array(bpy.data.images[f"BSGI {name}"].pixels[:], np.float32).reshape(sides * a * t, a * t, 4)
+        grid = np.linspace(-glossy.disc_radius, glossy.disc_radius, a)
+        for i, j in [(a // 2, a // 2), (a // 3, a // 2 + 3), (2 * a // 3, a // 4)]:
+            assert math.hypot(grid[i], grid[j]) < glossy.disc_radius
+            direction = hemisphere.to_direction(np.array([[grid[i], grid[j]]]))[0]
+            for side in range(sides):
+                d = direction * (1, 1, -1) if side else direction
+                expected = radiance.evaluate(np.array([[1.0, 0.0]]), d[None])[0]
+                shown = pixels[(side * a + j) * t, i * t + t - 1, :3]
+                np.testing.assert_allclose(shown, expected, rtol=1e-6)
