@@ -62,7 +62,7 @@ def build():
     scene = empty_scene()
     plaster = diffuse_material("Plaster", (0.7, 0.7, 0.68))
     terracotta = diffuse_material("Terracotta", (0.75, 0.38, 0.22))
-    steel = principled_material("Steel", (0.8, 0.83, 0.87), Metallic=1.0, Roughness=0.5)
+    steel = principled_material("Steel", (0.8, 0.83, 0.87), Metallic=1.0, Roughness=0.6)
     bezier_patch("Cove", cove(), plaster)
     for k in range(4):
         bezier_patch(f"Vase {k + 1}", vase_quarter(k, (-0.45, 0.1)), terracotta)

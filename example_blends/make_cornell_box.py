@@ -34,7 +34,7 @@ def build(glossy=False):
     quad_object("Room", room, [white, red, green], [0, 0, 0, 1, 2])
     # Copper: a metal (GGX reflection with the base colour as f0), rough enough for the
     # angular splines to resolve its lobe at the preview preset.
-    tall = principled_material("Copper", (0.95, 0.64, 0.54), Metallic=1.0, Roughness=0.4) if glossy else white
+    tall = principled_material("Copper", (0.95, 0.64, 0.54), Metallic=1.0, Roughness=0.6) if glossy else white
     quad_object("TallBox", box_quads(-0.35, 0.35, 0.6, 0.6, 1.2, math.radians(-17)), [tall], [0] * 6)
     quad_object("ShortBox", box_quads(0.35, -0.35, 0.6, 0.6, 0.6, math.radians(17)), [white], [0] * 6)
     area_light("Light", (0, 0, 1.98), 30.0, size=0.5, size_y=0.4)  # emits along -z, just below the ceiling

@@ -11,8 +11,8 @@ import pathlib
 import sys
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # scene_parts, also under runpy
-from scene_parts import (area_light, camera, diffuse_material, empty_scene, main, principled_material,  # noqa: E402
-                         quad_object, rectangle, render_settings)
+from scene_parts import (area_light, camera, diffuse_material, empty_scene, main, object_settings,  # noqa: E402
+                         principled_material, quad_object, rectangle, render_settings)
 
 
 def tilted_rectangle(centre, sx, sy, tilt):
@@ -29,8 +29,12 @@ def build():
     quad_object("Floor", [rectangle(0, 0.5, 0, 5.0, 4.0)], [floor], [0])
     # Frosted glass: the transmission dominates, so the add-on solves it as a rough dielectric
     # (a second spline for the lower hemisphere); its light reaches the floor only through it.
-    glass = principled_material("Frosted glass", (1.0, 1.0, 1.0), Transmission_Weight=1.0, Roughness=0.3, IOR=1.45)
-    quad_object("Glass sheet", [tilted_rectangle((0.0, 0.0, 0.6), 0.9, 0.7, math.radians(15))], [glass], [0])
+    glass = principled_material("Frosted glass", (1.0, 1.0, 1.0), Transmission_Weight=1.0, Roughness=0.5, IOR=1.45)
+    sheet = quad_object("Glass sheet", [tilted_rectangle((0.0, 0.0, 0.6), 0.9, 0.7, math.radians(15))], [glass], [0])
+    # Refraction narrows the lobe (0.2 rad here): from it the solver would take the most angular
+    # coefficients (24 x 24 per hemisphere, minutes at the preview preset). 12 resolve the
+    # transmitted light's spread on the floor in a quarter of the time, blurring its glossy look.
+    object_settings(sheet, angular_coeffs=12)
     area_light("Light", (0.15, 0.2, 1.7), 25.0, shape="SQUARE", size=0.5)
     camera((0.0, -3.2, 2.2), (0.0, 0.0, 0.25), lens=45)
     return render_settings(scene, (640, 480))

@@ -44,8 +44,8 @@ def build():
     quad_object("Table", [rectangle(0, 0, 0, 4.0, 2.0)], [wood], [0])
     quad_object("Backdrop", [[(-2.0, 1.0, 0), (2.0, 1.0, 0), (2.0, 1.0, 2.5), (-2.0, 1.0, 2.5)]], [wall], [0])
     # Metals (GGX reflection, f0 = base colour); the same roughness, one brushed (Anisotropic).
-    silver = principled_material("Silver", (0.9, 0.9, 0.92), Metallic=1.0, Roughness=0.4)
-    gold = principled_material("Brushed gold", (1.0, 0.76, 0.33), Metallic=1.0, Roughness=0.4, Anisotropic=0.8)
+    silver = principled_material("Silver", (0.9, 0.9, 0.92), Metallic=1.0, Roughness=0.6)
+    gold = principled_material("Brushed gold", (1.0, 0.76, 0.33), Metallic=1.0, Roughness=0.6, Anisotropic=0.8)
     revolution_object("Isotropic sphere", sphere_profile(RADIUS), silver, centre=(-0.5, 0.1, RADIUS))
     revolution_object("Anisotropic sphere", sphere_profile(RADIUS), gold, centre=(0.5, 0.1, RADIUS))
     # Emission shader strength is the radiance: about 6 W/m^2 of irradiance on the table below.

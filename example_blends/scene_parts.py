@@ -199,6 +199,21 @@ def tube_object(name, path, radius, material=None):
     return nurbs_object(name, points, 3, 3, material, endpoint=(True, True), bezier=(False, True), cyclic=(False, True))
 
 
+def object_settings(obj, **settings):
+    """The add-on's per-object options (Object Properties > B-spline GI), e.g. angular_coeffs=12.
+    They are the add-on's properties, so it is registered first (addon/cli.py loads it)."""
+    sys.path.insert(0, str(HERE.parent / "addon"))
+    import cli
+
+    try:
+        cli.load_addon().register()
+    except ValueError:
+        pass  # already registered in this session
+    for key, value in settings.items():
+        setattr(obj.bsgi, key, value)
+    return obj
+
+
 def area_light(name, location, energy, *, shape="RECTANGLE", size=0.5, size_y=None, rotation=(0.0, 0.0, 0.0),
                color=(1.0, 1.0, 1.0)):
     """An area light; Blender's emit along their local -z."""

@@ -62,15 +62,18 @@ def _geometry(obj):
 
 
 def scene_description(path) -> dict:
-    """What the scene in path is made of: objects (names, types, transforms, geometry), the
-    materials in their slots (nodes and input values), the camera and render settings."""
+    """What the scene in path is made of: objects (names, types, transforms, geometry, the
+    add-on's per-object options), the materials in their slots (nodes and input values), the
+    camera and render settings."""
     bpy.ops.wm.open_mainfile(filepath=str(path))
     scene = bpy.context.scene
     objects = {
         obj.name: {"type": obj.type, "parent": obj.parent.name if obj.parent else None,
                    "transform": _rounded(c for row in obj.matrix_world for c in row),
                    "materials": [(slot.link, _material(slot.material)) for slot in obj.material_slots],
-                   "geometry": _geometry(obj)}
+                   "geometry": _geometry(obj),
+                   "solver_options": {key: getattr(obj.bsgi, key)
+                                      for key in ("representation", "spatial_coeffs", "angular_coeffs")}}
         for obj in scene.objects
     }
     world = scene.world
