@@ -44,7 +44,7 @@ def vase_quarter(k, centre):
 def cove():
     """Floor to wall in one bicubic patch: u from +x to -x, v from the front up the wall, facing the room."""
     sweep = [(-1.4, 0.0), (0.7, 0.0), (1.4, 0.3), (1.4, 1.8)]  # (y, z)
-    xs = [2.0, 0.667, -0.667, -2.0]
+    xs = [2.7, 0.9, -0.9, -2.7]
     return [[(x, y, z) for x in xs] for y, z in sweep]
 
 

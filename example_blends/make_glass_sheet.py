@@ -36,7 +36,7 @@ def build():
     # transmitted light's spread on the floor in a quarter of the time, blurring its glossy look.
     object_settings(sheet, angular_coeffs=12)
     area_light("Light", (0.15, 0.2, 1.7), 25.0, shape="SQUARE", size=0.5)
-    camera((0.0, -3.2, 2.2), (0.0, 0.0, 0.25), lens=45)
+    camera((0.0, -2.9, 2.6), (0.0, 0.15, 0.15), lens=40)
     return render_settings(scene, (640, 480))
 
 
