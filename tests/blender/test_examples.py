@@ -16,6 +16,8 @@ SCRIPTS = sorted(EXAMPLES_DIR.glob("make_*.py"))
 # .blend file name -> the script that writes it
 EXAMPLES = {name: script for script in SCRIPTS for name in runpy.run_path(str(script))["BUILDERS"]}
 DIGITS = 5  # floats are compared rounded: Blender stores them in single precision
+# Scenes whose draft solve takes several seconds (glossy 4D splines on many surfaces): slow tests.
+SLOW_TO_SOLVE = {"cornell_box_glossy.blend", "glossy_spheres.blend"}
 
 
 def test_every_committed_blend_has_its_script():
@@ -106,8 +108,8 @@ def _images(node_tree, seen=None):
     return seen
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("name", sorted(EXAMPLES))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_TO_SOLVE else n
+                                  for n in sorted(EXAMPLES)])
 def test_example_solves_and_bakes_at_draft(name, tmp_path, capsys):
     out = tmp_path / name
     status = cli.main([str(EXAMPLES_DIR / name), "--out", str(out), "--render", str(tmp_path / "view.png"),
