@@ -1,7 +1,7 @@
 """Generates bezier_patches.blend beside this file: NURBS surface objects in Bézier mode
-(use_bezier_u/v, order 4, so each 4 x 4 block of points is a bicubic Bézier patch), one spline
-per object: a vase of four patches (the Utah teapot's body is made the same way), a cove
-backdrop sweeping from floor to wall, and a wavy metal sheet of two patches. Run with the `bpy`
+(use_bezier_u/v, order 4, so each 4 x 4 block of points is a bicubic Bézier patch): a vase, one
+object of four patches (the Utah teapot's body is made the same way), a cove backdrop sweeping
+from floor to wall, and a wavy metal sheet of two patches in one spline. Run with the `bpy`
 module:
 
     .venv/bin/python example_blends/make_bezier_patches.py [--if-missing] [--out-dir DIR]
@@ -13,8 +13,8 @@ import pathlib
 import sys
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # scene_parts, also under runpy
-from scene_parts import (area_light, camera, diffuse_material, empty_scene, main, nurbs_object,  # noqa: E402
-                         principled_material, render_settings)
+from scene_parts import (area_light, camera, diffuse_material, empty_scene, join, main,  # noqa: E402
+                         nurbs_object, principled_material, render_settings)
 
 # A cubic Bézier quarter circle: inner control points at this fraction of the radius along the tangents.
 QUARTER = 4 / 3 * math.tan(math.pi / 8)
@@ -64,8 +64,8 @@ def build():
     terracotta = diffuse_material("Terracotta", (0.75, 0.38, 0.22))
     steel = principled_material("Steel", (0.8, 0.83, 0.87), Metallic=1.0, Roughness=0.6)
     bezier_patch("Cove", cove(), plaster)
-    for k in range(4):
-        bezier_patch(f"Vase {k + 1}", vase_quarter(k, (-0.45, 0.1)), terracotta)
+    # One object of four splines, as the Utah teapot's body is one set of patches.
+    join("Vase", [bezier_patch(f"Vase {k + 1}", vase_quarter(k, (-0.45, 0.1)), terracotta) for k in range(4)])
     bezier_patch("Wave", wave(), steel)
     area_light("Light", (-0.6, -0.8, 2.0), 60.0, size=0.6, size_y=0.4, rotation=(math.radians(-20), 0.0, 0.0))
     camera((0.2, -3.4, 1.5), (0.2, 0.1, 0.45), lens=42)

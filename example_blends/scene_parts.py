@@ -139,6 +139,19 @@ def nurbs_object(name, points, order_u, order_v, material=None, *, endpoint=(Tru
     return obj
 
 
+def join(name, objects):
+    """One object of the objects' splines (or faces), as Blender's Join makes it; named name."""
+    view_layer = bpy.context.view_layer
+    for obj in view_layer.objects:
+        obj.select_set(obj in objects)
+    view_layer.objects.active = objects[0]
+    bpy.ops.object.join()
+    joined = view_layer.objects.active
+    joined.name = joined.data.name = name
+    joined.select_set(False)
+    return joined
+
+
 def circle_points(radius):
     """Blender's exact NURBS circle (as in its NURBS sphere): 8 points of a cyclic quadratic
     curve in Bézier mode, counter-clockwise seen from +z from angle 180 degrees, (x, y, weight)."""
