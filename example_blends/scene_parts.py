@@ -165,8 +165,9 @@ def circle_points(radius):
 
 def revolution_object(name, profile, material=None, *, centre=(0.0, 0.0, 0.0), order=3, bezier=True):
     """A surface of revolution about the vertical axis through centre (the object's origin): u
-    runs along the profile, rows of (radius, height, weight), v around Blender's exact circle. A profile running upwards
-    on the outside gives outward normals (Blender's face normal -(s_u x s_v))."""
+    runs along the profile, rows of (radius, height, weight), v around Blender's exact circle. A
+    profile running upwards on the outside gives outward normals (Blender's face normal
+    -(s_u x s_v))."""
     # The unit circle's points (corners at sqrt 2) scaled by each profile row's radius.
     points = [[(x * r, y * r, z, w * wc) for r, z, w in profile] for x, y, wc in circle_points(1.0)]
     obj = nurbs_object(name, points, order, 3, material, endpoint=(True, True), bezier=(bezier, True),
@@ -175,13 +176,13 @@ def revolution_object(name, profile, material=None, *, centre=(0.0, 0.0, 0.0), o
     return obj
 
 
-def arc_profile(centre_z, radius, start_angle, end_angle, quarters):
+def arc_profile(centre_z, radius, start_angle, end_angle, pieces):
     """A circular arc in the (radius, height) plane as rational quadratic Bézier rows
-    (2 * quarters + 1 rows, the first included); angles from the upward vertical, clockwise
-    towards +radius, in radians, each piece of (end - start) / quarters below 180 degrees."""
-    step = (end_angle - start_angle) / quarters
+    (2 * pieces + 1 rows, the first included); angles from the upward vertical, clockwise
+    towards +radius, in radians, each piece of (end - start) / pieces below 180 degrees."""
+    step = (end_angle - start_angle) / pieces
     rows = []
-    for k in range(quarters):
+    for k in range(pieces):
         a0, a1 = start_angle + k * step, start_angle + (k + 1) * step
         mid = (a0 + a1) / 2
         half = step / 2

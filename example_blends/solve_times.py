@@ -31,7 +31,8 @@ def main(argv=None) -> int:
 
     blends = [pathlib.Path(b) for b in args.blends] or sorted(HERE.glob("*.blend"))
     print(f"preset {args.preset}")
-    print(f"{'scene':<22} {'solve s':>8} {'CPU s':>8} {'surfaces':>8} {'coefficients':>12} {'bounces':>7}  representations")
+    print(f"{'scene':<22} {'solve s':>8} {'CPU s':>8} {'surfaces':>8} {'coefficients':>12} {'bounces':>7}  "
+          "representations")
     for blend in blends:
         bpy.ops.wm.open_mainfile(filepath=str(blend.resolve()))
         bpy.context.scene.bsgi.preset = args.preset.upper()
