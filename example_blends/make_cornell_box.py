@@ -1,7 +1,8 @@
-"""Generates cornell_box.blend beside this file: a Cornell box of quads with diffuse coloured
-materials, two boxes, one rectangular area light and a camera. Run with the `bpy` module:
+"""Generates the Cornell boxes beside this file: cornell_box.blend (the demo: quads with diffuse
+coloured materials, two boxes, one rectangular area light, a camera) and cornell_box_glossy.blend
+(the same box with the tall box in brushed copper, a Principled metal). Run with the `bpy` module:
 
-    .venv/bin/python example_blends/make_cornell_box.py [--if-missing]
+    .venv/bin/python example_blends/make_cornell_box.py [--if-missing] [--out-dir DIR]
 """
 from __future__ import annotations
 
@@ -9,66 +10,16 @@ import math
 import pathlib
 import sys
 
-import bpy
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # scene_parts, also under runpy
+from scene_parts import (area_light, box_quads, camera, diffuse_material, empty_scene, main,  # noqa: E402
+                         principled_material, quad_object, render_settings)
 
 HERE = pathlib.Path(__file__).resolve().parent
 OUT = HERE / "cornell_box.blend"
 
 
-def diffuse_material(name, rgb):
-    m = bpy.data.materials.new(name)
-    if m.node_tree is None:  # Blender 4.x: materials start without nodes
-        m.use_nodes = True
-    nodes = m.node_tree.nodes
-    nodes.clear()
-    out = nodes.new("ShaderNodeOutputMaterial")
-    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.inputs["Color"].default_value = (*rgb, 1.0)
-    m.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    m.diffuse_color = (*rgb, 1.0)
-    return m
-
-
-def quad_object(name, quads, materials, material_of_quad):
-    """A mesh object of quads given as 4 corners each, counter-clockwise seen from the lit side."""
-    verts, faces = [], []
-    for q in quads:
-        faces.append(tuple(range(len(verts), len(verts) + 4)))
-        verts.extend(q)
-    mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata(verts, [], faces)
-    for m in materials:
-        mesh.materials.append(m)
-    for poly, k in zip(mesh.polygons, material_of_quad):
-        poly.material_index = k
-    mesh.update()
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
-
-def box_quads(cx, cy, sx, sy, h, angle):
-    """A closed box standing on the floor, rotated by angle about z, outward normals."""
-    c, s = math.cos(angle), math.sin(angle)
-
-    def p(x, y, z):
-        return (cx + c * x - s * y, cy + s * x + c * y, z)
-
-    a, b = sx / 2, sy / 2
-    bottom = [p(-a, -b, 0), p(-a, b, 0), p(a, b, 0), p(a, -b, 0)]
-    top = [p(-a, -b, h), p(a, -b, h), p(a, b, h), p(-a, b, h)]
-    sides = [
-        [p(-a, -b, 0), p(a, -b, 0), p(a, -b, h), p(-a, -b, h)],
-        [p(a, -b, 0), p(a, b, 0), p(a, b, h), p(a, -b, h)],
-        [p(a, b, 0), p(-a, b, 0), p(-a, b, h), p(a, b, h)],
-        [p(-a, b, 0), p(-a, -b, 0), p(-a, -b, h), p(-a, b, h)],
-    ]
-    return [bottom, top] + sides
-
-
-def build():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
+def build(glossy=False):
+    scene = empty_scene()
     white = diffuse_material("White", (0.73, 0.73, 0.73))
     red = diffuse_material("Red", (0.63, 0.065, 0.05))
     green = diffuse_material("Green", (0.14, 0.45, 0.091))
@@ -81,39 +32,18 @@ def build():
         [(1, 1, 0), (1, -1, 0), (1, -1, 2), (1, 1, 2)],  # right, normal -x
     ]
     quad_object("Room", room, [white, red, green], [0, 0, 0, 1, 2])
-    quad_object("TallBox", box_quads(-0.35, 0.35, 0.6, 0.6, 1.2, math.radians(-17)), [white], [0] * 6)
+    # Copper: a metal (GGX reflection with the base colour as f0), rough enough for the
+    # angular splines to resolve its lobe at the preview preset.
+    tall = principled_material("Copper", (0.95, 0.64, 0.54), Metallic=1.0, Roughness=0.6) if glossy else white
+    quad_object("TallBox", box_quads(-0.35, 0.35, 0.6, 0.6, 1.2, math.radians(-17)), [tall], [0] * 6)
     quad_object("ShortBox", box_quads(0.35, -0.35, 0.6, 0.6, 0.6, math.radians(17)), [white], [0] * 6)
+    area_light("Light", (0, 0, 1.98), 30.0, size=0.5, size_y=0.4)  # emits along -z, just below the ceiling
+    camera((0, -3.6, 1.0), (0, 0, 1.0), lens=45)
+    return render_settings(scene)
 
-    light = bpy.data.lights.new("Light", "AREA")
-    light.shape = "RECTANGLE"
-    light.size, light.size_y = 0.5, 0.4
-    light.energy = 30.0
-    light_obj = bpy.data.objects.new("Light", light)
-    light_obj.location = (0, 0, 1.98)  # emits along -z, just below the ceiling
-    scene.collection.objects.link(light_obj)
 
-    cam = bpy.data.cameras.new("Camera")
-    cam.lens = 45
-    cam_obj = bpy.data.objects.new("Camera", cam)
-    cam_obj.location = (0, -3.6, 1.0)
-    cam_obj.rotation_euler = (math.radians(90), 0, 0)
-    scene.collection.objects.link(cam_obj)
-    scene.camera = cam_obj
-
-    world = bpy.data.worlds.new("Black")
-    world.color = (0, 0, 0)
-    if world.node_tree is not None:  # 5.x worlds start with a grey Background node
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
-    scene.world = world
-    scene.render.engine = "CYCLES"
-    scene.view_settings.view_transform = "Standard"
-    scene.render.resolution_x = scene.render.resolution_y = 512
-    return scene
-
+# The .blend files this script writes, and the function building each scene.
+BUILDERS = {"cornell_box.blend": build, "cornell_box_glossy.blend": lambda: build(glossy=True)}
 
 if __name__ == "__main__":
-    if "--if-missing" in sys.argv and OUT.exists():
-        sys.exit(0)
-    build()
-    bpy.ops.wm.save_as_mainfile(filepath=str(OUT))
-    print(f"wrote {OUT}")
+    main(BUILDERS)
