@@ -124,9 +124,10 @@ def test_example_solves_and_bakes_at_draft(name, tmp_path, capsys):
     assert geometry
     for obj in geometry:
         assert bake.is_baked(obj), f"{name}: '{obj.name}' is not baked"
-        for _, splines in bake.stored_faces(obj):
-            for spline in splines:
-                assert np.isfinite(spline.coefficients).all(), f"{name}: '{obj.name}' has non-finite radiance"
+        for _, radiances in bake.stored_faces(obj):
+            for radiance in filter(None, radiances):  # None: an emitter's face
+                for spline in filter(None, (radiance.upper, radiance.lower, radiance.diffuse)):
+                    assert np.isfinite(spline.coefficients).all(), f"{name}: '{obj.name}' has non-finite radiance"
         # The bake is shown: the slots hold the baked materials (one per spline for several splines).
         images = set()
         for slot in obj.material_slots:
@@ -138,4 +139,5 @@ def test_example_solves_and_bakes_at_draft(name, tmp_path, capsys):
             image.pixels.foreach_get(pixels)
             rgb = pixels.reshape(-1, image.channels)[:, :3]
             assert np.isfinite(rgb).all(), f"{name}: image '{image_name}' has non-finite texels"
-            assert rgb.max() > 1e-3, f"{name}: image '{image_name}' is black"
+            if not image_name.endswith((" tangent", " normal")):  # the frame images of view-dependent bakes
+                assert rgb.max() > 1e-3, f"{name}: image '{image_name}' is black"
