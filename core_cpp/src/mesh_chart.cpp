@@ -81,6 +81,7 @@ MeshChart::MeshChart(std::string name, std::vector<double> positions, std::vecto
             ++degenerate_uv_;
         }
     }
+    if (!(area_ > 1e-12 * size_ * size_)) fail("zero area (every triangle is degenerate)");
     if (degenerate_uv_ == nt) fail("the UV map has no area (every triangle's UVs are collinear)");
     // The frame's normal follows the winding (the side Blender renders as front). Triangles
     // without area borrow the normal of the triangles around them, then the mesh's mean normal.

@@ -194,6 +194,8 @@ NurbsSurface::NurbsSurface(std::string name, std::vector<double> control, NurbsD
                     derivatives(su, sv, p, du, dv, duv);
                     area_ += 0.25 * (bu[a + 1] - bu[a]) * (bv[b + 1] - bv[b]) * gw[i] * gw[j] * length(cross(du, dv));
                 }
+    // Control points on a line (or a surface collapsed to one): nothing to receive or emit light.
+    if (!(area_ > 1e-12 * size_ * size_)) fail("zero area (its control points lie on a line)");
 }
 
 std::vector<double> NurbsSurface::breakpoints(const std::vector<double>& knots, std::pair<double, double> range) const {

@@ -14,6 +14,8 @@ void check_corners(const std::string& name, std::initializer_list<Vec3> corners)
 }
 
 void check_area(const std::string& name, double area, double size) {
+    if (std::isinf(area) || std::isinf(size))
+        throw std::invalid_argument("surface '" + name + "': coordinates too large (its area overflows a double)");
     // Relative to the squared size, so tiny but valid scenes pass and slivers do not.
     if (!(area > 1e-12 * size * size) || !(size > 0))
         throw std::invalid_argument("surface '" + name + "': zero area (degenerate face)");

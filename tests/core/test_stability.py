@@ -320,6 +320,16 @@ def test_no_light_leaks_under_a_box_standing_on_the_floor(unit_box_on_floor, off
 
 # ---- unusable input ----
 
+def _nurbs_on_a_line():
+    points = np.array([[x, 0, 0, 1] for _ in range(4) for x in range(4)], float)
+    return bsgi.NurbsSurface("Line", points, 4, 4, 4, 4, endpoint_u=True, endpoint_v=True)
+
+
+def _mesh_without_area():
+    return bsgi.MeshChart("Flat mesh", np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float), np.array([[0, 1, 2]]),
+                          np.array([[0, 0], [1, 0], [1, 1]], float))
+
+
 DEGENERATE = {
     "collinear triangle": (lambda s: s.add_triangle("Sliver", np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float),
                                                     albedo=[0.5] * 3, emission=[0] * 3), "Sliver", "zero area"),
@@ -327,8 +337,13 @@ DEGENERATE = {
                         "Dot", "zero area"),
     "NaN vertex": (lambda s: s.add_bilinear_patch("Broken", np.array([[0, 0, 0], [1, 0, 0], [1, np.nan, 0], [0, 1, 0]]),
                                                   albedo=[0.5] * 3, emission=[0] * 3), "Broken", "NaN or infinite"),
+    "overflowing coordinates": (lambda s: s.add_bilinear_patch("Galaxy", 1e200 * rect([0, 0, 0], [1, 0, 0], [0, 1, 0]),
+                                                               albedo=[0.5] * 3, emission=[0] * 3), "Galaxy", "too large"),
     "flat disc light": (lambda s: s.add_disk("Disc", [0, 0, 1], [1, 0, 0], [2, 0, 0], albedo=[0] * 3, emission=[1] * 3),
                         "Disc", "zero area"),
+    "NURBS on a line": (lambda s: s.add_surface(_nurbs_on_a_line(), albedo=[0.5] * 3, emission=[0] * 3), "Line", "zero area"),
+    "mesh without area": (lambda s: s.add_surface(_mesh_without_area(), albedo=[0.5] * 3, emission=[0] * 3),
+                          "Flat mesh", "zero area"),
     "infinite emission": (lambda s: s.add_bilinear_patch("Sun", rect([0, 0, 1], [0, 1, 0], [1, 0, 0]), albedo=[0] * 3,
                                                          emission=[np.inf] * 3), "Sun", "emission must be finite"),
     "albedo above 1": (lambda s: s.add_bilinear_patch("Glow", rect([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[1.2] * 3,
