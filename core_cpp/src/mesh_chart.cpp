@@ -81,7 +81,6 @@ MeshChart::MeshChart(std::string name, std::vector<double> positions, std::vecto
             ++degenerate_uv_;
         }
     }
-    if (!(area_ > 1e-12 * size_ * size_)) fail("zero area (every triangle is degenerate)");
     if (degenerate_uv_ == nt) fail("the UV map has no area (every triangle's UVs are collinear)");
     // The frame's normal follows the winding (the side Blender renders as front). Triangles
     // without area borrow the normal of the triangles around them, then the mesh's mean normal.
@@ -246,7 +245,7 @@ Tessellation MeshChart::tessellate() const {
         const auto& [vertex, bits, corner] = corners[k];
         if (k == 0 || vertex != std::get<0>(corners[k - 1]) || bits != std::get<1>(corners[k - 1])) {
             const Vec3& p = positions_[vertex];
-            out.positions.insert(out.positions.end(), {float(p.x), float(p.y), float(p.z)});
+            out.positions.insert(out.positions.end(), {p.x, p.y, p.z});
             float uv[2];
             std::memcpy(uv, &bits, sizeof uv);
             out.uvs.insert(out.uvs.end(), {uv[0], uv[1]});

@@ -194,8 +194,6 @@ NurbsSurface::NurbsSurface(std::string name, std::vector<double> control, NurbsD
                     derivatives(su, sv, p, du, dv, duv);
                     area_ += 0.25 * (bu[a + 1] - bu[a]) * (bv[b + 1] - bv[b]) * gw[i] * gw[j] * length(cross(du, dv));
                 }
-    // Control points on a line (or a surface collapsed to one): nothing to receive or emit light.
-    if (!(area_ > 1e-12 * size_ * size_)) fail("zero area (its control points lie on a line)");
 }
 
 std::vector<double> NurbsSurface::breakpoints(const std::vector<double>& knots, std::pair<double, double> range) const {
@@ -348,7 +346,7 @@ Tessellation NurbsSurface::grid(bool lifted) const {
     for (size_t j = 0; j < nv; ++j)
         for (size_t i = 0; i < nu; ++i) {
             const Vec3& p = P[j * nu + i];
-            t.positions.insert(t.positions.end(), {float(p.x), float(p.y), float(p.z)});
+            t.positions.insert(t.positions.end(), {p.x, p.y, p.z});
             t.uvs.insert(t.uvs.end(), {float(pu[i]), float(pv[j])});
         }
     for (uint32_t j = 0; j + 1 < nv; ++j)
