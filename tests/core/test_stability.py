@@ -190,15 +190,18 @@ def unit_box_on_floor():
     return bsgi.solve(box_on_floor(1.0), settings(spatial_coeffs=10))
 
 
-@pytest.mark.parametrize("scale", [1e-3, 1e4])
-def test_tiny_and_huge_scenes_give_the_unit_scenes_radiance(unit_box_on_floor, scale):
-    # Radiance does not depend on the unit: every tolerance in the core is relative to the scene.
-    sol = bsgi.solve(box_on_floor(scale), settings(spatial_coeffs=10))
+@pytest.mark.parametrize("scale, offset", [(1e-3, (0, 0, 0)), (1e4, (0, 0, 0)), (1e-3, (100, 50, -30)), (1e4, (1e6, 0, 0))])
+def test_tiny_and_huge_scenes_give_the_unit_scenes_radiance(unit_box_on_floor, scale, offset):
+    # Radiance depends neither on the unit nor on where the scene is: every tolerance in the core
+    # is relative to the scene's extent, and Embree's float coordinates are relative to its
+    # centre (a 1e-3 scene 100 units from the origin was all dark: its ray offsets, scaled by
+    # the distance from the origin, were as large as the scene).
+    sol = bsgi.solve(box_on_floor(scale, offset), settings(spatial_coeffs=10))
     surfaces = range(7)
     ref = radiance_at(unit_box_on_floor, surfaces)
     got = radiance_at(sol, surfaces)
     diff = np.abs(got - ref).max() / ref.max()
-    print(f"\nbox on a floor at scale {scale:g}: max difference from the unit scene {diff:.2e} of the peak; "
+    print(f"\nbox on a floor at scale {scale:g}, {offset} from the origin: max difference from the unit scene {diff:.2e} of the peak; "
           f"{sol.stats['bounces']} bounces (unit scene {unit_box_on_floor.stats['bounces']})")
     assert np.isfinite(got).all()
     assert diff <= 1e-6
