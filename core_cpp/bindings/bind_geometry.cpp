@@ -129,7 +129,7 @@ void bind_geometry(py::module_& m) {
         .def("tessellate", [](const Surface& s, bool for_rays) {
             const Tessellation t = for_rays ? s.tessellate_for_rays() : s.tessellate();
             py::dict d;
-            d["positions"] = py::array_t<float>({py::ssize_t(t.positions.size() / 3), py::ssize_t(3)}, t.positions.data());
+            d["positions"] = py::array_t<double>({py::ssize_t(t.positions.size() / 3), py::ssize_t(3)}, t.positions.data());
             d["uvs"] = py::array_t<float>({py::ssize_t(t.uvs.size() / 2), py::ssize_t(2)}, t.uvs.data());
             d["triangles"] = py::array_t<uint32_t>({py::ssize_t(t.triangles.size() / 3), py::ssize_t(3)}, t.triangles.data());
             return d;

@@ -43,7 +43,7 @@ Tessellation DiskPatch::tessellate() const {
         const Vec3 pts[3] = {c_, evaluate(1, v0).p, evaluate(1, v1).p};
         const double uvs[6] = {0, 0.5 * (v0 + v1), 1, v0, 1, v1};
         for (int i = 0; i < 3; ++i) {
-            t.positions.insert(t.positions.end(), {float(pts[i].x), float(pts[i].y), float(pts[i].z)});
+            t.positions.insert(t.positions.end(), {pts[i].x, pts[i].y, pts[i].z});
             t.uvs.insert(t.uvs.end(), {float(uvs[2 * i]), float(uvs[2 * i + 1])});
         }
         t.triangles.insert(t.triangles.end(), {uint32_t(3 * k), uint32_t(3 * k + 1), uint32_t(3 * k + 2)});

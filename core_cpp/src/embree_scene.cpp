@@ -96,7 +96,9 @@ TriangleRecord make_record(const Tessellation& tess, size_t t) {
     return r;
 }
 
-void init_ray(RTCRay& ray, const Vec3& o, const Vec3& d, double tnear, double tfar) {
+// Origins go to Embree relative to the scene's centre (see RayScene::commit).
+void init_ray(RTCRay& ray, const Vec3& world_origin, const Vec3& centre, const Vec3& d, double tnear, double tfar) {
+    const Vec3 o = world_origin - centre;
     ray.org_x = float(o.x), ray.org_y = float(o.y), ray.org_z = float(o.z);
     ray.dir_x = float(d.x), ray.dir_y = float(d.y), ray.dir_z = float(d.z);
     ray.tnear = float(std::max(0.0, tnear));
@@ -104,10 +106,10 @@ void init_ray(RTCRay& ray, const Vec3& o, const Vec3& d, double tnear, double tf
     ray.time = 0, ray.mask = 0xFFFFFFFFu, ray.id = 0, ray.flags = 0;
 }
 
-void init_rayhit(RTCRayHit& rh, const RayBatch& rays, size_t i) {
+void init_rayhit(RTCRayHit& rh, const RayBatch& rays, size_t i, const Vec3& centre) {
     const double* o = rays.origins + 3 * i;
     const double* d = rays.directions + 3 * i;
-    init_ray(rh.ray, {o[0], o[1], o[2]}, {d[0], d[1], d[2]}, rays.tnear ? rays.tnear[i] : 0.0,
+    init_ray(rh.ray, {o[0], o[1], o[2]}, centre, {d[0], d[1], d[2]}, rays.tnear ? rays.tnear[i] : 0.0,
              rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity());
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
@@ -121,11 +123,15 @@ struct RayScene::Impl {
     struct GeometryInfo {
         int surface;
         std::vector<TriangleRecord, HugePageAllocator<TriangleRecord>> records;  // per triangle
+        RTCGeometry geometry = nullptr;  // until commit(): its vertices wait for the centre
+        float* vertices = nullptr;
+        std::vector<double> positions;
     };
     std::vector<GeometryInfo> geometries;  // indexed by Embree geometry id
     bool committed = false;
     size_t triangles = 0;
     Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    Vec3 centre{0, 0, 0};
 
     void check(const char* what) const {
         const RTCError err = rtcGetDeviceError(device);
@@ -156,6 +162,8 @@ RayScene::RayScene() : impl_(new Impl) {
 }
 
 RayScene::~RayScene() {
+    for (Impl::GeometryInfo& g : impl_->geometries)
+        if (g.geometry) rtcReleaseGeometry(g.geometry);  // added, never committed
     if (impl_->scene) rtcReleaseScene(impl_->scene);
     if (impl_->device) rtcReleaseDevice(impl_->device);
 }
@@ -173,13 +181,11 @@ void RayScene::add(int surface_id, const Tessellation& tess) {
     auto* ib = static_cast<uint32_t*>(
         rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), nt));
     impl_->check("rtcSetNewGeometryBuffer");
-    std::memcpy(vb, tess.positions.data(), tess.positions.size() * sizeof(float));
     std::memcpy(ib, tess.triangles.data(), tess.triangles.size() * sizeof(uint32_t));
-    rtcCommitGeometry(geom);
     const unsigned id = rtcAttachGeometry(impl_->scene, geom);
-    rtcReleaseGeometry(geom);
     if (id != impl_->geometries.size()) throw std::logic_error("Embree geometry ids are not sequential");
-    Impl::GeometryInfo info{surface_id, std::vector<TriangleRecord, HugePageAllocator<TriangleRecord>>(nt)};
+    Impl::GeometryInfo info{surface_id, std::vector<TriangleRecord, HugePageAllocator<TriangleRecord>>(nt), geom, vb,
+                            tess.positions};
     for (size_t t = 0; t < nt; ++t) info.records[t] = make_record(tess, t);
     impl_->geometries.push_back(std::move(info));
     impl_->triangles += nt;
@@ -191,6 +197,18 @@ void RayScene::add(int surface_id, const Tessellation& tess) {
 }
 
 void RayScene::commit() {
+    // Embree works in float, whose rounding grows with the distance from the origin: vertices
+    // (and ray origins) are given relative to the centre of the scene's box, so a small scene
+    // far from the origin keeps the precision of its own size.
+    if (impl_->triangles > 0) impl_->centre = (impl_->lo + impl_->hi) * 0.5;
+    for (Impl::GeometryInfo& g : impl_->geometries) {
+        for (size_t k = 0; k < g.positions.size(); ++k) g.vertices[k] = float(g.positions[k] - impl_->centre[k % 3]);
+        rtcCommitGeometry(g.geometry);
+        rtcReleaseGeometry(g.geometry);
+        g.geometry = nullptr;
+        g.vertices = nullptr;
+        g.positions = std::vector<double>();
+    }
     rtcCommitScene(impl_->scene);
     impl_->check("rtcCommitScene");
     impl_->committed = true;
@@ -207,7 +225,7 @@ RayHit RayScene::closest_hit(const Vec3& o, const Vec3& d, double tnear, double 
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh;
-    init_ray(rh.ray, o, d, tnear, tfar);
+    init_ray(rh.ray, o, impl_->centre, d, tnear, tfar);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(impl_->scene, &context, &rh);
@@ -229,7 +247,7 @@ void RayScene::closest_hit_block(const RayBatch& rays, size_t begin, size_t end,
         const size_t n = std::min(kBlock, end - start);
         for (size_t k = 0; k < n; ++k) {
             RTCRayHit rh;
-            init_rayhit(rh, rays, start + k);
+            init_rayhit(rh, rays, start + k, impl_->centre);
             rtcIntersect1(impl_->scene, &context, &rh);
             found[k] = {rh.hit.geomID, rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v};
             // The record is needed only after the whole block is traced: fetch it meanwhile.
@@ -249,7 +267,7 @@ void RayScene::raw_closest_hit_batch(const RayBatch& rays, float* t, int32_t* su
         rtcInitIntersectContext(&context);
         for (size_t i = begin; i < end; ++i) {
             RTCRayHit rh;
-            init_rayhit(rh, rays, i);
+            init_rayhit(rh, rays, i, impl_->centre);
             rtcIntersect1(impl_->scene, &context, &rh);
             const bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
             t[i] = hit ? rh.ray.tfar : std::numeric_limits<float>::infinity();
@@ -262,7 +280,7 @@ bool RayScene::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar)
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRay ray;
-    init_ray(ray, o, d, tnear, tfar);
+    init_ray(ray, o, impl_->centre, d, tnear, tfar);
     rtcOccluded1(impl_->scene, &context, &ray);
     return ray.tfar == -std::numeric_limits<float>::infinity();
 }

@@ -245,7 +245,7 @@ Tessellation MeshChart::tessellate() const {
         const auto& [vertex, bits, corner] = corners[k];
         if (k == 0 || vertex != std::get<0>(corners[k - 1]) || bits != std::get<1>(corners[k - 1])) {
             const Vec3& p = positions_[vertex];
-            out.positions.insert(out.positions.end(), {float(p.x), float(p.y), float(p.z)});
+            out.positions.insert(out.positions.end(), {p.x, p.y, p.z});
             float uv[2];
             std::memcpy(uv, &bits, sizeof uv);
             out.uvs.insert(out.uvs.end(), {uv[0], uv[1]});

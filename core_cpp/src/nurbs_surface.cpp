@@ -346,7 +346,7 @@ Tessellation NurbsSurface::grid(bool lifted) const {
     for (size_t j = 0; j < nv; ++j)
         for (size_t i = 0; i < nu; ++i) {
             const Vec3& p = P[j * nu + i];
-            t.positions.insert(t.positions.end(), {float(p.x), float(p.y), float(p.z)});
+            t.positions.insert(t.positions.end(), {p.x, p.y, p.z});
             t.uvs.insert(t.uvs.end(), {float(pu[i]), float(pv[j])});
         }
     for (uint32_t j = 0; j + 1 < nv; ++j)

@@ -13,9 +13,10 @@ namespace bsgi {
 
 namespace {
 
-// Ray origins are lifted this fraction of the scene's magnitude: Embree's float arithmetic
-// loses about 1e-7 of it, so this clears rounding by two orders with margin, and stays far
-// below any feature a radiance spline resolves.
+// Ray origins are lifted this fraction of the scene's extent: Embree's float arithmetic (on
+// coordinates relative to the scene's centre, see RayScene::commit) loses about 1e-7 of it, so
+// this clears rounding by two orders with margin, and stays far below any feature a radiance
+// spline resolves.
 constexpr double kOffsetRelative = 1e-5;
 
 // Results go out with non-temporal stores where available: they are written once and not read
@@ -56,9 +57,7 @@ RayCaster::RayCaster(std::vector<const Surface*> surfaces) : surfaces_(std::move
     rays_.commit();
     Vec3 lo, hi;
     rays_.bounds(lo, hi);
-    if (rays_.triangle_count() > 0)
-        magnitude_ = std::max({length(hi - lo), std::abs(lo.x), std::abs(lo.y), std::abs(lo.z), std::abs(hi.x),
-                               std::abs(hi.y), std::abs(hi.z)});
+    if (rays_.triangle_count() > 0) magnitude_ = length(hi - lo);
     if (!(magnitude_ > 0)) magnitude_ = 1;
     offset_ = kOffsetRelative * magnitude_;
 }

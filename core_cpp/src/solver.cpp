@@ -1,6 +1,7 @@
 #include "bsgi/solver.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -318,6 +319,91 @@ std::vector<const Receiver*> index_by_surface(const Scene& scene, const std::vec
     return of;
 }
 
+// When to stop bouncing, and the geometric tail of the bounces not taken, per receiver and
+// channel. Judged per receiver, not over the whole scene, so that a part lit a million times
+// brighter, or a separate room of another albedo, neither stops the bounces before a dim part
+// has converged nor lends it its decay. Increments are taken in pairs of consecutive bounces,
+// P_k = I_k + I_(k-1), and their decay over two bounces, rho2 = P_k / P_(k-2): where light only
+// goes back and forth between two surfaces (two facing plates) each gets light every other
+// bounce, and the single-bounce ratio is meaningless. The bounces still to come then add
+// rho2 / (1 - rho2) (L_k + L_(k-1)); its uncertainty is judged from the change of rho2 against
+// the value two bounces earlier (an independent pair).
+class BounceConvergence {
+public:
+    // Starts from the direct light, increment 0 (in L).
+    explicit BounceConvergence(const std::vector<Receiver>& receivers) : state_(receivers.size()) {
+        const auto sums = maxima(receivers);
+        for (size_t k = 0; k < receivers.size(); ++k)
+            for (int c = 0; c < 3; ++c) state_[k][c].increment = state_[k][c].pair[0] = sums[k][c];
+    }
+
+    // After a bounce (its increment in L, the cumulative light in Le): the relative radiance
+    // still missing (without extrapolation) or the uncertainty of the tail (with it), the
+    // largest over receivers and channels; `last_increment` gets the largest relative increment.
+    double update(const std::vector<Receiver>& receivers, bool extrapolate, double& last_increment) {
+        const auto sums = maxima(receivers);
+        double brightest[3] = {0, 0, 0};
+        for (const auto& m : sums)
+            for (int c = 0; c < 3; ++c) brightest[c] = std::max(brightest[c], m[3 + c]);
+        double error = 0;
+        last_increment = 0;
+        for (size_t k = 0; k < receivers.size(); ++k)
+            for (int c = 0; c < 3; ++c) {
+                Channel& s = state_[k][c];
+                const double increment = sums[k][c], total = sums[k][3 + c];
+                const double pair = increment + s.increment;
+                // rho2 of this bounce; 2 (unknown) until two pairs exist.
+                const double rho2 = s.pair[1] > 0 ? pair / s.pair[1] : 2.0;
+                s.increment = increment;
+                s.pair[1] = s.pair[0], s.pair[0] = pair;
+                s.rho2[2] = s.rho2[1], s.rho2[1] = s.rho2[0], s.rho2[0] = rho2;
+                s.tail = 0;
+                // Light at the rounding level of the brightest part has no relative accuracy to keep.
+                if (!(total > kNegligible * brightest[c]) || pair == 0) continue;
+                last_increment = std::max(last_increment, increment / total);
+                double channel_error = 1e300;
+                if (rho2 < 1) {
+                    s.tail = rho2 / (1 - rho2);
+                    channel_error = pair * (extrapolate ? std::abs(rho2 - s.rho2[2]) / ((1 - rho2) * (1 - rho2)) : s.tail) / total;
+                }
+                error = std::max(error, channel_error);
+            }
+        return error;
+    }
+
+    // rho2 / (1 - rho2) per channel of receiver k, to multiply the last two increments by.
+    std::array<double, 3> tail(int k) const {
+        const auto& s = state_[size_t(k)];
+        return {s[0].tail, s[1].tail, s[2].tail};
+    }
+
+private:
+    static constexpr double kNegligible = 1e-12;
+    struct Channel {
+        double increment = 0;          // I_(k-1): largest |coefficient| of the last increment
+        double pair[2] = {0, 0};       // P_(k-1), P_(k-2)
+        double rho2[3] = {2, 2, 2};    // rho2 of the last three bounces, newest first
+        double tail = 0;
+    };
+    // Per receiver: the largest |coefficient| of the increment L, per channel, then of Le.
+    static std::vector<std::array<double, 6>> maxima(const std::vector<Receiver>& receivers) {
+        std::vector<std::array<double, 6>> sums(receivers.size(), std::array<double, 6>{});
+        for (const Receiver& r : receivers) {
+            auto& m = sums[size_t(r.index)];
+            for (int side = 0; side < r.sides; ++side) {
+                const auto& le = r.Le[side].coeffs();
+                const auto& l = r.L[side].coeffs();
+                for (size_t c = 0; c < le.size(); ++c) {
+                    m[c % 3] = std::max(m[c % 3], std::abs(l[c]));
+                    m[3 + c % 3] = std::max(m[3 + c % 3], std::abs(le[c]));
+                }
+            }
+        }
+        return sums;
+    }
+    std::vector<std::array<Channel, 3>> state_;
+};
+
 }  // namespace
 
 SolverSettings SolverSettings::preset(const std::string& name) {
@@ -422,7 +508,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     // Indirect phase: gather the incremental radiance L of all surfaces into Ltmp, then
     // Le += Ltmp, L <- Ltmp, until what is still missing is small.
     const auto t1 = std::chrono::steady_clock::now();
-    double previous[3] = {0, 0, 0}, previous_rho[3] = {2, 2, 2}, tail[3] = {0, 0, 0};
+    BounceConvergence convergence(receivers);
     bool converged = false;
     // With form factors, Lambertian receivers keep their rows of the transport operator.
     std::vector<std::vector<std::vector<TransportTerm>>> rows(receivers.size());
@@ -468,40 +554,15 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
             }
             out[0] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * sum;
         });
-        double increment[3] = {0, 0, 0}, total[3] = {0, 0, 0};
         for (auto& r : receivers)
             for (int side = 0; side < r.sides; ++side) {
                 auto& le = r.Le[side].coeffs();
                 const auto& tmp = r.Ltmp[side].coeffs();
-                for (size_t c = 0; c < le.size(); ++c) {
-                    le[c] += tmp[c];
-                    increment[c % 3] = std::max(increment[c % 3], std::abs(tmp[c]));
-                    total[c % 3] = std::max(total[c % 3], std::abs(le[c]));
-                }
+                for (size_t c = 0; c < le.size(); ++c) le[c] += tmp[c];
                 std::swap(r.L[side], r.Ltmp[side]);  // receiver_of points at the receivers: still valid
             }
         solution.stats.bounces = bounce + 1;
-        // Increments shrink geometrically, by the ratio rho of the transport's dominant mode, so
-        // what the remaining bounces add is about increment * rho / (1 - rho). Without
-        // extrapolation, stop when that tail is below tolerance; with it, add the tail and stop
-        // when its uncertainty (from the change of rho between bounces) is below tolerance.
-        double error = 0;
-        for (int c = 0; c < 3; ++c) {
-            if (total[c] == 0) continue;
-            const double rho = previous[c] > 0 ? increment[c] / previous[c] : 1.0;
-            double channel_error = 1e300;
-            if (rho < 1) {
-                tail[c] = rho / (1 - rho);
-                channel_error = increment[c] *
-                                (settings.extrapolate ? std::abs(rho - previous_rho[c]) / ((1 - rho) * (1 - rho)) : tail[c]) /
-                                total[c];
-            }
-            previous_rho[c] = rho;
-            previous[c] = increment[c];
-            error = std::max(error, channel_error);
-        }
-        solution.stats.last_increment = std::max({increment[0] / std::max(total[0], 1e-300), increment[1] / std::max(total[1], 1e-300),
-                                                  increment[2] / std::max(total[2], 1e-300)});
+        const double error = convergence.update(receivers, settings.extrapolate, solution.stats.last_increment);
         solution.stats.estimated_error = error;
         if (error < settings.tolerance || solution.stats.last_increment == 0) {
             converged = true;
@@ -509,13 +570,17 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         }
     }
     if (settings.extrapolate && converged) {
-        // The geometric tail of the last increment (now in L) over the bounces not taken.
-        for (auto& r : receivers)
+        // The geometric tail over the bounces not taken, from the last two increments (L, and
+        // the one before it, now in Ltmp).
+        for (auto& r : receivers) {
+            const std::array<double, 3> tail = convergence.tail(r.index);
             for (int side = 0; side < r.sides; ++side) {
                 auto& le = r.Le[side].coeffs();
                 const auto& l = r.L[side].coeffs();
-                for (size_t c = 0; c < le.size(); ++c) le[c] += tail[c % 3] * l[c];
+                const auto& before = r.Ltmp[side].coeffs();
+                for (size_t c = 0; c < le.size(); ++c) le[c] += tail[c % 3] * (l[c] + before[c]);
             }
+        }
         solution.stats.extrapolated = true;
     }
     solution.stats.seconds_indirect = seconds_since(t1);

@@ -14,6 +14,8 @@ void check_corners(const std::string& name, std::initializer_list<Vec3> corners)
 }
 
 void check_area(const std::string& name, double area, double size) {
+    if (std::isinf(area) || std::isinf(size))
+        throw std::invalid_argument("surface '" + name + "': coordinates too large (its area overflows a double)");
     // Relative to the squared size, so tiny but valid scenes pass and slivers do not.
     if (!(area > 1e-12 * size * size) || !(size > 0))
         throw std::invalid_argument("surface '" + name + "': zero area (degenerate face)");
@@ -151,7 +153,7 @@ Tessellation BilinearPatch::tessellate() const {
         for (int i = 0; i <= n; ++i) {
             const double u = double(i) / n, v = double(j) / n;
             const Vec3 p = evaluate(u, v).p;
-            t.positions.insert(t.positions.end(), {float(p.x), float(p.y), float(p.z)});
+            t.positions.insert(t.positions.end(), {p.x, p.y, p.z});
             t.uvs.insert(t.uvs.end(), {float(u), float(v)});
         }
     for (int j = 0; j < n; ++j)
@@ -201,7 +203,7 @@ SurfacePoint TrianglePatch::evaluate(double u, double v) const {
 Tessellation TrianglePatch::tessellate() const {
     // (u, v) is not affine over the triangle; refine_parameters recovers it from the hit point.
     Tessellation t;
-    for (const Vec3& p : {p0_, p1_, p2_}) t.positions.insert(t.positions.end(), {float(p.x), float(p.y), float(p.z)});
+    for (const Vec3& p : {p0_, p1_, p2_}) t.positions.insert(t.positions.end(), {p.x, p.y, p.z});
     t.uvs = {0.f, 0.5f, 1.f, 0.f, 1.f, 1.f};
     t.triangles = {0, 1, 2};
     return t;

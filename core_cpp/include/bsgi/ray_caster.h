@@ -44,7 +44,7 @@ public:
     explicit RayCaster(std::vector<const Surface*> surfaces);
 
     // Distance by which spawn() lifts ray origins off a surface: it scales with the scene's
-    // extent and its distance from the origin (Embree works in float).
+    // extent (Embree works in float, relative to the scene's centre).
     double offset() const { return offset_; }
     // Origin for a ray leaving point p (normal n) along dir: p lifted by offset() to the side
     // of the surface that dir goes to.

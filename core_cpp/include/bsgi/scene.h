@@ -52,6 +52,11 @@ public:
             if (!std::isfinite(material.emission[c]) || material.emission[c] < 0)
                 throw std::invalid_argument("surface '" + name + "': emission must be finite and >= 0");
         }
+        // Surfaces that exist as geometry but have no area (NURBS control points on a line, a
+        // mesh of slivers) would solve to light on nothing: relative to the squared size, as
+        // the patches' own check.
+        if (!(surface->area() > 1e-12 * surface->size() * surface->size()))
+            throw std::invalid_argument("surface '" + name + "': zero area (its points lie on a line or a point)");
         if (options.spatial_coeffs < 0 || options.angular_coeffs < 0)
             throw std::invalid_argument("surface '" + name + "': coefficient counts must be >= 0 (0: automatic)");
         surfaces_.push_back({std::move(surface), material, receiver, occluder, options});

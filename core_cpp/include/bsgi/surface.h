@@ -19,7 +19,7 @@ struct SurfacePoint {
 
 // Triangles with the surface parameters at their corners, for the ray caster.
 struct Tessellation {
-    std::vector<float> positions;  // 3 per vertex
+    std::vector<double> positions;  // 3 per vertex (double: the ray scene centres them before going to float)
     std::vector<float> uvs;        // 2 per vertex
     std::vector<uint32_t> triangles;
     // Optional, 3 per triangle: the surface's unit normal on each triangle, used instead of the
