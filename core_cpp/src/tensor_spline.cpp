@@ -83,6 +83,12 @@ TensorSpline::TensorSpline(std::vector<KnotVector> axes, int channels, Precision
     const size_t n = strides_[0] * axes_[0].num_coeffs();
     if (precision_ == Precision::Float32) coeffs32_.assign(n + kFloat32Padding, 0.0f);
     else coeffs_.assign(n, 0.0);
+    if (has_fast_kernel()) {
+        bool uniform = true;
+        for (const auto& a : axes_) uniform = uniform && a.uniform_spans();
+        point_kernel_ = detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32,
+                                            false, uniform);
+    }
 }
 
 std::vector<size_t> TensorSpline::shape() const { return extents(axes_, channels_); }
@@ -123,6 +129,16 @@ bool TensorSpline::has_fast_kernel() const {
     return detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32, false, false) != nullptr;
 }
 
+// What the kernels need of each axis (pointers into axes_: rebuilt per call, so copies of the
+// spline stay valid).
+void TensorSpline::fill_axis_data(detail::AxisData* ax) const {
+    for (int k = 0; k < dims(); ++k) {
+        const KnotVector& a = axes_[k];
+        ax[k] = {a.knots().data(), a.span_polynomial(a.degree()), a.span_inverse_widths(), a.domain_begin(), a.domain_end(),
+                 a.uniform_spans() ? a.inverse_span_width() : 0.0, a.degree(), a.last_span(), strides_[k]};
+    }
+}
+
 template <typename Loader>
 void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out, int threads, bool directions,
                                  const HemisphereMap* map) const {
@@ -133,12 +149,8 @@ void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out
         for (const auto& a : axes_) uniform = uniform && a.uniform_spans();
         kernel = detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32, directions,
                                      uniform);
-        for (int k = 0; k < dims(); ++k) {
-            const KnotVector& a = axes_[k];
-            ax.push_back({a.knots().data(), a.span_polynomial(a.degree()), a.span_inverse_widths(),
-                          a.domain_begin(), a.domain_end(), a.uniform_spans() ? a.inverse_span_width() : 0.0, a.degree(),
-                          a.last_span(), strides_[k]});
-        }
+        ax.resize(dims());
+        fill_axis_data(ax.data());
     }
     if (kernel) {
         detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
@@ -176,7 +188,15 @@ struct DirectionLoader {
 }  // namespace
 
 void TensorSpline::evaluate(const double* x, double* out) const {
-    // One point (the solver's gathering calls this per ray): no kernel lookup, no threads.
+    // One point (the solver's gathering calls this per ray): the kernel chosen at construction,
+    // no threads, nothing allocated.
+    if (point_kernel_) {
+        detail::AxisData ax[kMaxDims];
+        fill_axis_data(ax);
+        const detail::KernelArgs args{ax, data(), x, nullptr, nullptr, nullptr};
+        point_kernel_(args, 0, 1, out);
+        return;
+    }
     const ParamLoader load{x, dims()};
     if (precision_ == Precision::Float32) evaluate_generic(*this, coeffs32_.data(), load, 0, 1, out);
     else evaluate_generic(*this, coeffs_.data(), load, 0, 1, out);

@@ -8,6 +8,12 @@
 
 namespace bsgi {
 
+namespace detail {
+struct KernelArgs;
+struct AxisData;
+using Kernel = void (*)(const KernelArgs&, size_t begin, size_t end, double* out);  // spline_kernels.h
+}  // namespace detail
+
 // Storage of the coefficients. Float32 halves the memory and the cache traffic of evaluation;
 // the specialised kernels then also do the contraction in float (twice the lanes per
 // instruction). Bound, from the arithmetic: every term B(x) a of the sum goes through at most
@@ -50,7 +56,8 @@ public:
 
     // Value at x (dims() parameters) into out (channels() values). Parameters outside the domain
     // are clamped to it (wrapped on periodic axes); a NaN or infinite parameter gives NaN in
-    // every channel.
+    // every channel. Same kernel as evaluate_batch where one exists (the solver calls this per
+    // ray), without the batch's threads and allocations.
     void evaluate(const double* x, double* out) const;
 
     // Batched evaluation: xs is count x dims, out is count x channels, from `threads` threads
@@ -82,6 +89,7 @@ public:
 
 private:
     const void* data() const;
+    void fill_axis_data(detail::AxisData* ax) const;
     template <typename Loader>
     void evaluate_with(const Loader& loader, size_t count, double* out, int threads, bool directions,
                        const HemisphereMap* map) const;
@@ -93,6 +101,7 @@ private:
     std::vector<size_t> strides_;
     std::vector<double> coeffs_;
     std::vector<float> coeffs32_;
+    detail::Kernel point_kernel_ = nullptr;  // the specialised kernel for parameter input, if any
 };
 
 }  // namespace bsgi
