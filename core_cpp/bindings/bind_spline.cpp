@@ -54,7 +54,8 @@ py::array_t<double> to_array(const std::vector<double>& v) { return py::array_t<
 void bind_spline(py::module_& m) {
     py::register_exception<MemoryBudgetExceeded>(m, "MemoryBudgetError", PyExc_MemoryError);
     m.def("_fma_peak_per_second", &detail::measure_fma_rate,
-          "Benchmark helper: 256-bit double multiply-adds per second of one thread (a pure FMA loop).");
+          "Benchmark helper: 256-bit double multiply-adds per second of one thread (a pure FMA loop, timed in "
+          "the thread's CPU time).");
     m.def("_kernel_isa", &detail::kernel_isa,
           "Instruction set of the evaluation kernels in use (x86-64-v4, x86-64-v3 or baseline; the "
           "environment variable BSGI_ISA can lower it).");

@@ -37,8 +37,8 @@ Kernel find_kernel(int dims, int order, int channels, bool float32, bool directi
 // The instruction set of the kernels find_kernel returns: "x86-64-v4", "x86-64-v3" or "baseline".
 const char* kernel_isa();
 
-// 256-bit (4 x double) multiply-adds per second on this thread: the arithmetic peak the
-// benchmark compares the kernels with.
+// 256-bit (4 x double) multiply-adds per second of this thread's CPU time: the arithmetic peak
+// the benchmark compares the kernels with.
 double measure_fma_rate();
 
 }  // namespace bsgi::detail
