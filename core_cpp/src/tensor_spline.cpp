@@ -14,6 +14,21 @@ namespace bsgi {
 namespace {
 
 constexpr size_t kChunk = 2048;  // points per parallel work item
+// Big batches on 4D splines bigger than this are evaluated in the order of their (u, v) knot
+// cell, kCellChunk points at a time: then the coefficients of a cell's 3 x 3 spatial rows stay in
+// the core's cache while its points are evaluated, instead of every point reading from all over
+// the table.
+constexpr size_t kCellOrderBytes = size_t(1) << 19;
+constexpr size_t kCellChunk = size_t(1) << 14;
+
+// Span number (0 ..) of x on an open axis, x clamped to the domain (non-finite: 0).
+int span_number(const KnotVector& a, double x) {
+    if (!(std::fabs(x) <= DBL_MAX)) return 0;
+    x = std::min(std::max(x, a.domain_begin()), a.domain_end());
+    if (a.uniform_spans())
+        return std::min(int((x - a.domain_begin()) * a.inverse_span_width()), a.last_span() - a.degree());
+    return a.find_span(x) - a.degree();
+}
 
 size_t element_bytes(Precision p) { return p == Precision::Float32 ? sizeof(float) : sizeof(double); }
 
@@ -139,6 +154,51 @@ void TensorSpline::fill_axis_data(detail::AxisData* ax) const {
     }
 }
 
+// Points b .. e of a batch through `kernel` in the order of their (u, v) knot cell (a counting
+// sort), their inputs gathered into that order and the values put back in the caller's.
+void TensorSpline::evaluate_in_cell_order(detail::Kernel kernel, const detail::KernelArgs& args, size_t b, size_t e,
+                                          double* out) const {
+    struct Scratch {
+        std::vector<uint32_t> cell, count;
+        std::vector<double> in, dirs, values;
+    };
+    static thread_local Scratch sc;
+    const size_t m = e - b;
+    const int C = channels_, D = dims();
+    const bool directions = args.dirs != nullptr;
+    const double* uv = directions ? args.uv : args.params;
+    const size_t uv_stride = directions ? 2 : size_t(D);
+    const KnotVector &a0 = axes_[0], &a1 = axes_[1];
+    const size_t cells = size_t(a0.last_span() - a0.degree() + 1) * size_t(a1.last_span() - a1.degree() + 1);
+    const size_t n1 = size_t(a1.last_span() - a1.degree() + 1);
+    sc.cell.resize(m), sc.count.assign(cells + 1, 0);
+    for (size_t i = 0; i < m; ++i) {
+        const double* x = uv + (b + i) * uv_stride;
+        const uint32_t c = uint32_t(span_number(a0, x[0]) * n1 + span_number(a1, x[1]));
+        sc.cell[i] = c;
+        ++sc.count[c + 1];
+    }
+    for (size_t c = 1; c <= cells; ++c) sc.count[c] += sc.count[c - 1];
+    // Inputs copied into cell order in one sequential pass over them (writes to scattered places
+    // cost less than reads from them), rank = each point's place in that order.
+    sc.in.resize(m * uv_stride), sc.values.resize(m * C);
+    if (directions) sc.dirs.resize(m * 3);
+    uint32_t* const rank = sc.cell.data();  // the cell is no longer needed once ranked
+    for (size_t i = 0; i < m; ++i) {
+        const uint32_t p = sc.count[sc.cell[i]]++;
+        rank[i] = p;
+        for (size_t k = 0; k < uv_stride; ++k) sc.in[p * uv_stride + k] = uv[(b + i) * uv_stride + k];
+        if (directions)
+            for (int k = 0; k < 3; ++k) sc.dirs[p * 3 + k] = args.dirs[(b + i) * 3 + k];
+    }
+    detail::KernelArgs sorted = args;
+    if (directions) sorted.uv = sc.in.data(), sorted.dirs = sc.dirs.data();
+    else sorted.params = sc.in.data();
+    kernel(sorted, 0, m, sc.values.data());
+    for (size_t i = 0; i < m; ++i)
+        for (int c = 0; c < C; ++c) out[(b + i) * C + c] = sc.values[size_t(rank[i]) * C + c];
+}
+
 template <typename Loader>
 void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out, int threads, bool directions,
                                  const HemisphereMap* map) const {
@@ -152,7 +212,11 @@ void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out
         ax.resize(dims());
         fill_axis_data(ax.data());
     }
-    if (kernel) {
+    if (kernel && dims() == 4 && bytes() > kCellOrderBytes && count >= kCellChunk) {
+        detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
+        loader.bind(args);
+        parallel_for(count, kCellChunk, threads, [&](size_t b, size_t e) { evaluate_in_cell_order(kernel, args, b, e, out); });
+    } else if (kernel) {
         detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
         loader.bind(args);
         parallel_for(count, kChunk, threads, [&](size_t b, size_t e) { kernel(args, b, e, out); });
