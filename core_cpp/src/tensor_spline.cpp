@@ -21,14 +21,18 @@ constexpr size_t kChunk = 2048;  // points per parallel work item
 constexpr size_t kCellOrderBytes = size_t(1) << 19;
 constexpr size_t kCellChunk = size_t(1) << 14;
 
-// Span number (0 ..) of x on an open axis, x clamped to the domain (non-finite: 0).
-int span_number(const KnotVector& a, double x) {
-    if (!(std::fabs(x) <= DBL_MAX)) return 0;
-    x = std::min(std::max(x, a.domain_begin()), a.domain_end());
-    if (a.uniform_spans())
-        return std::min(int((x - a.domain_begin()) * a.inverse_span_width()), a.last_span() - a.degree());
-    return a.find_span(x) - a.degree();
-}
+// Span number (0 ..) of x on an open axis, x clamped to the domain (NaN: 0), branch-free where
+// the spans are uniform.
+struct SpanNumber {
+    const KnotVector& a;
+    double lo = a.domain_begin(), hi = a.domain_end(), inv_h = a.uniform_spans() ? a.inverse_span_width() : 0;
+    int last = a.last_span() - a.degree();
+    int operator()(double x) const {
+        x = x >= lo ? x : lo;  // NaN too
+        x = x <= hi ? x : hi;
+        return inv_h > 0 ? std::min(int((x - lo) * inv_h), last) : a.find_span(x) - a.degree();
+    }
+};
 
 size_t element_bytes(Precision p) { return p == Precision::Float32 ? sizeof(float) : sizeof(double); }
 
@@ -172,12 +176,26 @@ void TensorSpline::evaluate_in_cell_order(detail::Kernel kernel, const detail::K
     const size_t cells = size_t(a0.last_span() - a0.degree() + 1) * size_t(a1.last_span() - a1.degree() + 1);
     const size_t n1 = size_t(a1.last_span() - a1.degree() + 1);
     sc.cell.resize(m), sc.count.assign(cells + 1, 0);
-    for (size_t i = 0; i < m; ++i) {
-        const double* x = uv + (b + i) * uv_stride;
-        const uint32_t c = uint32_t(span_number(a0, x[0]) * n1 + span_number(a1, x[1]));
-        sc.cell[i] = c;
-        ++sc.count[c + 1];
+    const SpanNumber span0{a0}, span1{a1};
+    auto cells_of = [&](size_t from, size_t to) {
+        for (size_t i = from; i < to; ++i) {
+            const double* x = uv + (b + i) * uv_stride;
+            const uint32_t c = uint32_t(span0(x[0]) * n1 + span1(x[1]));
+            sc.cell[i] = c;
+            ++sc.count[c + 1];
+        }
+    };
+    // Points that come in runs of a cell already (an image of a surface, a grid), judged on the
+    // first ones, are evaluated as they are.
+    const size_t probe = std::min<size_t>(m, 512);
+    cells_of(0, probe);
+    size_t changes = 0;
+    for (size_t i = 1; i < probe; ++i) changes += sc.cell[i] != sc.cell[i - 1];
+    if (changes * 16 < probe) {
+        kernel(args, b, e, out);
+        return;
     }
+    cells_of(probe, m);
     for (size_t c = 1; c <= cells; ++c) sc.count[c] += sc.count[c - 1];
     // Inputs copied into cell order in one sequential pass over them (writes to scattered places
     // cost less than reads from them), rank = each point's place in that order.
