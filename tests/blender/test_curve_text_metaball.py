@@ -54,11 +54,15 @@ def test_text_and_bevelled_curve_shadow_the_floor_and_are_not_baked(context):
     print(f"\nfloor mean radiance {alone:.4f} alone, {shadowed:.4f} under a text and a bevelled curve")
     assert shadowed < 0.97 * alone  # both stand between the lamp and the floor
     names = [job.export.scene.name(i) for i in range(len(job.export.scene))]
-    assert any(n.startswith("Text: face") for n in names) and any(n.startswith("Ring: face") for n in names)
-    # They receive light too (and so reflect it): the solved radiance of their faces is not all zero.
-    lit = [solution.radiance[i].evaluate(np.array([[0.5, 0.5]]))[0, 0] for i, n in enumerate(names)
-           if n.startswith(("Text", "Ring"))]
-    assert max(lit) > 0
+    # Of many faces (the text 994, the ring 576), each is one UV chart (the ring over its own UV
+    # map, the text over one generated on a copy) as a mesh would be.
+    assert "Text: chart 0" in names and "Ring: chart 0" in names
+    # They receive light too (and so reflect it): their solved radiance is not all zero.
+    u, v = np.meshgrid(np.linspace(0.05, 0.95, 10), np.linspace(0.05, 0.95, 10))
+    grid = np.stack([u.ravel(), v.ravel()], axis=1)
+    for name in ("Text: chart 0", "Ring: chart 0"):
+        assert solution.radiance[names.index(name)].evaluate(grid)[:, 0].max() > 0.01 * alone
+    assert not any("Smart UV Project" in w for w in job.export.warnings)  # a map only the solve sees
     assert [o.name for o in job.export.objects] == ["Floor"]  # only the floor is baked
     for name, kind in (("Text", "text"), ("Ring", "curve")):
         warning = next(w for w in job.export.warnings if f"object '{name}'" in w)
@@ -67,6 +71,16 @@ def test_text_and_bevelled_curve_shadow_the_floor_and_are_not_baked(context):
     assert any("object 'Text'" in w for w in rep["warnings"])
     assert {o.name: _curve_state(o) for o in (text, ring)} == before  # the user's curves as they were
     assert not bake.is_baked(text) and not bake.is_baked(ring) and bake.is_baked(bpy.data.objects["Floor"])
+
+
+def test_small_text_is_solved_per_face(context):
+    scenes.floor_under_lamp()
+    add_text(body="-")
+    context.scene.bsgi.preset = "DRAFT"
+    job = pipeline.prepare(context)
+    names = [job.export.scene.name(i) for i in range(len(job.export.scene))]
+    assert "Text: face 0" in names and len(names) < 2 + 64  # under Chart Above Faces
+    assert any("object 'Text'" in w and "not baked" in w for w in job.export.warnings)
 
 
 def test_metaball_is_solved_and_not_baked(context):
