@@ -204,3 +204,35 @@ def test_modified_mesh_of_several_materials_is_solved_and_not_baked(context):
     rep = pipeline.solve_and_bake(context)
     assert any("object 'Cube'" in w and "several materials" in w and "not baked" in w for w in rep["warnings"])
     assert not bake.is_baked(cube) and rep["surfaces"] == 2 + 96
+
+
+@pytest.mark.slow
+def test_baked_subdivided_cube_matches_cycles_path_tracing(context, tmp_path):
+    """The subdivided cube over a generated, carried UV map, solved and baked, rendered through
+    the bake's UV map on the evaluated mesh, against Cycles path tracing the modified cube over a
+    floor (one bounce)."""
+    from test_pipeline import render_exr
+
+    grey = scenes.diffuse_material("Grey", (0.5, 0.5, 0.5))
+    scenes.add_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], grey)
+    cube = subdivided_cube("overlapping")
+    cube.scale = (2.4, 2.4, 2.4)
+    cube.location.z = 0.9
+    scenes.add_area_light(location=(0, 0, 3), size=2.0, energy=300.0)
+    context.scene.bsgi.preset = "PREVIEW"
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, -5.0, 2.5)
+    camera.rotation_euler = (math.radians(70), 0.0, 0.0)
+    context.scene.collection.objects.link(camera)
+    context.scene.camera = camera
+    reference = render_exr(context.scene, tmp_path / "reference.exr", samples=512, bounces=1)
+    rep = pipeline.solve_and_bake(context)
+    assert bake.is_baked(cube) and any("carried by its modifiers" in w for w in rep["warnings"])
+    baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
+    luminance = reference.mean(axis=2)
+    lit = luminance > 0.05 * np.percentile(luminance, 99)
+    rel = np.abs(baked - reference).sum(axis=2)[lit] / reference.sum(axis=2)[lit]
+    print(f"\nsubdivided cube (generated, carried UV map), baked vs Cycles (512 spp): mean relative difference "
+          f"{rel.mean():.4f} over {lit.sum()} lit pixels; median {np.median(rel):.4f}")
+    assert lit.sum() > 0.05 * lit.size
+    assert rel.mean() <= 0.05  # measured 0.021; UVs shifted by 7 loops give 0.107
