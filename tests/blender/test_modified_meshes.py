@@ -48,6 +48,16 @@ def evaluated_face_centres(obj, uv_name):
         evaluated.to_mesh_clear()
 
 
+def evaluated_face_normals(obj):
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    try:
+        rotation = np.array(evaluated.matrix_world.to_3x3(), float)  # no scale in these tests
+        return np.array([rotation @ np.array(p.normal) for p in mesh.polygons])
+    finally:
+        evaluated.to_mesh_clear()
+
+
 def image_at(image, uv):
     """Blender's Linear, Extend lookup of an image at (N, 2) UVs: texel centres at (i + 0.5) / n."""
     w, h = image.size
@@ -118,6 +128,12 @@ def test_subdivided_cube_baked_as_a_chart_agrees_with_the_applied_mesh_per_face(
     print(f"\nsubdivided cube ({uv_map} UV map): baked chart vs applied mesh per face, max difference "
           f"{difference:.4f} of the maximum radiance (mean {np.abs(baked - reference).mean() / reference.max():.4f})")
     assert difference < 0.05
+    # The frames the view-dependent material reads are the evaluated (rounded) faces' normals.
+    normals = image_at(bpy.data.images["BSGI Cube normal"], evaluated_face_centres(cube, bake.UV_NAME))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    cosines = np.sum(normals * evaluated_face_normals(cube), axis=1)
+    print(f"frames: smallest cosine to the evaluated face normals {cosines.min():.4f}")
+    assert cosines.min() > 0.98
     assert [m.type for m in cube.modifiers] == ["SUBSURF"]
     bake.clear_bake(cube)
     assert list(cube.data.uv_layers.keys()) == ["UVMap"]
