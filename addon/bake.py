@@ -165,6 +165,22 @@ def _world_points(obj):
         evaluated.to_mesh_clear()
 
 
+def _evaluated_chart(obj):
+    """The chart as the exporter solved it: the evaluated mesh's world positions, triangles and
+    their corners' UVs in the bake's UV map, which the modifiers carry from the user's mesh (the
+    two differ when modifiers change the faces)."""
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    try:
+        co = np.empty(len(mesh.vertices) * 3, np.float64)
+        mesh.vertices.foreach_get("co", co)
+        m = np.array(evaluated.matrix_world, float)
+        triangles, loops = charts.loop_triangles(mesh)
+        return co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3], triangles, charts.layer_uvs(mesh, UV_NAME)[loops]
+    finally:
+        evaluated.to_mesh_clear()
+
+
 def _mesh_layout(obj, faces):
     """Per face a t x t tile (t from the splines' knots) on a square grid of tiles; writes the
     bake's UV map laying each face on its tile."""
@@ -222,9 +238,7 @@ def _chart_layout(obj, radiance):
     point of the chart), so filtering at an island's border never mixes in a neighbour's light."""
     n = chart_image_size(radiance)
     u, v = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
-    world, _, _ = _world_points(obj)
-    triangles, loops = charts.loop_triangles(obj.data)
-    corner_uvs = charts.layer_uvs(obj.data, UV_NAME)[loops]
+    world, triangles, corner_uvs = _evaluated_chart(obj)
     surface = bsgi.MeshChart(f"{obj.name}: chart 0", world, triangles, corner_uvs)
     return Layout(np.zeros((n, n), int), np.stack([u, v], axis=2), [surface], UV_NAME)
 

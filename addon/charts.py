@@ -149,3 +149,31 @@ def generated_uvs(positions: np.ndarray, polygons: list, label: str) -> np.ndarr
         collection.objects.unlink(tmp)
         bpy.data.objects.remove(tmp)
         bpy.data.meshes.remove(data)
+
+
+def carried_uvs(obj, name: str, base_uvs: np.ndarray):
+    """Per-loop UVs of obj's evaluated mesh if its own mesh had the per-loop base_uvs in a UV map
+    called name: evaluated on a temporary copy of the object (same modifiers) over a copy of its
+    mesh, both removed afterwards; the user's object and mesh are not touched. None if the
+    modifiers drop the UV map (e.g. Remesh)."""
+    context = bpy.context
+    data = obj.data.copy()
+    tmp = obj.copy()
+    tmp.data = data
+    if data.uv_layers.get(name) is None and data.uv_layers.new(name=name, do_init=False) is None:
+        bpy.data.objects.remove(tmp)
+        bpy.data.meshes.remove(data)
+        raise ChartUnavailable(f"object '{obj.name}': it has the most UV maps a mesh can hold; remove one to bake it")
+    data.uv_layers[name].data.foreach_set("uv", np.ascontiguousarray(base_uvs, np.float32).ravel())
+    context.scene.collection.objects.link(tmp)
+    try:
+        evaluated = tmp.evaluated_get(context.evaluated_depsgraph_get())
+        mesh = evaluated.to_mesh()
+        try:
+            return layer_uvs(mesh, name) if mesh.uv_layers.get(name) is not None else None
+        finally:
+            evaluated.to_mesh_clear()
+    finally:
+        context.scene.collection.objects.unlink(tmp)
+        bpy.data.objects.remove(tmp)
+        bpy.data.meshes.remove(data)

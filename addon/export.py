@@ -19,6 +19,8 @@ from . import charts
 # Blender's look for a surface with no material: a light grey diffuse.
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
 GEOMETRY_TYPES = {"MESH", "SURFACE", "CURVE", "FONT", "META"}
+# Objects solved through their evaluated mesh (to_mesh) but not baked, by the name users know.
+EVALUATED_ONLY = {"CURVE": "curve", "FONT": "text", "META": "metaball"}
 
 
 class ExportError(ValueError):
@@ -35,7 +37,9 @@ class ExportedObject:
     # for a SURFACE object per spline: ("nurbs", scene index, 1).
     patches: list = field(default_factory=list)
     kind: str = "mesh"  # "mesh" | "nurbs" | "chart" (one MeshChart: patches = [("chart", index, 1)])
-    chart_uvs: object = None  # a chart's UV coordinates per mesh loop, (loops, 2), for the bake
+    chart_uvs: object = None  # a chart's UV coordinates per loop of the user's mesh, (loops, 2), for the bake
+    # Why the object is solved (it casts shadows and reflects light) but cannot be baked, or "".
+    not_baked: str = ""
 
 
 @dataclass
@@ -305,8 +309,17 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
     options = surface_options(obj)
     materials = [_material_keywords(material, options) for material in _slot_materials(obj, warnings)]
     exported = ExportedObject(obj.name, len(mesh.polygons))
+    modified = label is None and obj.type == "MESH" and pending_charts is not None and _modifiers_change_faces(obj, mesh)
     label = label or obj.name
-    if pending_charts is not None and _wants_chart(obj, mesh, _user_slots(obj), label, warnings):
+    if modified:
+        # The user's mesh shows the evaluated faces only through a UV map the modifiers carry
+        # to them: one chart, or no bake.
+        problem = _chart_refusal(obj, mesh, _user_slots(obj))
+        if not problem:
+            pending_charts.append(_chart_job(exported, mesh, world, materials, label, base=obj.original))
+            return exported
+        exported.not_baked = f"its modifiers ({modifier_names(obj)}) change its faces and {problem}; {APPLY_ADVICE}"
+    elif pending_charts is not None and _wants_chart(obj, mesh, _user_slots(obj), label, warnings):
         pending_charts.append(_chart_job(exported, mesh, world, materials, label))
         return exported
     ngon_tris = {}
@@ -340,6 +353,31 @@ def chart_min_faces(scene) -> int:
     return settings.chart_min_faces if settings is not None else 0
 
 
+APPLY_ADVICE = "apply the modifiers (Object > Apply) to bake it"
+
+
+def _modifiers_change_faces(obj, mesh) -> bool:
+    """Whether the evaluated mesh has other faces than the user's mesh (Subdivision Surface,
+    Mirror, Array, Solidify, Bevel...): then a bake per face of the user's mesh cannot show it."""
+    data = obj.original.data
+    return len(data.polygons) != len(mesh.polygons) or len(data.loops) != len(mesh.loops)
+
+
+def modifier_names(obj) -> str:
+    return ", ".join(m.name for m in obj.original.modifiers if m.show_viewport) or "none shown"
+
+
+def _chart_refusal(obj, mesh, slots: list) -> str:
+    """Why a mesh whose modifiers change its faces cannot be one chart, or ''."""
+    if getattr(getattr(obj.original, "bsgi", None), "mesh_surfaces", "AUTO") == "FACES":
+        return "its Mesh Surfaces setting is Per Face"
+    indices = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("material_index", indices)
+    if len({slots[min(int(i), len(slots) - 1)] for i in np.unique(indices)}) > 1:
+        return "it has several materials (a UV chart has one)"
+    return ""
+
+
 def _wants_chart(obj, mesh, slots: list, label: str, warnings) -> bool:
     """From the scene's face count (0: never) a mesh of one material becomes a UV chart, unless
     the object says otherwise; a chart is one surface with one BSDF, so a mesh of several
@@ -371,29 +409,45 @@ class _ChartJob:
     uvs: np.ndarray | None  # per loop, from a suitable UV map of the user's, or None
     keywords: dict
     uv_reasons: list
+    # A mesh whose modifiers change its faces: the user's object, whose own mesh's loops get the
+    # bake's UVs (the modifiers carry them to the evaluated faces).
+    base: object = None
+    base_uvs: np.ndarray | None = None  # per loop of the user's mesh, for the bake
+    loop_count: int = 0  # of the evaluated mesh
 
 
-def _chart_job(exported, mesh, world, materials, label) -> _ChartJob:
+def _chart_job(exported, mesh, world, materials, label, base=None) -> _ChartJob:
     triangles, loops = charts.loop_triangles(mesh)
     name, found = charts.suitable_uv_map(mesh, loops)
+    if base is not None and name is not None and base.data.uv_layers.get(name) is None:
+        # Made by the modifiers (geometry nodes): the bake cannot give it to the user's mesh.
+        name, found = None, [f"UV map '{name}' is made by its modifiers"]
     indices = np.empty(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", indices)
     keywords = materials[min(int(indices[0]), len(materials) - 1)]
     polygons = [tuple(p.vertices) for p in mesh.polygons] if name is None else []
+    # The user's UV map as their own mesh holds it: the modifiers carry it to the faces solved.
+    base_uvs = charts.layer_uvs(base.data, name) if base is not None and name is not None else None
     return _ChartJob(exported, label, world, triangles, loops, polygons, found if name is not None else None,
-                     keywords, [] if name is not None else found)
+                     keywords, [] if name is not None else found, base, base_uvs, len(mesh.loops))
 
 
 def _build_chart(scene, job: _ChartJob, warnings) -> None:
     uvs = job.uvs
+    if uvs is None and job.base is not None:
+        uvs = _carried_generated_uvs(job, warnings)
+        if uvs is None:  # not baked: any chart of the evaluated faces will do for the solve
+            uvs = charts.generated_uvs(job.world, job.polygons, job.label)
     if uvs is None:
         uvs = charts.generated_uvs(job.world, job.polygons, job.label)
         why = "; ".join(job.uv_reasons) or "it has no UV map"
-        warnings.append(f"object '{job.label}': solved as one UV chart over a UV map generated by Smart UV Project "
-                        f"(no UV map of its own is a chart: {why}); the object's own UV maps are unchanged")
+        if not job.exported.not_baked:  # a UV map only the solve sees needs no word
+            warnings.append(f"object '{job.label}': solved as one UV chart over a UV map generated by Smart UV "
+                            f"Project (no UV map of its own is a chart: {why}); the object's own UV maps are unchanged")
         problem = charts.chart_problem(uvs[job.triangle_loops])
         if problem:
-            raise ExportError(f"object '{job.label}': the generated UV map is not a chart ({problem})")
+            raise ExportError(f"object '{job.label}': the generated UV map is not a chart ({problem}); set its "
+                              "Mesh Surfaces (Object Properties > B-spline GI) to Per Face")
     first = len(scene)
     try:
         chart = bsgi.MeshChart(f"{job.label}: chart 0", job.world, job.triangles, uvs[job.triangle_loops])
@@ -401,8 +455,47 @@ def _build_chart(scene, job: _ChartJob, warnings) -> None:
     except ValueError as error:
         raise ExportError(str(error)) from None
     job.exported.kind = "chart"
-    job.exported.chart_uvs = uvs.astype(np.float32)
+    bake_uvs = uvs if job.base is None else job.base_uvs
+    job.exported.chart_uvs = None if job.exported.not_baked else bake_uvs.astype(np.float32)
     job.exported.patches = [("chart", first, 1)]
+
+
+def _carried_generated_uvs(job: _ChartJob, warnings):
+    """For a mesh whose modifiers change its faces and carry none of its UV maps as a chart: a
+    UV map generated on a copy of the user's mesh, carried by the user's modifier stack (on a
+    temporary object) to the evaluated faces. Returns the evaluated faces' UVs (the user's mesh
+    gets the generated ones only at the bake), or None, and then the object is not baked."""
+    from .bake import UV_NAME
+
+    data = job.base.data
+    co = np.empty(len(data.vertices) * 3, np.float64)
+    data.vertices.foreach_get("co", co)
+    generated = charts.generated_uvs(co.reshape(-1, 3), [tuple(p.vertices) for p in data.polygons], job.label)
+    # The map as generated, then squeezed into the left or the lower half of the UV square: a
+    # modifier that mirrors or offsets its copies' UVs (Mirror's Mirror U / V, Array's UV offsets)
+    # then lays the copies in the other half.
+    problem = ""
+    for scale in ((1.0, 1.0), (0.5, 1.0), (1.0, 0.5)):
+        base_uvs = generated * scale
+        carried = charts.carried_uvs(job.base, UV_NAME, base_uvs)
+        if carried is None or len(carried) != job.loop_count:
+            problem = "they do not carry UV maps"
+            break
+        problem = charts.chart_problem(carried[job.triangle_loops])
+        if not problem:
+            break
+    why = "; ".join(job.uv_reasons) or "it has no UV map"
+    if problem:
+        job.exported.not_baked = (f"its modifiers ({modifier_names(job.base)}) change its faces, and neither its own "
+                                  f"UV maps ({why}) nor one generated by Smart UV Project before them are a chart "
+                                  f"after them ({problem}), even in half the UV square; {APPLY_ADVICE}, or let "
+                                  "their copies' UVs move (Mirror U / V, Array's UV offsets)")
+        return None
+    warnings.append(f"object '{job.label}': solved as one UV chart over a UV map generated by Smart UV Project and "
+                    f"carried by its modifiers (no UV map of its own is a chart after them: {why}); the bake adds it "
+                    f"as the UV map '{UV_NAME}', the object's own UV maps are unchanged")
+    job.base_uvs = base_uvs
+    return carried
 
 
 def nurbs_surface(name: str, spline, matrix: Matrix) -> "bsgi.NurbsSurface":
@@ -491,9 +584,18 @@ def export_scene(depsgraph) -> Export:
         if inst.is_instance:
             instances[key] = instances.get(key, 0) + 1
         else:
+            if obj.type in EVALUATED_ONLY:
+                exported.not_baked = (f"{EVALUATED_ONLY[obj.type]} objects are meshes only as Blender evaluates "
+                                      "them, and a bake needs a mesh of its own to hold its UV map; convert it to a "
+                                      "mesh (Object > Convert > Mesh) to bake it")
             objects.append(exported)
     for job in pending_charts:
         _build_chart(scene, job, warnings)
+    for exported in objects:
+        if exported.not_baked:
+            warnings.append(f"object '{exported.name}': solved (it casts shadows and reflects light) but not baked: "
+                            f"{exported.not_baked}")
+    objects = [exported for exported in objects if not exported.not_baked]
     for (name, parent), count in instances.items():
         warnings.append(f"object '{name}': {count} instance{'s' if count > 1 else ''} from '{parent}' "
                         f"{'are' if count > 1 else 'is'} solved (casting shadows and reflecting light) but not "

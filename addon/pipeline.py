@@ -11,7 +11,7 @@ import bpy
 import bsgi
 
 from . import bake
-from .export import Export, ExportError, export_scene
+from .export import Export, export_scene
 
 
 @dataclass
@@ -24,14 +24,9 @@ class Job:
 def prepare(context) -> Job:
     """Main thread: read the scene. Raises ExportError naming the object on bad input."""
     depsgraph = context.evaluated_depsgraph_get()
+    # Objects that cannot be baked (curves, texts, metaballs; meshes whose modifiers carry no
+    # chart) are solved but left out of export.objects, with a warning each.
     export = export_scene(depsgraph)
-    for exported in export.objects:
-        obj = bpy.data.objects[exported.name]
-        if obj.type not in {"MESH", "SURFACE"}:
-            raise ExportError(f"object '{obj.name}': only mesh and NURBS surface objects can be baked yet "
-                              f"({obj.type.lower()} given)")
-        if obj.type == "MESH" and len(obj.data.polygons) != exported.polygon_count:
-            raise ExportError(f"object '{obj.name}': its modifiers change its faces; apply them before solving")
     return Job(export, context.scene.bsgi.solver_settings(), bsgi.Progress())
 
 

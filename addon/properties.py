@@ -92,7 +92,8 @@ class BSGIObjectSettings(bpy.types.PropertyGroup):
                ("FACES", "Per Face", "A surface and a spline per face (exact for few faces, costly for many)"),
                ("CHART", "UV Chart", "One surface over a UV map, one spline for the whole mesh (its UV map if it "
                 "is a chart, else one generated on a copy); meshes of several materials stay per face")],
-        description="How a mesh object's faces become surfaces of the solve")
+        description="How a mesh object's faces (a curve's, text's or metaball's as Blender evaluates them) become "
+        "surfaces of the solve")
     angular_coeffs: IntProperty(
         name="Angular Coefficients", default=0, min=0, max=64,
         description="Coefficients per direction of the hemisphere disc of glossy surfaces (0: from the "

@@ -55,7 +55,7 @@ class BSGI_PT_object(bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return context.object is not None and context.object.type in {"MESH", "SURFACE"}
+        return context.object is not None and context.object.type in {"MESH", "SURFACE", "CURVE", "FONT", "META"}
 
     def draw(self, context):
         settings = context.object.bsgi
@@ -67,7 +67,7 @@ class BSGI_PT_object(bpy.types.Panel):
         row = col.row()
         row.enabled = settings.representation != "DIFFUSE"
         row.prop(settings, "angular_coeffs")
-        if context.object.type == "MESH":
+        if context.object.type != "SURFACE":  # curves, texts and metaballs are solved as meshes
             layout.prop(settings, "mesh_surfaces")
 
 
