@@ -46,3 +46,27 @@ def floor_under_lamp():
     floor = add_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], mat)
     add_area_light()
     return floor
+
+
+def metal_material(name, roughness, rgb=(0.9, 0.9, 0.9)):
+    """A Principled BSDF metal: the add-on solves it as GGX reflection."""
+    m = bpy.data.materials.new(name)
+    if m.node_tree is None:  # Blender 4.x: materials start without nodes
+        m.use_nodes = True
+    node = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    node.inputs["Metallic"].default_value = 1.0
+    node.inputs["Roughness"].default_value = roughness
+    node.inputs["Base Color"].default_value = (*rgb, 1)
+    return m
+
+
+def add_camera(location=(0.0, -5.0, 2.5), tilt_degrees=70.0):
+    """The scene's camera, tilted about x from looking down."""
+    import math
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = location
+    camera.rotation_euler = (math.radians(tilt_degrees), 0.0, 0.0)
+    bpy.context.scene.collection.objects.link(camera)
+    bpy.context.scene.camera = camera
+    return camera

@@ -26,14 +26,7 @@ TARGET = (0.0, -0.3, 0.1)  # the cameras look here
 
 
 def _metal(name, roughness):
-    m = bpy.data.materials.new(name)
-    if m.node_tree is None:
-        m.use_nodes = True
-    node = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-    node.inputs["Metallic"].default_value = 1.0
-    node.inputs["Roughness"].default_value = roughness
-    node.inputs["Base Color"].default_value = (0.9, 0.8, 0.7, 1)
-    return m
+    return scenes.metal_material(name, roughness, (0.9, 0.8, 0.7))
 
 
 def glossy_scene(context):

@@ -209,11 +209,7 @@ def test_baked_chart_sphere_matches_cycles_path_tracing(context, tmp_path, uv_ma
     scenes.add_area_light(location=(0, 0, 3), size=2.0, energy=300.0)
     context.scene.bsgi.preset = "PREVIEW"
     context.scene.bsgi.chart_min_faces = 64
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, -5.0, 2.5)
-    camera.rotation_euler = (math.radians(70), 0.0, 0.0)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
+    scenes.add_camera(tilt_degrees=70)
     reference = render_exr(context.scene, tmp_path / "reference.exr", samples=512, bounces=1)
     rep = pipeline.solve_and_bake(context)
     assert bake.stored_faces(sphere)[0][0] == "chart"

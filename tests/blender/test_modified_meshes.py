@@ -263,11 +263,7 @@ def test_baked_subdivided_cube_matches_cycles_path_tracing(context, tmp_path):
     cube.location.z = 0.9
     scenes.add_area_light(location=(0, 0, 3), size=2.0, energy=300.0)
     context.scene.bsgi.preset = "PREVIEW"
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, -5.0, 2.5)
-    camera.rotation_euler = (math.radians(70), 0.0, 0.0)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
+    scenes.add_camera(tilt_degrees=70)
     reference = render_exr(context.scene, tmp_path / "reference.exr", samples=512, bounces=1)
     rep = pipeline.solve_and_bake(context)
     assert bake.is_baked(cube) and any("carried by its modifiers" in w for w in rep["warnings"])

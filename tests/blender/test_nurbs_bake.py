@@ -180,11 +180,7 @@ def test_baked_nurbs_sphere_matches_cycles_path_tracing(context, tmp_path):
 
     sphere_under_lamp(context)
     context.scene.bsgi.preset = "PREVIEW"
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, -5.0, 2.5)
-    camera.rotation_euler = (math.radians(65), 0.0, 0.0)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
+    scenes.add_camera(tilt_degrees=65)
     reference = render_exr(context.scene, tmp_path / "reference.exr", samples=512, bounces=1)
     pipeline.solve_and_bake(context)
     baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)

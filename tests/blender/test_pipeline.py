@@ -1,6 +1,5 @@
 """Export -> solve -> bake on whole scenes (addon/pipeline.py, export.py, bake.py)."""
 import math
-import pathlib
 
 import bpy
 import numpy as np
@@ -206,20 +205,9 @@ def test_solution_file_round_trip_through_blender(context, tmp_path):
         np.testing.assert_array_equal(_image_pixels(f"BSGI {name}"), pixels)
 
 
-def _metal(name, roughness):
-    m = bpy.data.materials.new(name)
-    if m.node_tree is None:
-        m.use_nodes = True
-    node = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-    node.inputs["Metallic"].default_value = 1.0
-    node.inputs["Roughness"].default_value = roughness
-    node.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
-    return m
-
-
 def test_glossy_quad_bakes_its_radiance_per_angular_sample(context):
     floor = scenes.floor_under_lamp()
-    floor.data.materials[0] = _metal("Steel", 0.5)
+    floor.data.materials[0] = scenes.metal_material("Steel", 0.5)
     context.scene.bsgi.preset = "DRAFT"
     job = pipeline.prepare(context)
     solution = pipeline.run(job)
@@ -304,7 +292,7 @@ def test_object_panel_and_options_are_registered(context):
 
 def test_solve_operator_reports_the_representations(context, capfd):
     floor = scenes.floor_under_lamp()
-    floor.data.materials[0] = _metal("Steel", 0.5)
+    floor.data.materials[0] = scenes.metal_material("Steel", 0.5)
     context.scene.bsgi.preset = "DRAFT"
     assert bpy.ops.bsgi.solve() == {"FINISHED"}
     out = capfd.readouterr()
