@@ -9,10 +9,11 @@ import pytest
 import bsgi
 from reference import mitsuba_reference, scene_spec
 
-# Blender's Principled BSDF with roughness 0.5, Anisotropic 0.8, Anisotropic Rotation 0.25, as
+# Blender's Principled BSDF with roughness 0.6, Anisotropic 0.8 (the brushed gold of
+# example_blends/make_glossy_spheres.py), Anisotropic Rotation 0.25, as
 # Cycles sets it up: alpha = roughness^2 widened along the tangent by 1 / sqrt(1 - 0.9 * 0.8);
 # the tangent (the floor's ds/du, world x) turned a quarter turn: the wide axis is world y.
-ALPHA = 0.5**2
+ALPHA = 0.6**2
 ASPECT = math.sqrt(1 - 0.9 * 0.8)
 ALPHA_X, ALPHA_Y, ROTATION = ALPHA / ASPECT, ALPHA * ASPECT, 0.25 * 2 * math.pi
 
@@ -87,6 +88,6 @@ def test_highlight_is_stretched_along_the_turned_tangent(brushed):
     ref_x, ref_y = ref[:3].mean(), ref[3:].mean()
     print(f"\nhighlight tilted 0.4 rad: solver x {along_x:.3f} y {along_y:.3f}; Mitsuba x {ref_x:.3f} y {ref_y:.3f}")
     # The lobe is wide along world y (the tangent turned a quarter turn), narrow along x.
-    assert ref_y > 3 * ref_x  # the reference itself shows the stretch the test looks for
-    assert along_y > 3 * along_x
-    assert along_y / along_x == pytest.approx(ref_y / ref_x, rel=0.15)
+    assert ref_y > 2 * ref_x  # the reference itself shows the stretch the test looks for
+    assert along_y > 2 * along_x
+    assert along_y / along_x == pytest.approx(ref_y / ref_x, rel=0.12)
