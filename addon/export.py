@@ -56,21 +56,24 @@ class SurfaceMaterial:
     albedo: tuple = (0.0, 0.0, 0.0)  # Lambertian reflectance
     specular: tuple = (0.0, 0.0, 0.0)  # glossy (microfacet) reflectance
     roughness: float = 0.5
-    anisotropy: float = 0.0
+    # Anisotropic GGX as Cycles sets it up: alpha_x = roughness^2 * stretch along the tangent,
+    # alpha_y = roughness^2 / stretch; the tangent is turned by `rotation` radians about the normal.
+    stretch: float = 1.0
+    rotation: float = 0.0
     transmission: float = 0.0
     ior: float = 1.5
     emission: tuple = (0.0, 0.0, 0.0)  # radiance
 
     def scaled(self, k: float) -> "SurfaceMaterial":
-        return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.anisotropy,
-                               self.transmission * k, self.ior, _scale(self.emission, k))
+        return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
+                               self.rotation, self.transmission * k, self.ior, _scale(self.emission, k))
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
         glossy = sum(self.specular) >= sum(other.specular)
         dominant = self if glossy else other
         return SurfaceMaterial(_add(self.albedo, other.albedo), _add(self.specular, other.specular), dominant.roughness,
-                               dominant.anisotropy, self.transmission + other.transmission, dominant.ior,
+                               dominant.stretch, dominant.rotation, self.transmission + other.transmission, dominant.ior,
                                _add(self.emission, other.emission))
 
 
@@ -112,8 +115,14 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         warnings.append(f"material '{material.name}': {node.name}'s {node.distribution.replace('_', '-').title()} "
                         "microfacet distribution is solved as GGX")
     if kind in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC"}:
+        # Cycles' Glossy BSDF: anisotropy a in [-0.99, 0.99] narrows the lobe along the tangent
+        # by (1 - a) for a > 0 and widens it by 1 / (1 + a) for a < 0 (the other axis inversely).
+        a = min(max(_socket_value(node, "Anisotropy", 0.0), -0.99), 0.99)
+        stretch = 1 / (1 + a) if a < 0 else 1 - a
+        rotation = _socket_value(node, "Rotation") if a else 0.0
+        _warn_tangent(node, material, warnings, a)
         return SurfaceMaterial(specular=_socket_color(node, "Color"), roughness=_socket_value(node, "Roughness", 0.5),
-                               anisotropy=_socket_value(node, "Anisotropy", 0.0))
+                               stretch=stretch, rotation=2 * math.pi * rotation)
     if kind == "BSDF_GLASS":
         return SurfaceMaterial(transmission=1.0, roughness=_socket_value(node, "Roughness", 0.0),
                                ior=_socket_value(node, "IOR", 1.5))
@@ -138,10 +147,14 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         if layers:
             warnings.append(f"material '{material.name}': {node.name}'s {', '.join(layers)} "
                             f"{'is' if len(layers) == 1 else 'are'} not solved; the base layers are")
+        # Cycles' Principled BSDF: anisotropic a in [0, 1] widens the lobe along the tangent by
+        # 1 / sqrt(1 - 0.9 a) and narrows it across by the same factor.
+        a = min(max(_socket_value(node, "Anisotropic"), 0.0), 1.0)
+        rotation = _socket_value(node, "Anisotropic Rotation") if a else 0.0
+        _warn_tangent(node, material, warnings, a)
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
-                               roughness=_socket_value(node, "Roughness", 0.5),
-                               anisotropy=_socket_value(node, "Anisotropic"), transmission=transmission, ior=ior,
-                               emission=emission)
+                               roughness=_socket_value(node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
+                               rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission)
     if kind == "ADD_SHADER":
         return _shader(_from(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(_from(node.inputs[1]), material, warnings, depth + 1))
@@ -152,6 +165,14 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     warnings.append(f"material '{material.name}': shader '{node.bl_idname}' is approximated by the material's "
                     "viewport colour")
     return SurfaceMaterial(albedo=tuple(material.diffuse_color[:3]))
+
+
+def _warn_tangent(node, material, warnings, anisotropy):
+    """The core's anisotropy follows the surface's own u direction: a Tangent input is not read."""
+    tangent = node.inputs.get("Tangent")
+    if anisotropy and tangent is not None and tangent.is_linked:
+        warnings.append(f"material '{material.name}': {node.name}'s Tangent input is ignored; the anisotropy "
+                        "follows each surface's u direction (ds/du), turned by its rotation")
 
 
 def _from(socket):
@@ -187,7 +208,10 @@ class SolverMaterial:
     albedo: tuple
     emission: tuple
     kind: str = "lambert"  # "lambert" | "ggx" | "rough_dielectric"
-    alpha: float = 0.0
+    alpha: float = 0.0  # roughness^2 (clamped), the isotropic GGX alpha
+    alpha_x: float = 0.0  # "ggx": along the tangent ds/du turned by `rotation` radians about the normal
+    alpha_y: float = 0.0
+    rotation: float = 0.0
     f0: tuple = (0.0, 0.0, 0.0)
     eta: float = 1.0
     bsdf: object = None  # bsgi.Bsdf, None for Lambert (the scene then uses albedo)
@@ -202,6 +226,20 @@ def _alpha(name: str, roughness: float, warnings) -> float:
     return roughness**2
 
 
+def _anisotropic_alphas(name: str, described: SurfaceMaterial, alpha: float, warnings):
+    """Blender's (alpha_x, alpha_y) from roughness^2 and the stretch, each clamped to what the
+    splines resolve."""
+    if described.stretch == 1:
+        return alpha, alpha
+    r = min(max(described.roughness, 0.0), 1.0)
+    alphas = (r * r * described.stretch, r * r / described.stretch)
+    lowest = MIN_ROUGHNESS**2
+    if min(alphas) < lowest:
+        warnings.append(f"material '{name}': its anisotropic lobe's narrow axis (alpha {min(alphas):.3f}) is solved "
+                        f"as alpha {lowest:.2f}, the narrowest the radiance splines resolve")
+    return tuple(max(a, lowest) for a in alphas)
+
+
 def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMaterial:
     """The part of the described material that dominates its reflected energy, as the core's
     BSDF: Lambert (diffuse), GGX reflection (metals, glossy coatings) or a rough dielectric
@@ -211,8 +249,6 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     diffuse = sum(described.albedo) / 3
     glossy = sum(described.specular) / 3
     transmission = described.transmission
-    if described.anisotropy:
-        warnings.append(f"material '{name}': anisotropy is solved as isotropic")
     if transmission > max(diffuse, glossy):
         if diffuse + glossy > 0.05:
             warnings.append(f"material '{name}': solved as rough glass; its diffuse and metallic parts are dropped")
@@ -227,8 +263,10 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
             warnings.append(f"material '{name}': solved as glossy (GGX); its diffuse part is dropped")
         f0 = tuple(min(1.0, max(0.0, c)) for c in described.specular)
         alpha = _alpha(name, described.roughness, warnings)
-        return SolverMaterial((0, 0, 0), described.emission, "ggx", alpha=alpha, f0=f0,
-                              bsdf=bsgi.GgxReflection(alpha, alpha, f0))
+        ax, ay = _anisotropic_alphas(name, described, alpha, warnings)
+        return SolverMaterial((0, 0, 0), described.emission, "ggx", alpha=alpha, alpha_x=ax, alpha_y=ay,
+                              rotation=described.rotation, f0=f0,
+                              bsdf=bsgi.GgxReflection(ax, ay, f0, rotation=described.rotation))
     if glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
         warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
                         f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")

@@ -1,7 +1,7 @@
 """Generates glossy_spheres.blend beside this file (the paper's figures 9 and 11): an isotropic
 and an anisotropic metal sphere, exact NURBS surfaces, on a table under a light bulb, an emissive
-NURBS surface of revolution. The add-on solves anisotropic materials as isotropic (with a
-warning): the anisotropic sphere shows what that approximation gives. Run with the `bpy` module:
+NURBS surface of revolution. The add-on solves the brushed gold as anisotropic GGX with its
+tangent along each surface's u direction (ds/du). Run with the `bpy` module:
 
     .venv/bin/python example_blends/make_glossy_spheres.py [--if-missing] [--out-dir DIR]
 """

@@ -114,9 +114,12 @@ void bind_bsdf(py::module_& m) {
                  return std::make_shared<AshikhminShirley>(rgb(rd, "rd"), rgb(rs, "rs"), nu, nv);
              }),
              py::arg("rd"), py::arg("rs"), py::arg("nu"), py::arg("nv"));
-    py::class_<GgxReflection, Bsdf, std::shared_ptr<GgxReflection>>(m, "GgxReflection")
-        .def(py::init([](double ax, double ay, const Array& f0) { return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "f0")); }),
-             py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"));
+    py::class_<GgxReflection, Bsdf, std::shared_ptr<GgxReflection>>(
+        m, "GgxReflection", "GGX reflection; rotation (radians) turns the alpha_x axis from s_u towards s_v about the normal.")
+        .def(py::init([](double ax, double ay, const Array& f0, double rotation) {
+                 return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "f0"), rotation);
+             }),
+             py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("rotation") = 0.0);
     py::class_<DiffuseGgx, Bsdf, std::shared_ptr<DiffuseGgx>>(m, "DiffuseGgx",
                                                                "Lambertian base under a GGX coat: albedo / pi + GGX.")
         .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0) {

@@ -25,22 +25,26 @@ Vec3 gray(double x) { return {x, x, x}; }
 
 // ---- GGX reflection ----
 
-GgxReflection::GgxReflection(double alpha_x, double alpha_y, const Vec3& f0) : D_{alpha_x, alpha_y}, f0_(f0) {
+GgxReflection::GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation)
+    : D_{alpha_x, alpha_y}, f0_(f0), cos_(std::cos(rotation)), sin_(std::sin(rotation)) {
     check_alpha(alpha_x);
     check_alpha(alpha_y);
+    if (!std::isfinite(rotation)) throw std::invalid_argument("GGX rotation must be finite");
     for (int i = 0; i < 3; ++i)
         if (!std::isfinite(f0[i]) || f0[i] < 0 || f0[i] > 1) throw std::invalid_argument("GGX f0 must be in [0, 1]");
 }
 
-Vec3 GgxReflection::eval(const Vec3& wo, const Vec3& wi) const {
-    if (wo.z <= 0 || wi.z <= 0) return {0, 0, 0};
+Vec3 GgxReflection::eval(const Vec3& wo_local, const Vec3& wi_local) const {
+    if (wo_local.z <= 0 || wi_local.z <= 0) return {0, 0, 0};
+    const Vec3 wo = to_lobe(wo_local), wi = to_lobe(wi_local);
     const Vec3 h = normalize(wo + wi);
     const double g = D_.G1(wo, h) * D_.G1(wi, h);
     return fresnel_schlick(f0_, dot(wi, h)) * (D_.D(h) * g / (4 * wo.z * wi.z));
 }
 
-double GgxReflection::pdf(const Vec3& wo, const Vec3& wi) const {
-    if (wo.z <= 0 || wi.z <= 0) return 0;
+double GgxReflection::pdf(const Vec3& wo_local, const Vec3& wi_local) const {
+    if (wo_local.z <= 0 || wi_local.z <= 0) return 0;
+    const Vec3 wo = to_lobe(wo_local), wi = to_lobe(wi_local);
     const Vec3 h = normalize(wo + wi);
     const double oh = dot(wo, h);
     return oh > 0 ? D_.visible_pdf(wo, h) / (4 * oh) : 0;  // reflection's Jacobian 1 / (4 wo.h)
@@ -48,7 +52,7 @@ double GgxReflection::pdf(const Vec3& wo, const Vec3& wi) const {
 
 bool GgxReflection::sample(const Vec3& wo, double, double u1, double u2, BsdfSample& out) const {
     if (wo.z <= 0) return false;
-    const Vec3 m = D_.sample_visible(wo, u1, u2);
+    const Vec3 m = from_lobe(D_.sample_visible(to_lobe(wo), u1, u2));
     const double om = dot(wo, m);
     if (om <= 0) return false;
     const Vec3 wi = m * (2 * om) - wo;

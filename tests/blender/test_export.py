@@ -281,13 +281,13 @@ def test_disk_and_ellipse_lights_light_a_floor_as_cycles_does(context, shape, si
     assert floor.name == "Floor"
 
 
-def test_principled_anisotropy_and_unsolved_layers_are_named_in_warnings(context):
+def test_principled_unsolved_layers_are_named_in_warnings(context):
     m = principled("Brushed", **{"Metallic": 1.0, "Roughness": 0.4, "Anisotropic": 0.6, "Coat Weight": 0.5,
                                  "Sheen Weight": 0.2})
     got, warnings = solver_material(m)
     assert got.kind == "ggx" and got.alpha == pytest.approx(0.16)
     text = "\n".join(warnings)
-    assert "material 'Brushed': anisotropy is solved as isotropic" in text
+    assert "isotropic" not in text and "Tangent" not in text
     assert "material 'Brushed'" in text and "coat, sheen are not solved" in text
     _, warnings = solver_material(principled("Veil", **{"Alpha": 0.5}))
     assert any("material 'Veil'" in w and "alpha (transparency)" in w for w in warnings)
@@ -351,3 +351,50 @@ def test_area_light_portal_spread_and_textured_world_are_named(context):
     assert "light 'Window': a portal" in text and "light 'Lamp': its spread of 60 degrees" in text
     assert "world 'Studio': only a constant background" in text
     assert len(result.scene) == 2  # the floor and the lamp, not the portal
+
+
+def test_principled_anisotropy_becomes_anisotropic_ggx_as_cycles_sets_it_up(context):
+    # Cycles' Principled BSDF: alpha = roughness^2; aspect = sqrt(1 - 0.9 anisotropic);
+    # alpha along the tangent alpha / aspect, across it alpha * aspect; the tangent turned about
+    # the normal by Anisotropic Rotation full turns.
+    base = (1.0, 0.76, 0.33)
+    m = principled("Brushed gold", **{"Base Color": (*base, 1), "Metallic": 1.0, "Roughness": 0.5, "Anisotropic": 0.8,
+                                      "Anisotropic Rotation": 0.25})
+    got, warnings = solver_material(m)
+    aspect = math.sqrt(1 - 0.9 * 0.8)
+    assert got.kind == "ggx"
+    assert (got.alpha_x, got.alpha_y) == pytest.approx((0.25 / aspect, 0.25 * aspect), rel=1e-6)
+    assert got.rotation == pytest.approx(math.pi / 2, rel=1e-6)
+    assert_same_bsdf(got.bsdf, bsgi.GgxReflection(0.25 / aspect, 0.25 * aspect, base, rotation=math.pi / 2))
+    assert not warnings
+
+
+def test_glossy_bsdf_anisotropy_follows_cycles_glossy(context):
+    # Cycles' Glossy BSDF: anisotropy a > 0 narrows along the tangent by (1 - a) and widens across
+    # by 1 / (1 - a); a < 0 the other way round with (1 + a).
+    for a, want in [(0.5, (0.36 * 0.5, 0.36 / 0.5)), (-0.5, (0.36 / 0.5, 0.36 * 0.5))]:
+        m, _ = shader_material(f"Glossy {a}", "ShaderNodeBsdfGlossy", Color=(0.8, 0.7, 0.6, 1), Roughness=0.6,
+                               Anisotropy=a, Rotation=0.1)
+        got, warnings = solver_material(m)
+        assert (got.alpha_x, got.alpha_y) == pytest.approx(want, rel=1e-6)
+        assert got.rotation == pytest.approx(0.2 * math.pi, rel=1e-5)
+        assert not warnings
+
+
+def test_connected_tangent_is_named_with_the_direction_used(context):
+    m = principled("Brushed steel", **{"Metallic": 1.0, "Roughness": 0.5, "Anisotropic": 0.5})
+    tree = m.node_tree
+    tangent = tree.nodes.new("ShaderNodeTangent")
+    node = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    tree.links.new(tangent.outputs["Tangent"], node.inputs["Tangent"])
+    got, warnings = solver_material(m)
+    assert got.alpha_x > got.alpha_y
+    assert any("material 'Brushed steel'" in w and "Tangent input is ignored" in w and "ds/du" in w for w in warnings)
+
+
+def test_narrow_axis_of_an_anisotropic_lobe_is_clamped_with_a_warning(context):
+    m = principled("Hairline", **{"Metallic": 1.0, "Roughness": 0.25, "Anisotropic": 1.0})
+    got, warnings = solver_material(m)
+    assert got.alpha_y == pytest.approx(export.MIN_ROUGHNESS**2)
+    assert got.alpha_x == pytest.approx(0.25**2 / math.sqrt(0.1), rel=1e-6)
+    assert any("material 'Hairline'" in w and "narrow axis" in w for w in warnings)

@@ -37,10 +37,20 @@ def to_mitsuba(spec: SceneSpec, max_depth: int = -1):
     for i, p in enumerate(spec.patches):
         path = folder / f"patch{i}.obj"
         faces = "f 1 2 3 4" if len(p.corners) == 4 else "f 1 2 3"
-        path.write_text("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in p.corners) + faces + "\n")
+        text = "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in p.corners)
+        if p.ggx_anisotropic:
+            # Texture coordinates whose u axis is the lobe's x axis: Mitsuba's shading frame
+            # follows dp/du, so its alpha_u lies along the solver's turned tangent.
+            text += "".join(f"vt {s:.17g} {t:.17g}\n" for s, t in _lobe_uv(p.corners, p.ggx_anisotropic[2]))
+            faces = " ".join(f"{k}/{k}" for k in faces.split()[1:])
+            faces = "f " + faces
+        path.write_text(text + faces + "\n")
         bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(p.albedo)}}
         if p.ggx_alpha > 0:
             bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha": p.ggx_alpha, "material": "none"}
+        if p.ggx_anisotropic:
+            bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha_u": p.ggx_anisotropic[0],
+                    "alpha_v": p.ggx_anisotropic[1], "material": "none"}
         if p.dielectric:
             bsdf = {"type": "roughdielectric", "distribution": "ggx", "alpha": p.dielectric[1],
                     "int_ior": p.dielectric[0], "ext_ior": 1.0}
@@ -131,6 +141,17 @@ def reference_radiance(spec: SceneSpec, pairs, spp: int, seed: int = 0, batch: i
     mean = total / spp
     var = np.maximum(total2 / spp - mean * mean, 0)
     return mean, np.sqrt(var / spp)
+
+
+def _lobe_uv(c, rotation):
+    """Per corner, coordinates along the first edge turned by `rotation` about the front normal
+    and along the normal x that direction (planar patches)."""
+    n = np.cross(c[1] - c[0], c[-1] - c[0])
+    n /= np.linalg.norm(n)
+    e = (c[1] - c[0]) / np.linalg.norm(c[1] - c[0])
+    t = np.cos(rotation) * e + np.sin(rotation) * np.cross(n, e)
+    b = np.cross(n, t)
+    return [(float(np.dot(p - c[0], t)), float(np.dot(p - c[0], b))) for p in c]
 
 
 def _area(c):

@@ -16,15 +16,19 @@ class Patch:
     receiver: bool = True
     ggx_alpha: float = 0.0  # > 0: GGX reflection with Fresnel 1 (Mitsuba's roughconductor, material 'none')
     dielectric: tuple = ()  # (eta, alpha): rough dielectric boundary, index eta below the front
+    # (alpha_x, alpha_y, rotation): anisotropic GGX (Fresnel 1), alpha_x along the first edge
+    # (corner 0 -> 1, the solver's ds/du) turned by `rotation` radians about the front normal.
+    ggx_anisotropic: tuple = ()
 
 
 @dataclass
 class SceneSpec:
     patches: list = field(default_factory=list)
 
-    def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True, ggx_alpha=0.0, dielectric=()):
+    def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True, ggx_alpha=0.0, dielectric=(),
+            ggx_anisotropic=()):
         self.patches.append(Patch(name, np.asarray(corners, float), tuple(albedo), tuple(emission), receiver, ggx_alpha,
-                                  tuple(dielectric)))
+                                  tuple(dielectric), tuple(ggx_anisotropic)))
         return self
 
 
@@ -60,6 +64,16 @@ def glass_over_floor(eta=1.5, alpha=0.3) -> SceneSpec:
     spec.add("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), (0.8, 0.8, 0.8))
     spec.add("glass", quad([0, 0, 0.5], [0.4, 0, 0], [0, 0.4, 0]), dielectric=(eta, alpha))
     spec.add("lamp", quad([0.1, 0, 1.5], [0, 0.3, 0], [0.3, 0, 0]), emission=(5.0, 5.0, 5.0), receiver=False)
+    return spec
+
+
+def brushed_floor(alpha_x, alpha_y, rotation) -> SceneSpec:
+    """An anisotropic metal floor (paper figure 11's brushed metal) under a small square lamp
+    straight above its centre, beside a white wall that lights it indirectly."""
+    spec = SceneSpec()
+    spec.add("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), ggx_anisotropic=(alpha_x, alpha_y, rotation))
+    spec.add("wall", quad([1, 0, 0.75], [0, 0, 0.75], [0, 1, 0]), (0.7, 0.7, 0.7))
+    spec.add("lamp", quad([0, 0, 1.2], [0, 0.2, 0], [0.2, 0, 0]), emission=(10.0, 10.0, 10.0), receiver=False)
     return spec
 
 
@@ -102,6 +116,9 @@ def to_bsgi(spec: SceneSpec, options=None):
         bsdf = bsgi.GgxReflection(p.ggx_alpha, p.ggx_alpha, [1.0, 1.0, 1.0]) if p.ggx_alpha > 0 else None
         if p.dielectric:
             bsdf = bsgi.RoughDielectric(p.dielectric[0], p.dielectric[1], p.dielectric[1])
+        if p.ggx_anisotropic:
+            ax, ay, rotation = p.ggx_anisotropic
+            bsdf = bsgi.GgxReflection(ax, ay, [1.0, 1.0, 1.0], rotation=rotation)
         add(p.name, p.corners, albedo=p.albedo, emission=p.emission, receiver=p.receiver, occluder=True, bsdf=bsdf,
             **options.get(p.name, {}))
     return scene

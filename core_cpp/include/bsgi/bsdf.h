@@ -105,10 +105,12 @@ private:
 // GGX microfacet reflection (Walter et al. 2007) with separable Smith masking, the model of
 // Blender's Principled BSDF and Mitsuba 3's roughconductor:
 // rho = F(wi.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o cos theta_i), Schlick's F with f0
-// (f0 = 1: a perfect mirror's Fresnel). Sampled by visible normals.
+// (f0 = 1: a perfect mirror's Fresnel). Sampled by visible normals. Anisotropic lobes
+// (alpha_x != alpha_y) have their x axis along s_u turned by `rotation` radians about the normal
+// towards y, as Blender's Anisotropic Rotation turns its tangent.
 class GgxReflection final : public Bsdf {
 public:
-    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0);
+    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
@@ -116,8 +118,12 @@ public:
     double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
 
 private:
+    // Local frame <-> the lobe's frame (x along the turned tangent).
+    Vec3 to_lobe(const Vec3& w) const { return {cos_ * w.x + sin_ * w.y, cos_ * w.y - sin_ * w.x, w.z}; }
+    Vec3 from_lobe(const Vec3& w) const { return {cos_ * w.x - sin_ * w.y, sin_ * w.x + cos_ * w.y, w.z}; }
     GgxDistribution D_;
     Vec3 f0_;
+    double cos_ = 1, sin_ = 0;
 };
 
 // A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal:
