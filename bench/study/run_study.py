@@ -1,0 +1,178 @@
+"""`make study`: what each preset and knob of the solver costs and what error it buys, next to Cycles
+baking, on every example scene. Writes bench/study/results.csv, one error-versus-time plot per
+scene (bench/study/plots/) and bench/study/README.md (the tables, which the main README's preset
+table is generated from).
+
+    .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--out DIR]
+
+Scenes: example_blends/*.blend and bench/study/scenes/*.blend (a glossy Cornell box). Per scene:
+the three presets, then one knob at a time around the preview preset (spatial coefficients,
+angular coefficients, degree, hemisphere nodes, bounces); each solve in a process of its own for
+its time and peak memory. Error: relative RMSE, sqrt(sum |L - L_ref|^2 / sum |L_ref|^2) over RGB,
+against Mitsuba 3 at random visible (point, direction) pairs (references.py, cached). --quick: a
+smoke run (the draft preset, one knob, a small Cycles bake, a small reference)."""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import pathlib
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(HERE))
+
+# One knob at a time around the preview preset: (knob, value shown, solver settings changed).
+KNOBS = [
+    ("spatial coefficients", 4, {"spatial_coeffs": 4}),
+    ("spatial coefficients", 8, {"spatial_coeffs": 8}),
+    ("spatial coefficients", 16, {"spatial_coeffs": 16}),
+    ("spatial coefficients", 32, {"spatial_coeffs": 32}),
+    ("angular coefficients", 4, {"angular_coeffs_min": 4, "angular_coeffs_max": 4}),
+    ("angular coefficients", 8, {"angular_coeffs_min": 8, "angular_coeffs_max": 8}),
+    ("angular coefficients", 16, {"angular_coeffs_min": 16, "angular_coeffs_max": 16}),
+    ("degree", 1, {"spatial_degree": 1, "angular_degree": 1}),
+    ("degree", 3, {"spatial_degree": 3, "angular_degree": 3}),
+    ("hemisphere nodes", "4x8", {"hemisphere_nodes_theta": 4, "hemisphere_nodes_phi": 8}),
+    ("hemisphere nodes", "8x16", {"hemisphere_nodes_theta": 8, "hemisphere_nodes_phi": 16}),
+    ("hemisphere nodes", "16x32", {"hemisphere_nodes_theta": 16, "hemisphere_nodes_phi": 32}),
+    ("bounces", 1, {"max_bounces": 1}),
+    ("bounces", 2, {"max_bounces": 2}),
+    ("bounces", 4, {"max_bounces": 4}),
+]
+PRESETS = ("draft", "preview", "final")
+CYCLES_SAMPLES = (16, 64, 256, 1024)
+CYCLES_RESOLUTION = 512
+QUICK = {"presets": ("draft",), "knobs": [("bounces", 1, {"max_bounces": 1})], "cycles_samples": (4,),
+         "cycles_resolution": 64}
+FIELDS = ["scene", "method", "setting", "knob", "value", "seconds", "peak_mb", "coefficients", "rel_rmse",
+          "rel_rmse_diffuse", "rel_rmse_glossy", "pairs", "reference_noise"]
+
+
+def scenes(names=None):
+    """The example scenes (whatever example_blends/ holds today) and the study's own."""
+    subprocess.run([sys.executable, str(HERE / "scenes" / "make_cornell_box_glossy.py"), "--if-missing"], check=True,
+                   stdout=subprocess.DEVNULL)
+    found = sorted((ROOT / "example_blends").glob("*.blend")) + sorted((HERE / "scenes").glob("*.blend"))
+    return [p for p in found if not names or p.stem in names]
+
+
+def rel_rmse(ours, ref, mask=None):
+    """sqrt(sum |ours - ref|^2 / sum |ref|^2) over the pairs in mask (NaN if none)."""
+    mask = np.ones(len(ref), bool) if mask is None else mask
+    if not mask.any():
+        return float("nan")
+    return float(np.sqrt(((ours[mask] - ref[mask]) ** 2).sum() / (ref[mask] ** 2).sum()))
+
+
+def errors(ours, data, valid):
+    kind = data["kind"]
+    return {"rel_rmse": rel_rmse(ours, data["reference"], valid),
+            "rel_rmse_diffuse": rel_rmse(ours, data["reference"], valid & (kind == "diffuse")),
+            "rel_rmse_glossy": rel_rmse(ours, data["reference"], valid & (kind != "diffuse")),
+            "pairs": int(valid.sum())}
+
+
+def run_scene(blend, work, quick, cache, log):
+    name = blend.stem
+    work.mkdir(parents=True, exist_ok=True)
+    args = [sys.executable, str(HERE / "references.py"), str(blend), "--cache", str(cache)] + (["--quick"] if quick else [])
+    log(f"{name}: Mitsuba 3 reference")
+    subprocess.run(args, check=True)
+    from references import load_cached
+
+    data = load_cached(blend, quick, cache)
+    pairs_npz = work / "pairs.npz"
+    np.savez(pairs_npz, **{k: data[k] for k in ("object", "polygon", "point", "eye")})
+    noise = rel_rmse(data["reference"] + data["stderr"], data["reference"])
+    glossy_scene = bool((data["kind"] != "diffuse").any())
+    rows = []
+    # Pairs the solver's geometry does not see as the reference does (NaN) are left out of every
+    # method's error alike.
+    valid = np.ones(len(data["point"]), bool)
+
+    def solve(setting, knob, value, spec):
+        settings_json = work / "settings.json"
+        settings_json.write_text(json.dumps(spec))
+        out = work / "solve.npz"
+        result = subprocess.run([sys.executable, str(HERE / "solve_blend.py"), str(blend), str(settings_json),
+                                 str(pairs_npz), str(out)], capture_output=True, text=True)
+        if result.returncode:
+            raise RuntimeError(f"{name} {setting}: solve failed:\n{result.stderr[-3000:]}")
+        figures = json.loads(result.stdout.strip().splitlines()[-1])
+        ours = np.load(out)["radiance"]
+        nonlocal valid
+        valid &= np.isfinite(ours).all(axis=1)
+        row = {"scene": name, "method": "bsgi", "setting": setting, "knob": knob, "value": value,
+               "seconds": round(figures["seconds"], 3), "peak_mb": round(figures["peak_mb"], 1),
+               "coefficients": figures["coefficients"], "reference_noise": round(noise, 4)}
+        rows.append((row, ours))
+        log(f"{name}: {setting}: {figures['seconds']:.2f} s, {figures['coefficients']} coefficients, "
+            f"error {rel_rmse(ours, data['reference'], np.isfinite(ours).all(axis=1)):.4f}")
+
+    for preset in QUICK["presets"] if quick else PRESETS:
+        solve(preset, "preset", preset, {"preset": preset})
+    for knob, value, overrides in QUICK["knobs"] if quick else KNOBS:
+        if knob == "angular coefficients" and not glossy_scene:
+            continue  # no glossy surface: the knob changes nothing
+        solve(f"preview, {knob} {value}", knob, value, {"preset": "preview", "overrides": overrides})
+
+    samples = QUICK["cycles_samples"] if quick else CYCLES_SAMPLES
+    resolution = QUICK["cycles_resolution"] if quick else CYCLES_RESOLUTION
+    log(f"{name}: Cycles bake at {', '.join(map(str, samples))} samples, {resolution}x{resolution} atlas")
+    out = work / "cycles.npz"
+    result = subprocess.run([sys.executable, str(HERE / "cycles_bake.py"), str(blend), str(pairs_npz), str(out),
+                             str(resolution), *map(str, samples)], capture_output=True, text=True)
+    if result.returncode:
+        raise RuntimeError(f"{name}: Cycles bake failed:\n{result.stderr[-3000:]}")
+    baked = np.load(out)
+    for n in samples:
+        row = {"scene": name, "method": "cycles bake", "setting": f"Cycles bake {n} samples", "knob": "samples",
+               "value": n, "seconds": round(float(baked[f"seconds_{n}"]), 3), "peak_mb": "",
+               "coefficients": resolution * resolution, "reference_noise": round(noise, 4)}
+        rows.append((row, baked[f"radiance_{n}"]))
+    out_rows = []
+    for row, radiance in rows:
+        row.update({k: (round(v, 4) if isinstance(v, float) else v) for k, v in errors(radiance, data, valid).items()})
+        out_rows.append(row)
+    log(f"{name}: {int(valid.sum())} of {len(valid)} pairs compared; reference noise {noise:.4f}")
+    return out_rows
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="smoke run: draft preset, one knob, small bake and reference")
+    parser.add_argument("--scene", nargs="*", help="scene names (file stems) to run; default all")
+    parser.add_argument("--out", default=str(HERE), help="folder for results.csv, plots/ and README.md")
+    parser.add_argument("--cache", default=str(HERE / "references"), help="folder of the cached references")
+    parser.add_argument("--work", default=str(ROOT / "build" / "study"), help="folder for intermediate files")
+    args = parser.parse_args(argv)
+    out = pathlib.Path(args.out)
+    start = time.perf_counter()
+
+    def log(text):
+        print(f"study [{time.perf_counter() - start:6.0f} s] {text}", flush=True)
+
+    rows = []
+    for blend in scenes(args.scene):
+        rows += run_scene(blend, pathlib.Path(args.work) / blend.stem, args.quick, pathlib.Path(args.cache), log)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "results.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=FIELDS)
+        writer.writeheader()
+        writer.writerows(rows)
+    import report
+
+    # The main README's preset table comes from the full study written to its usual place.
+    readme = ROOT / "README.md" if out.resolve() == HERE and not args.quick else None
+    report.write(out, rows, readme)
+    log(f"wrote {out / 'results.csv'}, {out / 'README.md'} and plots")
+
+
+if __name__ == "__main__":
+    main()
