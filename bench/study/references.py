@@ -26,7 +26,7 @@ import mitsuba_scene  # noqa: E402
 from mitsuba_scene import load_mitsuba  # noqa: E402
 
 CACHE = HERE / "references"
-FULL = {"pairs": 2000, "spp": 8192, "seed": 11}
+FULL = {"pairs": 3000, "spp": 32768, "seed": 11}
 QUICK = {"pairs": 200, "spp": 1024, "seed": 11}
 SOURCES = ("blend_scene.py", "mitsuba_scene.py", "references.py")
 

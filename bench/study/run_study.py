@@ -148,10 +148,15 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke run: draft preset, one knob, small bake and reference")
     parser.add_argument("--scene", nargs="*", help="scene names (file stems) to run; default all")
-    parser.add_argument("--out", default=str(HERE), help="folder for results.csv, plots/ and README.md")
-    parser.add_argument("--cache", default=str(HERE / "references"), help="folder of the cached references")
+    parser.add_argument("--out", help="folder for results.csv, plots/ and README.md (default bench/study; "
+                        "build/study-quick with --quick, so a smoke run never replaces the study's results)")
+    parser.add_argument("--cache", help="folder of the cached references (default bench/study/references; "
+                        "build/study-quick/references with --quick)")
     parser.add_argument("--work", default=str(ROOT / "build" / "study"), help="folder for intermediate files")
     args = parser.parse_args(argv)
+    quick_dir = ROOT / "build" / "study-quick"
+    args.out = args.out or str(quick_dir if args.quick else HERE)
+    args.cache = args.cache or str(quick_dir / "references" if args.quick else HERE / "references")
     out = pathlib.Path(args.out)
     start = time.perf_counter()
 
@@ -162,6 +167,11 @@ def main(argv=None):
     for blend in scenes(args.scene):
         rows += run_scene(blend, pathlib.Path(args.work) / blend.stem, args.quick, pathlib.Path(args.cache), log)
     out.mkdir(parents=True, exist_ok=True)
+    # A run of some scenes keeps the other scenes' rows of an earlier run.
+    done = {r["scene"] for r in rows}
+    if args.scene and (out / "results.csv").exists():
+        with open(out / "results.csv", newline="") as f:
+            rows = [r for r in csv.DictReader(f) if r["scene"] not in done] + rows
     with open(out / "results.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=FIELDS)
         writer.writeheader()
