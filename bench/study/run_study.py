@@ -6,9 +6,9 @@ table is generated from).
     .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--out DIR]
 
 Scenes: example_blends/*.blend and bench/study/scenes/*.blend (a glossy Cornell box). Per scene:
-the three presets, then one knob at a time around the preview preset (spatial coefficients,
-angular coefficients, degree, hemisphere nodes, bounces); each solve in a process of its own for
-its time and peak memory. Error: relative RMSE, sqrt(sum |L - L_ref|^2 / sum |L_ref|^2) over RGB,
+the three presets and, on the two Cornell boxes, one knob at a time around the preview preset
+(spatial coefficients, angular coefficients, degree, hemisphere nodes, bounces); each solve in a
+process of its own for its time and peak memory. Error: relative RMSE, sqrt(sum |L - L_ref|^2 / sum |L_ref|^2) over RGB,
 against Mitsuba 3 at random visible (point, direction) pairs (references.py, cached). --quick: a
 smoke run (the draft preset, one knob, a small Cycles bake, a small reference)."""
 from __future__ import annotations
@@ -46,6 +46,11 @@ KNOBS = [
     ("bounces", 4, {"max_bounces": 4}),
 ]
 PRESETS = ("draft", "preview", "final")
+# The knobs are swept on these scenes (small, one diffuse and one glossy); the larger example scenes
+# get the presets only, and the final preset only if the preview took at most this long, so that
+# a full run stays within tens of minutes on 2 cores.
+SWEEP_SCENES = {"cornell_box", "cornell_box_glossy"}
+FINAL_AFTER_PREVIEW_SECONDS = 60
 CYCLES_SAMPLES = (16, 64, 256, 1024)
 CYCLES_RESOLUTION = 512
 QUICK = {"presets": ("draft",), "knobs": [("bounces", 1, {"max_bounces": 1})], "cycles_samples": (4,),
@@ -118,8 +123,13 @@ def run_scene(blend, work, quick, cache, log):
             f"error {rel_rmse(ours, data['reference'], np.isfinite(ours).all(axis=1)):.4f}")
 
     for preset in QUICK["presets"] if quick else PRESETS:
+        preview = next((r["seconds"] for r, _ in rows if r["setting"] == "preview"), 0)
+        if preset == "final" and preview > FINAL_AFTER_PREVIEW_SECONDS and name not in SWEEP_SCENES:
+            log(f"{name}: final preset skipped (preview took {preview:.0f} s; the final preset is several times slower)")
+            continue
         solve(preset, "preset", preset, {"preset": preset})
-    for knob, value, overrides in QUICK["knobs"] if quick else KNOBS:
+    knobs = QUICK["knobs"] if quick else KNOBS if name in SWEEP_SCENES else []
+    for knob, value, overrides in knobs:
         if knob == "angular coefficients" and not glossy_scene:
             continue  # no glossy surface: the knob changes nothing
         solve(f"preview, {knob} {value}", knob, value, {"preset": "preview", "overrides": overrides})
@@ -150,6 +160,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke run: draft preset, one knob, small bake and reference")
     parser.add_argument("--scene", nargs="*", help="scene names (file stems) to run; default all")
+    parser.add_argument("--blend", nargs="*", help="other .blend files to study (e.g. your own scene)")
     parser.add_argument("--out", help="folder for results.csv, plots/ and README.md (default bench/study; "
                         "build/study-quick with --quick, so a smoke run never replaces the study's results)")
     parser.add_argument("--cache", help="folder of the cached references (default bench/study/references; "
@@ -166,12 +177,13 @@ def main(argv=None):
         print(f"study [{time.perf_counter() - start:6.0f} s] {text}", flush=True)
 
     rows = []
-    for blend in scenes(args.scene):
+    blends = [pathlib.Path(b).resolve() for b in args.blend] if args.blend else scenes(args.scene)
+    for blend in blends:
         rows += run_scene(blend, pathlib.Path(args.work) / blend.stem, args.quick, pathlib.Path(args.cache), log)
     out.mkdir(parents=True, exist_ok=True)
     # A run of some scenes keeps the other scenes' rows of an earlier run.
     done = {r["scene"] for r in rows}
-    if args.scene and (out / "results.csv").exists():
+    if (args.scene or args.blend) and (out / "results.csv").exists():
         with open(out / "results.csv", newline="") as f:
             rows = [r for r in csv.DictReader(f) if r["scene"] not in done] + rows
     with open(out / "results.csv", "w", newline="") as f:
