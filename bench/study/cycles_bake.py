@@ -207,15 +207,15 @@ def main():
     results = {}
     for n in map(int, samples):
         set_cycles(context.scene, n)
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         bpy.ops.object.bake(type="COMBINED", uv_layer=UV_NAME, margin=MARGIN, use_clear=True)
-        seconds = time.perf_counter() - start
+        seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
         pixels = np.empty(resolution * resolution * 4, np.float32)
         image.pixels.foreach_get(pixels)
         pixels = pixels.reshape(resolution, resolution, 4)[..., :3].astype(float)
         results[f"radiance_{n}"] = lookup(objects, pixels, resolution, pairs)
-        results[f"seconds_{n}"] = seconds
-        print(json.dumps({"samples": n, "seconds": seconds}), flush=True)
+        results[f"seconds_{n}"], results[f"cpu_seconds_{n}"] = seconds, cpu_seconds
+        print(json.dumps({"samples": n, "seconds": seconds, "cpu_seconds": cpu_seconds}), flush=True)
     np.savez(out_npz, **results)
 
 

@@ -6,11 +6,14 @@ from __future__ import annotations
 import pathlib
 import re
 
+# The plots' time axis: CPU time summed over threads, steadier than wall time on a shared machine
+# (on 2 idle cores the wall time is about half of it for both the solver and Cycles).
+T = "cpu_seconds"
 BEGIN, END = "<!-- study:presets begin -->", "<!-- study:presets end -->"
 
 
 def _f(value, digits=1, percent=False):
-    if value in ("", None) or value != value:  # blank or NaN
+    if value in ("", None) or float(value) != float(value):  # blank or NaN
         return "–"
     return f"{100 * float(value):.{digits}f}%" if percent else f"{float(value):.{digits}f}"
 
@@ -20,6 +23,7 @@ def plot(path, scene, rows):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     fig, ax = plt.subplots(figsize=(7, 5))
     solves = [r for r in rows if r["method"] == "bsgi"]
@@ -27,30 +31,34 @@ def plot(path, scene, rows):
     knobs = dict.fromkeys(r["knob"] for r in solves if r["knob"] != "preset")
     for knob in knobs:
         pts = [r for r in solves if r["knob"] == knob] + ([preview] if preview else [])
-        pts.sort(key=lambda r: float(r["seconds"]))
-        ax.plot([float(r["seconds"]) for r in pts], [100 * float(r["rel_rmse"]) for r in pts], "o-", alpha=0.55,
+        pts.sort(key=lambda r: float(r[T]))
+        ax.plot([float(r[T]) for r in pts], [100 * float(r["rel_rmse"]) for r in pts], "o-", alpha=0.55,
                 ms=4, label=f"bsgi, preview with {knob}")
         for r in pts:
             if r is not preview:
-                ax.annotate(str(r["value"]), (float(r["seconds"]), 100 * float(r["rel_rmse"])), fontsize=7,
+                ax.annotate(str(r["value"]), (float(r[T]), 100 * float(r["rel_rmse"])), fontsize=7,
                             xytext=(3, 3), textcoords="offset points")
     presets = [r for r in solves if r["knob"] == "preset"]
-    ax.plot([float(r["seconds"]) for r in presets], [100 * float(r["rel_rmse"]) for r in presets], "k*", ms=12,
+    ax.plot([float(r[T]) for r in presets], [100 * float(r["rel_rmse"]) for r in presets], "k*", ms=12,
             label="bsgi presets")
     for r in presets:
-        ax.annotate(r["value"], (float(r["seconds"]), 100 * float(r["rel_rmse"])), fontsize=9, weight="bold",
+        ax.annotate(r["value"], (float(r[T]), 100 * float(r["rel_rmse"])), fontsize=9, weight="bold",
                     xytext=(5, -10), textcoords="offset points")
-    cycles = sorted((r for r in rows if r["method"] != "bsgi"), key=lambda r: float(r["seconds"]))
+    cycles = sorted((r for r in rows if r["method"] != "bsgi"), key=lambda r: float(r[T]))
     if cycles:
-        ax.plot([float(r["seconds"]) for r in cycles], [100 * float(r["rel_rmse"]) for r in cycles], "s--",
+        ax.plot([float(r[T]) for r in cycles], [100 * float(r["rel_rmse"]) for r in cycles], "s--",
                 color="tab:red", label="Cycles bake (samples)")
         for r in cycles:
-            ax.annotate(str(r["value"]), (float(r["seconds"]), 100 * float(r["rel_rmse"])), fontsize=8,
+            ax.annotate(str(r["value"]), (float(r[T]), 100 * float(r["rel_rmse"])), fontsize=8,
                         color="tab:red", xytext=(4, 4), textcoords="offset points")
     noise = rows[0]["reference_noise"]
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("time (s, 2 cores)")
+    plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(plain)
+        axis.set_minor_formatter(plain)
+    ax.set_xlabel("CPU time (s, summed over threads)")
     ax.set_ylabel("relative RMSE against Mitsuba 3 (%)")
     ax.set_title(f"{scene}: error versus time (reference noise {100 * float(noise):.1f}%)")
     ax.grid(True, which="both", alpha=0.3)
@@ -61,10 +69,11 @@ def plot(path, scene, rows):
 
 
 def scene_table(rows) -> str:
-    lines = ["| setting | time (s) | peak memory (MB) | coefficients | error | diffuse surfaces | glossy surfaces |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| setting | wall time (s) | CPU time (s) | peak memory (MB) | coefficients / texels | error | "
+             "diffuse surfaces | glossy surfaces |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['setting']} | {_f(r['seconds'], 2)} | {_f(r['peak_mb'])} | {r['coefficients']} | "
+        lines.append(f"| {r['setting']} | {_f(r['seconds'], 2)} | {_f(r['cpu_seconds'], 2)} | {_f(r['peak_mb'])} | "
+                     f"{r['coefficients']} | "
                      f"{_f(r['rel_rmse'], 1, True)} | {_f(r['rel_rmse_diffuse'], 1, True)} | "
                      f"{_f(r['rel_rmse_glossy'], 1, True)} |")
     return "\n".join(lines)
@@ -72,12 +81,13 @@ def scene_table(rows) -> str:
 
 def presets_table(by_scene) -> str:
     """Per scene: the three presets and the Cycles bakes, time and error."""
-    lines = ["| scene | setting | time | error (all / glossy pairs) |", "|---|---|---|---|"]
+    lines = ["| scene | setting | wall time | CPU time | error (all / glossy pairs) |", "|---|---|---|---|---|"]
     for scene, rows in by_scene.items():
         for r in rows:
             if r["knob"] in ("preset", "samples"):
                 glossy = _f(r["rel_rmse_glossy"], 1, True)
-                lines.append(f"| {scene} | {r['setting']} | {_f(r['seconds'], 1)} s | {_f(r['rel_rmse'], 1, True)}"
+                lines.append(f"| {scene} | {r['setting']} | {_f(r['seconds'], 1)} s | {_f(r[T], 1)} s | "
+                             f"{_f(r['rel_rmse'], 1, True)}"
                              f"{' / ' + glossy if glossy != '–' else ''} |")
     return "\n".join(lines)
 
@@ -93,7 +103,9 @@ def write(out, rows, readme=None):
              "time around the preview preset, and Cycles baking at several sample counts. Error: relative RMSE "
              "against Mitsuba 3 at the same random visible (point, direction) pairs; *glossy surfaces* are the "
              "pairs on glossy or transmitting surfaces, where a Cycles bake (view-independent: baked as seen along "
-             "the normal) cannot follow the view. Times on this 2-core machine; raw figures in `results.csv`.", ""]
+             "the normal) cannot follow the view. Times on a 2-core machine shared with other jobs: the wall "
+             "time is what was seen, the CPU time (summed over threads, the plots' axis) is steadier; raw figures "
+             "in `results.csv`.", ""]
     for scene, srows in by_scene.items():
         plot(out / "plots" / f"{scene}.png", scene, srows)
         pairs = srows[0]["pairs"]
