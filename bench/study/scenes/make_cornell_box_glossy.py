@@ -1,6 +1,8 @@
-"""Generates cornell_box_glossy.blend beside this file: example_blends/cornell_box.blend with a rough
-metal back wall (Glossy BSDF, GGX, white, roughness sqrt(0.3): alpha = 0.3, the glossy case of
-tests/reference/scene_spec.py), so the study has a glossy scene. Run with the `bpy` module:
+"""Generates the study's glossy scenes beside this file: example_blends/cornell_box.blend with a
+metal back wall (Glossy BSDF, GGX, white): cornell_box_glossy.blend with roughness sqrt(0.3)
+(alpha = 0.3, the glossy case of tests/reference/scene_spec.py) and cornell_box_near_mirror.blend
+with roughness 0.1 (alpha = 0.01: below what the add-on solves, 0.2, so it shows that limit).
+Run with the `bpy` module:
 
     .venv/bin/python bench/study/scenes/make_cornell_box_glossy.py [--if-missing]
 """
@@ -14,7 +16,7 @@ import bpy
 
 HERE = pathlib.Path(__file__).resolve().parent
 SOURCE = HERE.parents[2] / "example_blends" / "cornell_box.blend"
-OUT = HERE / "cornell_box_glossy.blend"
+ROUGHNESS = {"cornell_box_glossy.blend": math.sqrt(0.3), "cornell_box_near_mirror.blend": 0.1}
 BACK_FACE = 2  # the Room's back wall in make_cornell_box.py
 
 
@@ -31,16 +33,18 @@ def glossy_material(name, roughness):
     return m
 
 
-def build():
+def build(roughness):
     bpy.ops.wm.open_mainfile(filepath=str(SOURCE))
     room = bpy.data.objects["Room"]
-    room.data.materials.append(glossy_material("Glossy back", math.sqrt(0.3)))
+    room.data.materials.append(glossy_material("Glossy back", roughness))
     room.data.polygons[BACK_FACE].material_index = len(room.data.materials) - 1
 
 
 if __name__ == "__main__":
-    if "--if-missing" in sys.argv and OUT.exists():
-        sys.exit(0)
-    build()
-    bpy.ops.wm.save_as_mainfile(filepath=str(OUT))
-    print(f"wrote {OUT}")
+    for name, roughness in ROUGHNESS.items():
+        out = HERE / name
+        if "--if-missing" in sys.argv and out.exists():
+            continue
+        build(roughness)
+        bpy.ops.wm.save_as_mainfile(filepath=str(out))
+        print(f"wrote {out}")
