@@ -64,6 +64,13 @@ def surfaces_of(export, context):
             mesh.vertices.foreach_get("co", co)
             m = np.array(matrix, float)
             world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+            if exported.kind == "chart":  # one MeshChart over the UV map the export chose
+                from bsgi_addon import charts
+
+                triangles, loops = charts.loop_triangles(mesh)
+                surfaces.append(bsgi.MeshChart("c", world, triangles, exported.chart_uvs[loops].astype(float)))
+                index.append(exported.patches[0][1])
+                continue
             fans = {}
             if any(p.loop_total > 4 for p in mesh.polygons):
                 mesh.calc_loop_triangles()
