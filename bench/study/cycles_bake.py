@@ -95,13 +95,16 @@ def atlas_layout(objects, resolution):
             for poly in mesh.polygons:
                 charts.append((obj, [(list(poly.loop_indices), _planar_uv(co[list(poly.vertices)]))]))
             continue
-        if not mesh.uv_layers:
-            raise ValueError(f"object '{obj.name}': {len(mesh.polygons)} faces and no UV map to bake into")
-        source = mesh.uv_layers.active.data
+        if mesh.uv_layers:
+            source = np.array([d.uv for d in mesh.uv_layers.active.data])
+        else:  # Smart UV Project, as the add-on does for a mesh without a UV map
+            from bsgi_addon import charts
+
+            source = charts.generated_uvs(co, [tuple(p.vertices) for p in mesh.polygons], obj.name)
         parts = {}
         for poly, part in zip(mesh.polygons, _components(mesh)):
             loops = list(poly.loop_indices)
-            parts.setdefault(part, []).append((loops, np.array([source[i].uv for i in loops])))
+            parts.setdefault(part, []).append((loops, source[loops]))
         charts += [(obj, polys) for polys in parts.values()]
     grid = math.ceil(math.sqrt(len(charts)))
     tile = resolution / grid
