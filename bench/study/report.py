@@ -27,13 +27,15 @@ def plot(path, scene, rows):
 
     fig, ax = plt.subplots(figsize=(7, 5))
     solves = [r for r in rows if r["method"] == "bsgi"]
-    preview = next((r for r in solves if r["setting"] == "preview"), None)
+    # The knobs are swept around the preview preset (around draft in a smoke run).
+    preview = next((r for r in solves if r["setting"] == "preview"), None) or \
+        next((r for r in solves if r["setting"] == "draft"), None)
     knobs = dict.fromkeys(r["knob"] for r in solves if r["knob"] != "preset")
     for knob in knobs:
         pts = [r for r in solves if r["knob"] == knob] + ([preview] if preview else [])
         pts.sort(key=lambda r: float(r[T]))
         ax.plot([float(r[T]) for r in pts], [100 * float(r["rel_rmse"]) for r in pts], "o-", alpha=0.55,
-                ms=4, label=f"bsgi, preview with {knob}")
+                ms=4, label=f"bsgi, {preview['setting'] if preview else 'preset'} with {knob}")
         for r in pts:
             if r is not preview:
                 ax.annotate(str(r["value"]), (float(r[T]), 100 * float(r["rel_rmse"])), fontsize=7,

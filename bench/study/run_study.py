@@ -10,7 +10,7 @@ the three presets and, on the two Cornell boxes, one knob at a time around the p
 (spatial coefficients, angular coefficients, degree, hemisphere nodes, bounces); each solve in a
 process of its own for its time and peak memory. Error: relative RMSE, sqrt(sum |L - L_ref|^2 / sum |L_ref|^2) over RGB,
 against Mitsuba 3 at random visible (point, direction) pairs (references.py, cached). --quick: a
-smoke run (the draft preset, one knob, a small Cycles bake, a small reference)."""
+smoke run (the draft preset and one knob around it, a small Cycles bake, a small reference)."""
 from __future__ import annotations
 
 import argparse
@@ -56,8 +56,9 @@ CYCLES_SAMPLES = (16, 64, 256, 1024)
 # preset's final gather (24 coefficients across the wall) at the same cost order; a user's bake
 # would often be finer and proportionally slower.
 CYCLES_RESOLUTION = 256
-QUICK = {"presets": ("draft",), "knobs": [("bounces", 1, {"max_bounces": 1})], "cycles_samples": (4,),
-         "cycles_resolution": 64}
+# The smoke run: around the draft preset, so that it stays short on the larger scenes too.
+QUICK = {"presets": ("draft",), "base": "draft", "knobs": [("bounces", 1, {"max_bounces": 1})],
+         "cycles_samples": (4,), "cycles_resolution": 64}
 FIELDS = ["scene", "method", "setting", "knob", "value", "seconds", "cpu_seconds", "peak_mb", "coefficients", "rel_rmse",
           "rel_rmse_diffuse", "rel_rmse_glossy", "pairs", "reference_noise"]
 
@@ -135,7 +136,8 @@ def run_scene(blend, work, quick, cache, log):
     for knob, value, overrides in knobs:
         if knob == "angular coefficients" and not glossy_scene:
             continue  # no glossy surface: the knob changes nothing
-        solve(f"preview, {knob} {value}", knob, value, {"preset": "preview", "overrides": overrides})
+        base = QUICK["base"] if quick else "preview"
+        solve(f"{base}, {knob} {value}", knob, value, {"preset": base, "overrides": overrides})
 
     samples = QUICK["cycles_samples"] if quick else CYCLES_SAMPLES
     resolution = QUICK["cycles_resolution"] if quick else CYCLES_RESOLUTION
