@@ -5,7 +5,8 @@ table is generated from).
 
     .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--out DIR]
 
-Scenes: example_blends/*.blend and bench/study/scenes/*.blend (a glossy Cornell box). Per scene:
+Scenes: example_blends/*.blend and bench/study/scenes/*.blend (Cornell boxes with a
+glossy and a near-mirror back wall; named apart from the examples). Per scene:
 the three presets and, on the two Cornell boxes, one knob at a time around the preview preset
 (spatial coefficients, angular coefficients, degree, hemisphere nodes, bounces); each solve in a
 process of its own for its time and peak memory. Error: relative RMSE, sqrt(sum |L - L_ref|^2 / sum |L_ref|^2) over RGB,
@@ -49,7 +50,7 @@ PRESETS = ("draft", "preview", "final")
 # The knobs are swept on these scenes (small, one diffuse and one glossy); the larger example scenes
 # get the presets only, and the final preset only if the preview took at most this long, so that
 # a full run stays within tens of minutes on 2 cores.
-SWEEP_SCENES = {"cornell_box", "cornell_box_glossy"}
+SWEEP_SCENES = {"cornell_box", "cornell_box_glossy_wall"}
 FINAL_AFTER_PREVIEW_SECONDS = 60
 CYCLES_SAMPLES = (16, 64, 256, 1024)
 # The atlas: on the Cornell box 51 texels across a 2 m wall (4 cm), as fine as the preview

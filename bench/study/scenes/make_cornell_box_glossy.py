@@ -1,6 +1,6 @@
 """Generates the study's glossy scenes beside this file: example_blends/cornell_box.blend with a
-metal back wall (Glossy BSDF, GGX, white): cornell_box_glossy.blend with roughness sqrt(0.3)
-(alpha = 0.3, the glossy case of tests/reference/scene_spec.py) and cornell_box_near_mirror.blend
+metal back wall (Glossy BSDF, GGX, white): cornell_box_glossy_wall.blend with roughness sqrt(0.3)
+(alpha = 0.3, the glossy case of tests/reference/scene_spec.py) and cornell_box_mirror_wall.blend
 with roughness 0.1 (alpha = 0.01: below what the add-on solves, 0.2, so it shows that limit).
 Run with the `bpy` module:
 
@@ -16,7 +16,7 @@ import bpy
 
 HERE = pathlib.Path(__file__).resolve().parent
 SOURCE = HERE.parents[2] / "example_blends" / "cornell_box.blend"
-ROUGHNESS = {"cornell_box_glossy.blend": math.sqrt(0.3), "cornell_box_near_mirror.blend": 0.1}
+ROUGHNESS = {"cornell_box_glossy_wall.blend": math.sqrt(0.3), "cornell_box_mirror_wall.blend": 0.1}
 BACK_FACE = 2  # the Room's back wall in make_cornell_box.py
 
 
