@@ -3,11 +3,11 @@ baking, on every example scene. Writes bench/study/results.csv, one error-versus
 scene (bench/study/plots/) and bench/study/README.md (the tables, which the main README's preset
 table is generated from).
 
-    .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--out DIR]
+    .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--blend FILE ...] [--out DIR]
 
 Scenes: example_blends/*.blend and bench/study/scenes/*.blend (Cornell boxes with a
 glossy and a near-mirror back wall; named apart from the examples). Per scene:
-the three presets and, on the two Cornell boxes, one knob at a time around the preview preset
+the three presets and, on the Cornell box and the glossy-wall one, one knob at a time around the preview preset
 (spatial coefficients, angular coefficients, degree, hemisphere nodes, bounces); each solve in a
 process of its own for its time and peak memory. Error: relative RMSE, sqrt(sum |L - L_ref|^2 / sum |L_ref|^2) over RGB,
 against Mitsuba 3 at random visible (point, direction) pairs (references.py, cached). --quick: a
