@@ -2,6 +2,7 @@
 #   make test   - apt packages, .venv (Python 3.11 + bpy), build the core, run the whole suite
 #   make demo   - solve and bake example_blends/cornell_box.blend headless, write out/
 #   make bench  - benchmarks, figures to bench/results.json
+#   make study  - the speed-accuracy study: bench/study/results.csv, plots, bench/study/README.md
 #   make extension - Blender extension zips (linux-x64, Python 3.11 and 3.13) in dist/
 # Every target does its own set-up and is fast when everything is in place.
 
@@ -23,7 +24,7 @@ VERSION    := $(shell sed -n 's/^version = "\(.*\)"/\1/p' pyproject.toml)
 EXTENSIONS := dist/bsgi-$(VERSION)-linux-x64-py311.zip dist/bsgi-$(VERSION)-linux-x64-py313.zip
 CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name '*.pyi' -o -name CMakeLists.txt \)) pyproject.toml
 
-.PHONY: test test-fast demo bench apt venv venv313 build wheels extension clean
+.PHONY: test test-fast demo bench study apt venv venv313 build wheels extension clean
 
 # The packaging tests (slow) install the extension zips, on Python 3.11 (.venv) and 3.13 ($(VENV313)).
 test: build extension venv313
@@ -39,6 +40,11 @@ demo: build
 
 bench: build
 	$(PY) bench/run.py
+
+# STUDY_ARGS=--quick for a smoke run; --scene NAME to rerun some scenes (the others' rows are kept).
+STUDY_ARGS ?=
+study: build
+	$(PY) bench/study/run_study.py $(STUDY_ARGS)
 
 apt: $(VENV)/.apt-stamp
 $(VENV)/.apt-stamp:

@@ -111,13 +111,16 @@ def visible_pairs(spec: SceneSpec, count: int, seed: int = 0):
 def reference_radiance(spec: SceneSpec, pairs, spp: int, seed: int = 0, batch: int = 2_000_000):
     """Mean radiance Mitsuba's path tracer finds along each eye -> point ray, and its standard
     error (per pair, RGB)."""
+    return radiance_along(to_mitsuba(spec), pairs["eye"], pairs["point"], spp, seed, batch)
+
+
+def radiance_along(scene, eye, point, spp: int, seed: int = 0, batch: int = 2_000_000):
+    """Mean radiance of a loaded Mitsuba scene along each eye -> point ray, and its standard error."""
     mi = load_mitsuba()
     import drjit as dr
 
-    scene = to_mitsuba(spec)
     sampler = mi.load_dict({"type": "independent"})
     integrator = scene.integrator()
-    eye, point = pairs["eye"], pairs["point"]
     d = point - eye
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     n = len(eye)

@@ -1,0 +1,163 @@
+"""What the study reads of a .blend with bpy, independently of the solver: triangulated world-space
+geometry per object and polygon (NURBS surfaces tessellated finely), each material as Blender
+describes it, and the area lights. The Mitsuba reference and the Cycles bake are built from this;
+the solver gets the same file through the add-on's own export."""
+from __future__ import annotations
+
+import importlib.util
+import math
+import pathlib
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+# The tessellation of NURBS surfaces for the path tracer and the Cycles bake: fine enough that the
+# facets lie within ~1e-4 of the exact surface on the example scenes.
+NURBS_RESOLUTION = 32
+
+
+def load_addon():
+    """The add-on as the package `bsgi_addon`, registered (its export reads the materials)."""
+    spec = importlib.util.spec_from_file_location("bsgi_addon_cli", ROOT / "addon" / "cli.py")
+    cli = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cli)
+    addon = cli.load_addon()
+    try:
+        addon.register()
+    except ValueError:
+        pass  # already registered in this process
+    return addon
+
+
+def open_blend(path):
+    import bpy
+
+    load_addon()
+    bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(path).resolve()))
+    refine_nurbs()
+    return bpy.context
+
+
+def refine_nurbs():
+    """Finer tessellation of NURBS surfaces in this session's copy of the scene (never saved)."""
+    import bpy
+
+    for curve in bpy.data.curves:
+        for spline in curve.splines:
+            spline.resolution_u = max(spline.resolution_u, NURBS_RESOLUTION)
+            spline.resolution_v = max(spline.resolution_v, NURBS_RESOLUTION)
+
+
+@dataclass
+class Material:
+    """A Blender material as its shader nodes state it (before the solver's single-BSDF choice)."""
+
+    albedo: tuple
+    specular: tuple
+    roughness: float
+    transmission: float
+    ior: float
+    emission: tuple
+
+
+@dataclass
+class ObjectMesh:
+    name: str
+    positions: np.ndarray  # (V, 3) world space
+    triangles: np.ndarray  # (T, 3) vertex indices
+    polygon: np.ndarray  # (T,) polygon index of each triangle
+    material: np.ndarray  # (T,) index into materials
+    materials: list = field(default_factory=list)
+
+
+@dataclass
+class Light:
+    name: str
+    shape: str  # RECTANGLE (squares too) | DISK (ellipses too)
+    matrix: np.ndarray  # 4x4 world matrix
+    half_a: float
+    half_b: float
+    radiance: tuple  # Cycles' convention: power / (pi * area) times the colour
+
+
+def describe(material) -> Material:
+    from bsgi_addon.export import describe_material
+
+    d = describe_material(material, [])
+    return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission)
+
+
+def object_meshes(context) -> list:
+    """Every visible geometry object as triangles (the evaluated mesh, as Cycles sees it)."""
+    from bsgi_addon.export import GEOMETRY_TYPES
+
+    depsgraph = context.evaluated_depsgraph_get()
+    out = []
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type not in GEOMETRY_TYPES or inst.is_instance:
+            continue
+        mesh = obj.to_mesh()
+        try:
+            if mesh is None or not len(mesh.polygons):
+                continue
+            co = np.empty(len(mesh.vertices) * 3)
+            mesh.vertices.foreach_get("co", co)
+            m = np.array(inst.matrix_world, float)
+            world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+            mesh.calc_loop_triangles()
+            n = len(mesh.loop_triangles)
+            tris = np.empty(n * 3, np.int64)
+            mesh.loop_triangles.foreach_get("vertices", tris)
+            poly = np.empty(n, np.int64)
+            mesh.loop_triangles.foreach_get("polygon_index", poly)
+            mat = np.empty(n, np.int64)
+            mesh.loop_triangles.foreach_get("material_index", mat)
+            slots = [s.material for s in obj.original.material_slots] or [None]
+            mat = np.minimum(mat, len(slots) - 1)
+            out.append(ObjectMesh(obj.name, world, tris.reshape(-1, 3), poly, mat, [describe(s) for s in slots]))
+        finally:
+            obj.to_mesh_clear()
+    return out
+
+
+def lights(context) -> list:
+    depsgraph = context.evaluated_depsgraph_get()
+    out = []
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type != "LIGHT" or obj.data.type != "AREA":
+            continue
+        light = obj.data
+        m = np.array(inst.matrix_world, float)
+        a = light.size / 2
+        b = (light.size_y if light.shape in {"RECTANGLE", "ELLIPSE"} else light.size) / 2
+        disk = light.shape in {"DISK", "ELLIPSE"}
+        area = np.linalg.norm(np.cross(m[:3, 0] * a, m[:3, 1] * b)) * (math.pi if disk else 4)
+        radiance = tuple(c * light.energy / (math.pi * area) for c in light.color)
+        out.append(Light(obj.name, "DISK" if disk else "RECTANGLE", m, a, b, radiance))
+    return out
+
+
+def main_argv():
+    """Arguments after `--` (when run by Blender) or after the script name."""
+    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+
+
+def describe_blend(blend) -> dict:
+    """The scene as plain data (for processes without bpy): {"objects": [...], "lights": [...]}."""
+    context = open_blend(blend)
+    return {"objects": object_meshes(context), "lights": lights(context)}
+
+
+if __name__ == "__main__":
+    # python blend_scene.py scene.blend out.pickle: the description, for the Mitsuba process
+    # (Mitsuba's LLVM and Blender's libraries are kept in separate processes).
+    import pickle
+
+    import blend_scene  # this file as a module, so the pickle names its classes importably
+
+    blend, out = main_argv()
+    pathlib.Path(out).write_bytes(pickle.dumps(blend_scene.describe_blend(blend)))

@@ -1,0 +1,155 @@
+"""One solve of a .blend in a process of its own (so its peak memory is its own), then the
+solution's radiance at the study's pairs. Prints a JSON line of figures.
+
+    python bench/study/solve_blend.py scene.blend settings.json pairs.npz out.npz
+
+settings.json: {"preset": "preview", "overrides": {"spatial_coeffs": 8, ...}}. The scene comes from
+the add-on's export, as a user's solve gets it; the pairs' eye rays are cast against the solver's
+surfaces to find what each eye sees (surface, u, v)."""
+from __future__ import annotations
+
+import json
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import blend_scene  # noqa: E402
+
+
+def status_mb(key):
+    # VmHWM, the peak, belongs to this process image (ru_maxrss would carry the parent's over exec).
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) / 1024
+
+
+def settings_of(spec: dict):
+    import bsgi
+
+    settings = bsgi.SolverSettings.preset(spec["preset"])
+    for name, value in spec.get("overrides", {}).items():
+        if not hasattr(settings, name):
+            raise ValueError(f"no solver setting '{name}'")
+        setattr(settings, name, value)
+    return settings
+
+
+def surfaces_of(export, context):
+    """The exported objects' surfaces again, for a RayCaster (the Scene keeps its own), with the
+    scene index of each: faces in the export's order (quads, triangles, n-gon fans), NURBS splines."""
+    import bsgi
+    from bsgi_addon.export import nurbs_surface
+
+    depsgraph = context.evaluated_depsgraph_get()
+    instances = {inst.object.name: inst.matrix_world.copy() for inst in depsgraph.object_instances
+                 if not inst.is_instance}
+    surfaces, index = [], []
+    for exported in export.objects:
+        obj = context.scene.objects[exported.name].evaluated_get(depsgraph)
+        matrix = instances[exported.name]
+        if exported.kind == "nurbs":
+            splines = [s for s in obj.original.data.splines if s.type == "NURBS"]
+            for (kind, first, count), spline in zip(exported.patches, _drawn(splines)):
+                surfaces.append(nurbs_surface(f"{obj.name}: spline", spline, matrix))
+                index.append(first)
+            continue
+        mesh = obj.to_mesh()
+        try:
+            co = np.empty(len(mesh.vertices) * 3)
+            mesh.vertices.foreach_get("co", co)
+            m = np.array(matrix, float)
+            world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+            if exported.kind == "chart":  # one MeshChart over the UV map the export chose
+                from bsgi_addon import charts
+
+                triangles, loops = charts.loop_triangles(mesh)
+                surfaces.append(bsgi.MeshChart("c", world, triangles, exported.chart_uvs[loops].astype(float)))
+                index.append(exported.patches[0][1])
+                continue
+            fans = {}
+            if any(p.loop_total > 4 for p in mesh.polygons):
+                mesh.calc_loop_triangles()
+                for tri in mesh.loop_triangles:
+                    fans.setdefault(tri.polygon_index, []).append(list(tri.vertices))
+            for poly, (kind, first, count) in zip(mesh.polygons, exported.patches):
+                verts = list(poly.vertices)
+                if kind == "quad":
+                    surfaces.append(bsgi.BilinearPatch("q", world[verts]))
+                    index.append(first)
+                elif kind == "triangle":
+                    surfaces.append(bsgi.TrianglePatch("t", world[verts]))
+                    index.append(first)
+                else:
+                    for k, tri in enumerate(fans[poly.index]):
+                        surfaces.append(bsgi.TrianglePatch("t", world[tri]))
+                        index.append(first + k)
+        finally:
+            obj.to_mesh_clear()
+    return surfaces, np.array(index)
+
+
+def _drawn(splines):
+    from bsgi_addon.export import _nurbs_problem
+
+    return [s for s in splines if not _nurbs_problem(s)]
+
+
+def radiance_at_pairs(export, context, solution, pairs, tolerance):
+    """The solution's radiance seen from each pair's eye towards its point; NaN where the solver's
+    geometry is not hit within tolerance of the point (tessellation differences at silhouettes)."""
+    import bsgi
+
+    surfaces, index = surfaces_of(export, context)
+    caster = bsgi.RayCaster(surfaces)
+    eye, point = pairs["eye"], pairs["point"]
+    d = point - eye
+    dist = np.linalg.norm(d, axis=1)
+    d /= dist[:, None]
+    hit = caster.closest_hit(eye, d)
+    ok = (hit["surface"] >= 0) & (np.abs(hit["t"] - dist) < tolerance)
+    out = np.full((len(eye), 3), np.nan)
+    frames = hit["frame"]
+    for s in np.unique(hit["surface"][ok]):
+        rows = np.nonzero(ok & (hit["surface"] == s))[0]
+        toward_eye = -d[rows]
+        local = np.einsum("nij,nj->ni", frames[rows], toward_eye)  # rows of the frame: x, y, normal
+        out[rows] = solution.surfaces[int(index[s])].evaluate(hit["uv"][rows], local)
+    return out
+
+
+def main():
+    blend, settings_json, pairs_npz, out_npz = blend_scene.main_argv()
+    import bpy
+
+    import bsgi
+
+    blend_scene.load_addon()
+    from bsgi_addon.export import export_scene
+
+    bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(blend).resolve()))
+    context = bpy.context
+    spec = json.loads(pathlib.Path(settings_json).read_text())
+    settings = settings_of(spec)
+    export = export_scene(context.evaluated_depsgraph_get())
+    pairs = dict(np.load(pairs_npz))
+    # Reset the peak to the current size (Linux clear_refs), so loading Blender does not count.
+    pathlib.Path("/proc/self/clear_refs").write_text("5")
+    before = status_mb("VmRSS")
+    start, cpu = time.perf_counter(), time.process_time()
+    solution = bsgi.solve(export.scene, settings)
+    seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
+    peak = status_mb("VmHWM")
+    scale = float(np.ptp(pairs["point"], axis=0).max())
+    ours = radiance_at_pairs(export, context, solution, pairs, 1e-3 * scale)
+    np.savez(out_npz, radiance=ours)
+    print(json.dumps({"seconds": seconds, "cpu_seconds": cpu_seconds, "peak_mb": peak - before, "coefficients": solution.stats["coefficients"],
+                      "bounces": solution.stats["bounces"]}))
+
+
+if __name__ == "__main__":
+    main()
