@@ -10,6 +10,8 @@ namespace bsgi {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// Emitter cells whose normals turn by more than about 45 degrees are split whatever their size.
+constexpr double kMaxEmitterCellBend = 0.7;
 
 // B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
 // for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
@@ -84,12 +86,20 @@ template <typename Visit>
 void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const Vec3& radiance, double s0, double s1,
                             double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit,
                             size_t& rays) const {
-    const Vec3 c = emitter.evaluate(0.5 * (s0 + s1), 0.5 * (t0 + t1)).p;
-    double radius = 0;
+    const SurfacePoint centre = emitter.evaluate(0.5 * (s0 + s1), 0.5 * (t0 + t1));
+    const Vec3 c = centre.p;
+    double radius = 0, bend = 1;
     for (double s : {s0, s1})
-        for (double t : {t0, t1}) radius = std::max(radius, length(emitter.evaluate(s, t).p - c));
+        for (double t : {t0, t1}) {
+            const SurfacePoint corner = emitter.evaluate(s, t);
+            radius = std::max(radius, length(corner.p - c));
+            bend = std::min(bend, dot(corner.frame.z, centre.frame.z));
+        }
     const double dist = length(c - r.p) - radius;
-    if (depth < settings_.emitter_max_depth && 2 * radius > ratio * dist) {
+    // A strongly curved cell (a whole sphere: its corners are the poles) turns away from the
+    // receiver inside the cell, where the cell's few nodes cannot follow cos_e: split it too.
+    const bool curved = bend < kMaxEmitterCellBend;
+    if (depth < settings_.emitter_max_depth && (curved || 2 * radius > ratio * dist)) {
         const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
         emitter_cell(r, emitter, radiance, s0, sm, t0, tm, depth + 1, ratio, both_sides, visit, rays);
         emitter_cell(r, emitter, radiance, sm, s1, t0, tm, depth + 1, ratio, both_sides, visit, rays);

@@ -193,3 +193,30 @@ def test_final_preset_direct_light_within_half_a_percent(emitter):
     err = max_rel_error(sol, receiver, emitter, [0, 0, 1], np.vstack([UV, UV_EDGES]))
     print(f"\nfinal preset, direct light: max relative error {err:.2e}")
     assert err <= 0.005
+
+
+def test_curved_emitter_a_nurbs_sphere_lights_a_floor_as_the_closed_form():
+    # A uniformly emitting sphere above the receiver's horizon gives E = pi L (r/d)^2 cos(theta)
+    # (closed form). The sphere's whole-domain emitter cell has the poles for corners: it must be
+    # split for its curvature, not only for its size (it came out black right below the bulb).
+    from nurbs_reference import SPHERE_FLAGS, blender_sphere_points
+
+    r, h, L = 0.1, 0.5, 10.0
+    points = blender_sphere_points(r)
+    points[:, 2] += h
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float),
+                             albedo=[0.5] * 3, emission=[0] * 3)
+    scene.add_surface(bsgi.NurbsSurface("bulb", points, front="blender", **SPHERE_FLAGS), albedo=[0] * 3,
+                      emission=[L] * 3, receiver=False)
+    settings = bsgi.SolverSettings()
+    settings.spatial_coeffs = 32
+    settings.max_bounces = 1
+    sol = bsgi.solve(scene, settings)
+    xs = np.array([0.0, 0.15, 0.3, 0.45, 0.6])
+    got = sol.radiance[0].evaluate(np.stack([(xs + 1) / 2, np.full_like(xs, 0.5)], axis=1))[:, 0]
+    d2 = xs**2 + h**2
+    want = 0.5 / np.pi * np.pi * L * r * r / d2 * h / np.sqrt(d2)
+    err = np.abs(got / want - 1).max()
+    print(f"\nNURBS sphere emitter over a floor vs the closed form: max relative error {err:.2e}")
+    assert err < 0.02
