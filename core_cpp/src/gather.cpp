@@ -10,8 +10,10 @@ namespace bsgi {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// Emitter cells whose normals turn by more than about 45 degrees are split whatever their size.
+// Emitter cells whose normals turn by more than about 45 degrees are split down to a tenth of
+// their distance from the receiver.
 constexpr double kMaxEmitterCellBend = 0.7;
+constexpr double kCurvedEmitterCellRatio = 0.1;
 
 // B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
 // for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
@@ -97,9 +99,10 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
         }
     const double dist = length(c - r.p) - radius;
     // A strongly curved cell (a whole sphere: its corners are the poles) turns away from the
-    // receiver inside the cell, where the cell's few nodes cannot follow cos_e: split it too.
-    const bool curved = bend < kMaxEmitterCellBend;
-    if (depth < settings_.emitter_max_depth && (curved || 2 * radius > ratio * dist)) {
+    // receiver inside the cell, where the cell's few nodes cannot follow cos_e: it is split
+    // further, but not without end (a crease never straightens out).
+    const double limit = bend < kMaxEmitterCellBend ? std::min(ratio, kCurvedEmitterCellRatio) : ratio;
+    if (depth < settings_.emitter_max_depth && 2 * radius > limit * dist) {
         const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
         emitter_cell(r, emitter, radiance, s0, sm, t0, tm, depth + 1, ratio, both_sides, visit, rays);
         emitter_cell(r, emitter, radiance, sm, s1, t0, tm, depth + 1, ratio, both_sides, visit, rays);
