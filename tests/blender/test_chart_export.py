@@ -197,7 +197,7 @@ def test_baked_chart_sphere_matches_cycles_path_tracing(context, tmp_path, uv_ma
     """A UV sphere mesh (512 faces) solved and baked as one chart, over its own UV map or a
     generated one, rendered through the chart's UV map, against Cycles path tracing the original
     mesh over a floor (one bounce)."""
-    from test_pipeline import render_exr
+    from test_pipeline import lit_relative_difference, render_exr
 
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(0, 0, 0.9))
     sphere = bpy.context.object
@@ -214,9 +214,7 @@ def test_baked_chart_sphere_matches_cycles_path_tracing(context, tmp_path, uv_ma
     rep = pipeline.solve_and_bake(context)
     assert bake.stored_faces(sphere)[0][0] == "chart"
     baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
-    luminance = reference.mean(axis=2)
-    lit = luminance > 0.05 * np.percentile(luminance, 99)
-    rel = np.abs(baked - reference).sum(axis=2)[lit] / reference.sum(axis=2)[lit]
+    rel, lit = lit_relative_difference(baked, reference, 0.05)
     assert any("Smart UV Project" in w for w in rep["warnings"]) == (uv_map == "generated")
     print(f"\nchart sphere ({uv_map} UV map), baked vs Cycles (512 spp): mean relative difference {rel.mean():.4f} over {lit.sum()} "
           f"lit pixels; median {np.median(rel):.4f}")

@@ -254,7 +254,7 @@ def test_baked_subdivided_cube_matches_cycles_path_tracing(context, tmp_path):
     """The subdivided cube over a generated, carried UV map, solved and baked, rendered through
     the bake's UV map on the evaluated mesh, against Cycles path tracing the modified cube over a
     floor (one bounce)."""
-    from test_pipeline import render_exr
+    from test_pipeline import lit_relative_difference, render_exr
 
     grey = scenes.diffuse_material("Grey", (0.5, 0.5, 0.5))
     scenes.add_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], grey)
@@ -268,9 +268,7 @@ def test_baked_subdivided_cube_matches_cycles_path_tracing(context, tmp_path):
     rep = pipeline.solve_and_bake(context)
     assert bake.is_baked(cube) and any("carried by its modifiers" in w for w in rep["warnings"])
     baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
-    luminance = reference.mean(axis=2)
-    lit = luminance > 0.05 * np.percentile(luminance, 99)
-    rel = np.abs(baked - reference).sum(axis=2)[lit] / reference.sum(axis=2)[lit]
+    rel, lit = lit_relative_difference(baked, reference, 0.05)
     print(f"\nsubdivided cube (generated, carried UV map), baked vs Cycles (512 spp): mean relative difference "
           f"{rel.mean():.4f} over {lit.sum()} lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size

@@ -176,7 +176,7 @@ def test_nurbs_solution_file_round_trip(context, tmp_path):
 def test_baked_nurbs_sphere_matches_cycles_path_tracing(context, tmp_path):
     """The bake seen through Blender's own mesh and UV map in a render, against Cycles path
     tracing the original sphere: checks the parameter layout, the front side and the light."""
-    from test_pipeline import render_exr
+    from test_pipeline import lit_relative_difference, render_exr
 
     sphere_under_lamp(context)
     context.scene.bsgi.preset = "PREVIEW"
@@ -184,9 +184,7 @@ def test_baked_nurbs_sphere_matches_cycles_path_tracing(context, tmp_path):
     reference = render_exr(context.scene, tmp_path / "reference.exr", samples=512, bounces=1)
     pipeline.solve_and_bake(context)
     baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
-    luminance = reference.mean(axis=2)
-    lit = luminance > 0.05 * np.percentile(luminance, 99)
-    rel = np.abs(baked - reference).sum(axis=2)[lit] / reference.sum(axis=2)[lit]
+    rel, lit = lit_relative_difference(baked, reference, 0.05)
     print(f"\nNURBS sphere, baked vs Cycles (512 spp): mean relative difference {rel.mean():.4f} over {lit.sum()} "
           f"lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size

@@ -32,6 +32,14 @@ def render_exr(scene, path, samples, bounces):
     return OpenEXR.File(str(path)).channels()["RGBA"].pixels[..., :3].astype(np.float64)
 
 
+def lit_relative_difference(baked, reference, lit_fraction):
+    """Per-pixel relative difference of two renders over the lit pixels (luminance above
+    lit_fraction of the reference's 99th percentile); returns (differences, lit mask)."""
+    luminance = reference.mean(axis=2)
+    lit = luminance > lit_fraction * np.percentile(luminance, 99)
+    return np.abs(baked - reference).sum(axis=2)[lit] / reference.sum(axis=2)[lit], lit
+
+
 @pytest.mark.slow
 def test_baked_cornell_box_matches_cycles_path_tracing(context, tmp_path):
     scene = scenes.cornell_box()
@@ -41,9 +49,7 @@ def test_baked_cornell_box_matches_cycles_path_tracing(context, tmp_path):
     reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=bounces)
     pipeline.solve_and_bake(context)
     baked = render_exr(scene, tmp_path / "baked.exr", samples=16, bounces=0)
-    luminance = reference.mean(axis=2)
-    lit = luminance > 0.02 * np.percentile(luminance, 99)
-    rel = np.abs(baked - reference).sum(axis=2)[lit] / reference.sum(axis=2)[lit]
+    rel, lit = lit_relative_difference(baked, reference, 0.02)
     mean_rel = rel.mean()
     print(f"\nCornell box, baked vs Cycles ({bounces} bounces, 1024 spp): mean relative difference "
           f"{mean_rel:.4f} over {lit.sum()} lit pixels; median {np.median(rel):.4f}")
