@@ -14,7 +14,7 @@ from mathutils import Matrix
 
 import bsgi
 
-from . import charts
+from . import charts, tangents
 
 # Blender's look for a surface with no material: a light grey diffuse.
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
@@ -337,6 +337,43 @@ def _material_keywords(material: SolverMaterial, options: dict) -> dict:
     return dict(albedo=material.albedo, emission=material.emission, bsdf=material.bsdf, **options)
 
 
+@dataclass
+class _Materials:
+    """An object's slot materials as the core takes them, and where Blender's default tangent
+    points on it (for anisotropic ones)."""
+
+    solver: list  # of SolverMaterial
+    keywords: list  # of dict, for Scene.add_surface
+    radial: tangents.RadialTangent
+    label: str
+    spread: float = 0.0  # the largest turn of Blender's tangent against ds/du on one surface, radians
+
+    def for_surface(self, slot: int, surface) -> dict:
+        """The keywords of the slot's material; an anisotropic GGX turned so that its tangent
+        follows Blender's on this surface (ds/du turned by the mean angle between them)."""
+        slot = min(slot, len(self.solver) - 1)
+        material, keywords = self.solver[slot], self.keywords[slot]
+        if material.kind != "ggx" or material.alpha_x == material.alpha_y:
+            return keywords
+        angle, spread = tangents.surface_rotation(self.radial, surface)
+        self.spread = max(self.spread, spread)
+        bsdf = bsgi.GgxReflection(material.alpha_x, material.alpha_y, material.f0, rotation=material.rotation + angle)
+        return {**keywords, "bsdf": bsdf}
+
+    def warn(self, warnings) -> None:
+        if math.degrees(self.spread) > tangents.MAX_SPREAD_DEGREES:
+            warnings.append(f"object '{self.label}': Blender's tangent for its anisotropic material turns by up to "
+                            f"{math.degrees(self.spread):.0f} degrees against the surfaces' own u direction; the "
+                            "solver turns the lobe by one mean angle per surface (UV charts and NURBS surfaces "
+                            "follow a smooth tangent better than single faces)")
+
+
+def _materials(obj, matrix: Matrix, warnings, label: str, options: dict) -> _Materials:
+    solver = _slot_materials(obj, warnings)
+    radial = tangents.RadialTangent(np.array(matrix, float), [tuple(c) for c in obj.bound_box])
+    return _Materials(solver, [_material_keywords(m, options) for m in solver], radial, label)
+
+
 def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | None = None,
                      pending_charts: list | None = None) -> ExportedObject:
     co = np.empty(len(mesh.vertices) * 3, np.float64)
@@ -344,11 +381,10 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
     co = co.reshape(-1, 3)
     m = np.array(matrix, float)
     world = co @ m[:3, :3].T + m[:3, 3]
-    options = surface_options(obj)
-    materials = [_material_keywords(material, options) for material in _slot_materials(obj, warnings)]
-    exported = ExportedObject(obj.name, len(mesh.polygons))
     modified = label is None and obj.type == "MESH" and pending_charts is not None and _modifiers_change_faces(obj, mesh)
     label = label or obj.name
+    materials = _materials(obj, matrix, warnings, label, surface_options(obj))
+    exported = ExportedObject(obj.name, len(mesh.polygons))
     if modified:
         # The user's mesh shows the evaluated faces only through a UV map the modifiers carry
         # to them: one chart, or no bake.
@@ -366,23 +402,21 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
         for tri in mesh.loop_triangles:
             ngon_tris.setdefault(tri.polygon_index, []).append(tuple(tri.vertices))
     for poly in mesh.polygons:
-        keywords = materials[min(poly.material_index, len(materials) - 1)]
         name = f"{label}: face {poly.index}"
         verts = list(poly.vertices)
         first = len(scene)
+        if len(verts) <= 4:
+            pieces, kind = [(name, verts)], {3: "triangle", 4: "quad"}.get(len(verts), "triangle")
+        else:
+            pieces, kind = [(f"{name} triangle {k}", list(tri)) for k, tri in enumerate(ngon_tris[poly.index])], "ngon"
         try:
-            if len(verts) == 4:
-                scene.add_bilinear_patch(name, world[verts], **keywords)
-                exported.patches.append(("quad", first, 1))
-            elif len(verts) == 3:
-                scene.add_triangle(name, world[verts], **keywords)
-                exported.patches.append(("triangle", first, 1))
-            else:
-                for k, tri in enumerate(ngon_tris[poly.index]):
-                    scene.add_triangle(f"{name} triangle {k}", world[list(tri)], **keywords)
-                exported.patches.append(("ngon", first, len(ngon_tris[poly.index])))
+            for piece, corners in pieces:
+                surface = (bsgi.BilinearPatch if len(corners) == 4 else bsgi.TrianglePatch)(piece, world[corners])
+                scene.add_surface(surface, **materials.for_surface(poly.material_index, surface))
         except ValueError as error:
             raise ExportError(str(error)) from None
+        exported.patches.append((kind, first, len(pieces)))
+    materials.warn(warnings)
     return exported
 
 
@@ -445,7 +479,8 @@ class _ChartJob:
     triangle_loops: np.ndarray  # (T, 3) loop indices
     polygons: list  # vertex index tuples, for a generated UV map
     uvs: np.ndarray | None  # per loop, from a suitable UV map of the user's, or None
-    keywords: dict
+    materials: _Materials
+    slot: int  # the chart's material (of its first face)
     uv_reasons: list
     # A mesh whose modifiers change its faces: the user's object, whose own mesh's loops get the
     # bake's UVs (the modifiers carry them to the evaluated faces).
@@ -462,12 +497,11 @@ def _chart_job(exported, mesh, world, materials, label, base=None) -> _ChartJob:
         name, found = None, [f"UV map '{name}' is made by its modifiers"]
     indices = np.empty(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", indices)
-    keywords = materials[min(int(indices[0]), len(materials) - 1)]
     polygons = [tuple(p.vertices) for p in mesh.polygons] if name is None else []
     # The user's UV map as their own mesh holds it: the modifiers carry it to the faces solved.
     base_uvs = charts.layer_uvs(base.data, name) if base is not None and name is not None else None
     return _ChartJob(exported, label, world, triangles, loops, polygons, found if name is not None else None,
-                     keywords, [] if name is not None else found, base, base_uvs, len(mesh.loops))
+                     materials, int(indices[0]), [] if name is not None else found, base, base_uvs, len(mesh.loops))
 
 
 def _build_chart(scene, job: _ChartJob, warnings) -> None:
@@ -489,9 +523,10 @@ def _build_chart(scene, job: _ChartJob, warnings) -> None:
     first = len(scene)
     try:
         chart = bsgi.MeshChart(f"{job.label}: chart 0", job.world, job.triangles, uvs[job.triangle_loops])
-        scene.add_surface(chart, **job.keywords)
+        scene.add_surface(chart, **job.materials.for_surface(job.slot, chart))
     except ValueError as error:
         raise ExportError(str(error)) from None
+    job.materials.warn(warnings)
     job.exported.kind = "chart"
     bake_uvs = uvs if job.base is None else job.base_uvs
     job.exported.chart_uvs = None if job.exported.not_baked else bake_uvs.astype(np.float32)
@@ -569,8 +604,7 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = 
     label = label or obj.name
     if original.modifiers:
         warnings.append(f"object '{obj.name}': modifiers of NURBS surfaces are ignored (the splines are solved exactly)")
-    options = surface_options(obj)
-    materials = [_material_keywords(material, options) for material in _slot_materials(original, warnings)]
+    materials = _materials(original, matrix, warnings, label, surface_options(obj))
     exported = ExportedObject(obj.name, 0, kind="nurbs")
     from .bake import user_spline_material_index
 
@@ -586,10 +620,11 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = 
         index = user_spline_material_index(original, k)
         try:
             surface = nurbs_surface(f"{label}: spline {k}", spline, matrix)
-            scene.add_surface(surface, **materials[min(index, len(materials) - 1)])
+            scene.add_surface(surface, **materials.for_surface(index, surface))
         except ValueError as error:
             raise ExportError(str(error)) from None
         exported.patches.append(("nurbs", first, 1))
+    materials.warn(warnings)
     return exported if exported.patches else None
 
 

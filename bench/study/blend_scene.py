@@ -60,6 +60,10 @@ class Material:
     transmission: float
     ior: float
     emission: tuple
+    # Anisotropic GGX as Cycles sets it up (see the add-on's SurfaceMaterial): alpha_x =
+    # roughness^2 * stretch along the tangent turned by `rotation` radians about the normal.
+    stretch: float = 1.0
+    rotation: float = 0.0
 
 
 @dataclass
@@ -70,6 +74,7 @@ class ObjectMesh:
     polygon: np.ndarray  # (T,) polygon index of each triangle
     material: np.ndarray  # (T,) index into materials
     materials: list = field(default_factory=list)
+    tangent: np.ndarray = None  # (T, 3) Blender's default tangent per triangle (default_tangents)
 
 
 @dataclass
@@ -86,12 +91,28 @@ def describe(material) -> Material:
     from bsgi_addon.export import describe_material
 
     d = describe_material(material, [])
-    return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission)
+    return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation)
+
+
+def default_tangents(world, triangles, radial):
+    """The tangent Cycles gives an anisotropic BSDF whose Tangent input is not connected (the
+    add-on's RadialTangent, checked against Cycles' Tangent node) at each triangle's centroid,
+    projected onto its plane. Unit vectors, (T, 3)."""
+    corners = world[triangles]
+    t = radial.at(corners.mean(axis=1))
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    t -= n * np.einsum("ij,ij->i", t, n)[:, None]
+    # On the axis the radial direction vanishes: any tangent does there (a set of measure zero).
+    fallback = np.cross(n, np.where(np.abs(n[:, :1]) > 0.5, [[0, 1, 0]], [[1, 0, 0]]))
+    t = np.where(np.linalg.norm(t, axis=1, keepdims=True) > 1e-12, t, fallback)
+    return t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
 
 
 def object_meshes(context) -> list:
     """Every visible geometry object as triangles (the evaluated mesh, as Cycles sees it)."""
     from bsgi_addon.export import GEOMETRY_TYPES
+    from bsgi_addon.tangents import RadialTangent
 
     depsgraph = context.evaluated_depsgraph_get()
     out = []
@@ -117,7 +138,9 @@ def object_meshes(context) -> list:
             mesh.loop_triangles.foreach_get("material_index", mat)
             slots = [s.material for s in obj.original.material_slots] or [None]
             mat = np.minimum(mat, len(slots) - 1)
-            out.append(ObjectMesh(obj.name, world, tris.reshape(-1, 3), poly, mat, [describe(s) for s in slots]))
+            tris = tris.reshape(-1, 3)
+            out.append(ObjectMesh(obj.name, world, tris, poly, mat, [describe(s) for s in slots],
+                                  default_tangents(world, tris, RadialTangent(m, [tuple(c) for c in obj.bound_box]))))
         finally:
             obj.to_mesh_clear()
     return out

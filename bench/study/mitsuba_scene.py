@@ -1,6 +1,7 @@
 """A Blender scene (as blend_scene describes it) in Mitsuba 3: the triangles Blender renders, each
 material as its nodes state it (not the solver's single-BSDF approximation, so that what the
-solver drops shows as error), and the area lights as one-sided emitting rectangles and discs."""
+solver drops shows as error; anisotropic metals along the tangent Cycles gives them), and the area
+lights as one-sided emitting rectangles and discs."""
 from __future__ import annotations
 
 import pathlib
@@ -12,18 +13,26 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from reference.mitsuba_reference import load_mitsuba  # noqa: E402
+from reference.mitsuba_reference import lobe_coordinates, load_mitsuba  # noqa: E402
 
 # Below this roughness Mitsuba's smooth models are used (GGX with alpha -> 0 is the mirror).
 SMOOTH_ROUGHNESS = 0.02
 
 
+def anisotropic(material) -> bool:
+    return material.stretch != 1
+
+
 def bsdf(material) -> dict:
     """The Mitsuba BSDF of a material: whichever of diffuse, metal and glass carries most energy,
-    as Blender's Principled BSDF splits it (a dielectric coat over a diffuse base: roughplastic)."""
+    as Blender's Principled BSDF splits it (a dielectric coat over a diffuse base: roughplastic).
+    Anisotropic metals get alpha_u along the tangent (the shape's texture coordinates say where)."""
     diffuse = sum(material.albedo) / 3
     glossy = sum(material.specular) / 3
     alpha = max(material.roughness, 0.0) ** 2
+    lobe = {"alpha": alpha}
+    if anisotropic(material):
+        lobe = {"alpha_u": alpha * material.stretch, "alpha_v": alpha / material.stretch}
     smooth = material.roughness < SMOOTH_ROUGHNESS
     if material.transmission > max(diffuse, glossy):
         ior = max(material.ior, 1.0 + 1e-3)
@@ -42,7 +51,7 @@ def bsdf(material) -> dict:
             conductor = {"eta": {"type": "rgb", "value": eta.tolist()}, "k": {"type": "rgb", "value": [0.0] * 3}}
         if smooth:
             return {"type": "conductor", **conductor}
-        return {"type": "roughconductor", "distribution": "ggx", "alpha": alpha, **conductor}
+        return {"type": "roughconductor", "distribution": "ggx", **lobe, **conductor}
     if glossy > 0.01:
         return {"type": "roughplastic", "distribution": "ggx", "alpha": max(alpha, 1e-4),
                 "int_ior": max(material.ior, 1.0 + 1e-3),
@@ -50,9 +59,19 @@ def bsdf(material) -> dict:
     return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(material.albedo)}}
 
 
-def _obj_text(positions, triangles):
-    lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in positions]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
+def _obj_text(positions, triangles, tangents=None, rotation=0.0):
+    """OBJ text of triangles; with tangents (per triangle), each triangle gets its own corners
+    and texture coordinates along its tangent turned by `rotation` (see lobe_coordinates)."""
+    if tangents is None:
+        lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in positions]
+        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
+        return "\n".join(lines) + "\n"
+    lines = []
+    for k, (tri, tangent) in enumerate(zip(triangles, tangents)):
+        corners = positions[tri]
+        lines += [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in corners]
+        lines += [f"vt {s:.17g} {t:.17g}" for s, t in lobe_coordinates(corners, tangent, rotation)]
+        lines.append("f " + " ".join(f"{3 * k + j}/{3 * k + j}" for j in (1, 2, 3)))
     return "\n".join(lines) + "\n"
 
 
@@ -62,11 +81,15 @@ def scene_dict(description, max_depth: int = -1) -> dict:
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
     for k, obj in enumerate(description["objects"]):
         for m, material in enumerate(obj.materials):
-            tris = obj.triangles[obj.material == m]
+            chosen = obj.material == m
+            tris = obj.triangles[chosen]
             if not len(tris):
                 continue
             path = folder / f"object{k}_{m}.obj"
-            path.write_text(_obj_text(obj.positions, tris))
+            if anisotropic(material):
+                path.write_text(_obj_text(obj.positions, tris, obj.tangent[chosen], material.rotation))
+            else:
+                path.write_text(_obj_text(obj.positions, tris))
             shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": bsdf(material)}
             if max(material.emission) > 0:
                 shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(material.emission)}}

@@ -1,6 +1,6 @@
 """Mitsuba 3 reference radiance at random visible (point, direction) pairs of a .blend, cached in
 bench/study/references/<scene>[_quick].npz under a key (the .blend's hash, the settings and the
-hash of the scripts that make it), so a stale cache is detected and remade.
+hash of the scripts that make it, tests/reference/mitsuba_reference.py included), so a stale cache is detected and remade.
 
     python bench/study/references.py scene.blend [--quick]     (Python with mitsuba; no bpy needed)
 
@@ -24,11 +24,12 @@ sys.path.insert(0, str(HERE))
 
 import mitsuba_scene  # noqa: E402
 from mitsuba_scene import load_mitsuba  # noqa: E402
+from reference.mitsuba_reference import cosine_directions, radiance_along  # noqa: E402
 
 CACHE = HERE / "references"
 FULL = {"pairs": 3000, "spp": 32768, "seed": 11}
 QUICK = {"pairs": 200, "spp": 1024, "seed": 11}
-SOURCES = ("blend_scene.py", "mitsuba_scene.py", "references.py")
+SOURCES = ("blend_scene.py", "mitsuba_scene.py", "references.py", "../../tests/reference/mitsuba_reference.py")
 
 
 def describe(blend) -> dict:
@@ -73,8 +74,6 @@ def reference(blend, quick: bool = False, cache=CACHE) -> dict:
     description = describe(blend)
     scene = mitsuba_scene.load_scene(description)
     pairs = visible_pairs(description, scene, settings["pairs"], settings["seed"])
-    from reference.mitsuba_reference import radiance_along
-
     start = time.perf_counter()
     mean, stderr = radiance_along(scene, pairs["eye"], pairs["point"], settings["spp"], seed=5)
     pairs.update(reference=mean, stderr=stderr, reference_seconds=time.perf_counter() - start,
@@ -147,11 +146,7 @@ def visible_pairs(description, scene, count: int, seed: int) -> dict:
         # Transmitting surfaces are seen from both sides.
         flip = transmits[pick] & (rng.uniform(0, 1, n) < 0.5)
         nrm[flip] *= -1
-        r, phi = np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * np.pi, n)
-        t1 = np.cross(nrm, np.where(np.abs(nrm[:, :1]) > 0.5, [[0, 1, 0]], [[1, 0, 0]]))
-        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = np.cross(nrm, t1)
-        d = (r * np.cos(phi))[:, None] * t1 + (r * np.sin(phi))[:, None] * t2 + np.sqrt(1 - r * r)[:, None] * nrm
+        d = cosine_directions(nrm, rng)
         origin = pts + nrm * 1e-5 * scale
         si = scene.ray_intersect(mi.Ray3f(mi.Point3f(origin.T.astype(np.float32)), mi.Vector3f(d.T.astype(np.float32))))
         t = np.array(si.t)

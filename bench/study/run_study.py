@@ -7,8 +7,9 @@ table is generated from).
 
 Scenes: example_blends/*.blend and bench/study/scenes/*.blend (Cornell boxes with a
 glossy and a near-mirror back wall; named apart from the examples). Per scene:
-the three presets and, on the Cornell box and the glossy-wall one, one knob at a time around the preview preset
-(spatial coefficients, angular coefficients, degree, hemisphere nodes, bounces); each solve in a
+the three presets and one knob at a time around the preview preset (spatial coefficients,
+angular coefficients, degree, hemisphere nodes, bounces; the costliest settings only where the
+preview is quick, see EXPENSIVE_KNOBS); each solve in a
 process of its own for its time and peak memory. Error: relative RMSE, sqrt(sum |L - L_ref|^2 / sum |L_ref|^2) over RGB,
 against Mitsuba 3 at random visible (point, direction) pairs (references.py, cached). --quick: a
 smoke run (the draft preset and one knob around it, a small Cycles bake, a small reference)."""
@@ -47,10 +48,12 @@ KNOBS = [
     ("bounces", 4, {"max_bounces": 4}),
 ]
 PRESETS = ("draft", "preview", "final")
-# The knobs are swept on these scenes (small, one diffuse and one glossy); the larger example scenes
-# get the presets only, and the final preset only if the preview took at most this long, so that
-# a full run stays within tens of minutes on 2 cores.
-SWEEP_SCENES = {"cornell_box", "cornell_box_glossy_wall"}
+# The knobs are swept on every scene. Where the preview preset took more than this many CPU
+# seconds, the two most expensive settings (on the glossy-wall box: spatial 32 = 7x the preview's
+# time, hemisphere nodes 16x32 = 1.5x) and the final preset (after FINAL_AFTER_PREVIEW_SECONDS of
+# wall time) are left out, so that a full run stays within about two hours on 2 cores.
+EXPENSIVE_KNOBS = {("spatial coefficients", 32), ("hemisphere nodes", "16x32")}
+EXPENSIVE_AFTER_PREVIEW_CPU_SECONDS = 20
 FINAL_AFTER_PREVIEW_SECONDS = 60
 CYCLES_SAMPLES = (16, 64, 256, 1024)
 # The atlas: on the Cornell box 51 texels across a 2 m wall (4 cm), as fine as the preview
@@ -134,14 +137,18 @@ def run_scene(blend, work, quick, cache, log):
 
     for preset in QUICK["presets"] if quick else PRESETS:
         preview = next((r["seconds"] for r, _ in rows if r["setting"] == "preview"), 0)
-        if preset == "final" and preview > FINAL_AFTER_PREVIEW_SECONDS and name not in SWEEP_SCENES:
+        if preset == "final" and preview > FINAL_AFTER_PREVIEW_SECONDS:
             log(f"{name}: final preset skipped (preview took {preview:.0f} s; the final preset is several times slower)")
             continue
         solve(preset, "preset", preset, {"preset": preset})
-    knobs = QUICK["knobs"] if quick else KNOBS if name in SWEEP_SCENES else []
+    knobs = QUICK["knobs"] if quick else KNOBS
+    preview_cpu = next((r["cpu_seconds"] for r, _ in rows if r["setting"] == "preview"), 0)
     for knob, value, overrides in knobs:
         if knob == "angular coefficients" and not glossy_scene:
             continue  # no glossy surface: the knob changes nothing
+        if (knob, value) in EXPENSIVE_KNOBS and preview_cpu > EXPENSIVE_AFTER_PREVIEW_CPU_SECONDS:
+            log(f"{name}: {knob} {value} skipped (the preview took {preview_cpu:.0f} s CPU; this setting costs several times more)")
+            continue
         base = QUICK["base"] if quick else "preview"
         solve(f"{base}, {knob} {value}", knob, value, {"preset": base, "overrides": overrides})
 

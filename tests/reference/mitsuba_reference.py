@@ -39,9 +39,10 @@ def to_mitsuba(spec: SceneSpec, max_depth: int = -1):
         faces = "f 1 2 3 4" if len(p.corners) == 4 else "f 1 2 3"
         text = "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in p.corners)
         if p.ggx_anisotropic:
-            # Texture coordinates whose u axis is the lobe's x axis: Mitsuba's shading frame
-            # follows dp/du, so its alpha_u lies along the solver's turned tangent.
-            text += "".join(f"vt {s:.17g} {t:.17g}\n" for s, t in _lobe_uv(p.corners, p.ggx_anisotropic[2]))
+            # The solver's tangent on a patch is its first edge (ds/du), turned by the rotation.
+            c = np.asarray(p.corners, float)
+            uv = lobe_coordinates(c, c[1] - c[0], p.ggx_anisotropic[2])
+            text += "".join(f"vt {s:.17g} {t:.17g}\n" for s, t in uv)
             faces = " ".join(f"{k}/{k}" for k in faces.split()[1:])
             faces = "f " + faces
         path.write_text(text + faces + "\n")
@@ -79,12 +80,7 @@ def visible_pairs(spec: SceneSpec, count: int, seed: int = 0):
         # Transmitting patches are seen from both sides.
         flip = np.array([bool(spec.patches[receivers[k]].dielectric) for k in pick]) & (rng.uniform(0, 1, n) < 0.5)
         nrm[flip] *= -1
-        # Outgoing directions: cosine-distributed about the normal.
-        r, phi = np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * np.pi, n)
-        t1 = np.cross(nrm, np.where(np.abs(nrm[:, :1]) > 0.5, [[0, 1, 0]], [[1, 0, 0]]))
-        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = np.cross(nrm, t1)
-        d = (r * np.cos(phi))[:, None] * t1 + (r * np.sin(phi))[:, None] * t2 + np.sqrt(1 - r * r)[:, None] * nrm
+        d = cosine_directions(nrm, rng)
         scale = np.abs(pts).max() + 1
         origin = pts + nrm * 1e-5 * scale
         ray = mi.Ray3f(mi.Point3f(origin.T.astype(np.float32)), mi.Vector3f(d.T.astype(np.float32)))
@@ -146,12 +142,27 @@ def radiance_along(scene, eye, point, spp: int, seed: int = 0, batch: int = 2_00
     return mean, np.sqrt(var / spp)
 
 
-def _lobe_uv(c, rotation):
-    """Per corner, coordinates along the first edge turned by `rotation` about the front normal
-    and along the normal x that direction (planar patches)."""
+def cosine_directions(normals, rng):
+    """One outgoing direction per normal, cosine-distributed about it (unit vectors, (n, 3))."""
+    n = len(normals)
+    r, phi = np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * np.pi, n)
+    t1 = np.cross(normals, np.where(np.abs(normals[:, :1]) > 0.5, [[0, 1, 0]], [[1, 0, 0]]))
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(normals, t1)
+    return (r * np.cos(phi))[:, None] * t1 + (r * np.sin(phi))[:, None] * t2 + np.sqrt(1 - r * r)[:, None] * normals
+
+
+def lobe_coordinates(corners, tangent, rotation=0.0):
+    """Texture coordinates of a planar polygon's corners along `tangent` turned by `rotation`
+    about the front normal, and along the normal x that direction. Mitsuba's shading frame
+    follows dp/du, so an anisotropic BSDF's alpha_u then lies along the turned tangent."""
+    c = np.asarray(corners, float)
     n = np.cross(c[1] - c[0], c[-1] - c[0])
+    if not np.linalg.norm(n) > 0:
+        return [(0.0, 0.0)] * len(c)  # no area, never hit
     n /= np.linalg.norm(n)
-    e = (c[1] - c[0]) / np.linalg.norm(c[1] - c[0])
+    e = np.asarray(tangent, float) - n * np.dot(tangent, n)
+    e /= np.linalg.norm(e)
     t = np.cos(rotation) * e + np.sin(rotation) * np.cross(n, e)
     b = np.cross(n, t)
     return [(float(np.dot(p - c[0], t)), float(np.dot(p - c[0], b))) for p in c]
