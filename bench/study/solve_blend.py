@@ -39,6 +39,19 @@ def settings_of(spec: dict):
     return settings
 
 
+def knob_overrides_objects(context, overrides: dict):
+    """A swept knob wins over an object's own setting of it (this session's copy, never saved):
+    otherwise glass_sheet's sheet, set to 12 angular coefficients, would ignore the sweep."""
+    for obj in context.scene.objects:
+        own = getattr(obj, "bsgi", None)
+        if own is None:
+            continue
+        if "spatial_coeffs" in overrides:
+            own.spatial_coeffs = 0
+        if "angular_coeffs_min" in overrides or "angular_coeffs_max" in overrides:
+            own.angular_coeffs = 0
+
+
 def surfaces_of(export, context):
     """The exported objects' surfaces again, for a RayCaster (the Scene keeps its own), with the
     scene index of each: faces in the export's order (quads, triangles, n-gon fans), NURBS splines."""
@@ -135,6 +148,7 @@ def main():
     context = bpy.context
     spec = json.loads(pathlib.Path(settings_json).read_text())
     settings = settings_of(spec)
+    knob_overrides_objects(context, spec.get("overrides", {}))
     export = export_scene(context.evaluated_depsgraph_get())
     pairs = dict(np.load(pairs_npz))
     # Reset the peak to the current size (Linux clear_refs), so loading Blender does not count.
