@@ -23,7 +23,8 @@ class RadialTangent:
         m = np.asarray(matrix, float)
         box = np.asarray(bound_box, float)
         self.linear, self.offset = m[:3, :3], m[:3, 3]
-        self.inverse = np.linalg.inv(self.linear)
+        # pinv: an object scaled flat has no inverse; the export refuses it by name afterwards.
+        self.inverse = np.linalg.pinv(self.linear)
         lo, hi = box.min(0), box.max(0)
         self.centre, self.half = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-30)
 
