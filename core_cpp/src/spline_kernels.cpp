@@ -243,7 +243,11 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
     // done in scalars.
     constexpr int NV = L < W && !padded ? 0 : (L + W - 1) / W;
     auto at = [](int v) constexpr { return v + 1 < NV || padded ? W * v : L - W; };
-    const size_t rs = ax[D - 2].stride;
+    // The strides go through an empty asm per point: otherwise the compiler hoists the 27 x NV
+    // row offsets out of the loop over points and, short of registers, reloads them from the
+    // stack, a second load per row load (the contraction is bound by loads).
+    size_t rs = ax[D - 2].stride;
+    asm volatile("" : "+r"(rs));
     if constexpr (NV == 0) {
         // Short rows (fewer values than lanes, float64): scalars.
         T row[L] = {};
@@ -274,7 +278,8 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
                 BSGI_UNROLL
                 for (int v = 0; v < NV; ++v) acc[r][v] = load_vec<V>(p.block + r * rs + at(v));
         } else {
-            const size_t s0 = ax[0].stride, s1 = ax[1].stride;
+            size_t s0 = ax[0].stride, s1 = ax[1].stride;
+            asm volatile("" : "+r"(s0), "+r"(s1));
             const T* pi = p.block;
             BSGI_UNROLL
             for (int i = 0; i < P; ++i, pi += s0) {
@@ -476,6 +481,28 @@ BSGI_CLONES double fma_loop(long n) {
 }
 
 }  // namespace
+
+// Blocks of directions copied apart by coordinate, so that the map's square roots and division
+// vectorise (element-wise loop).
+BSGI_CLONES void map_to_params(const HemisphereMap& hemisphere, const double* uv, const double* dirs, size_t n,
+                               double* params) {
+    const HemisphereMap map = hemisphere;  // a local copy: the stores below cannot change it
+    constexpr size_t B = 256;
+    double dx[B], dy[B], dz[B], alpha[B], beta[B];
+    for (size_t first = 0; first < n; first += B) {
+        const size_t m = std::min(n - first, B);
+        const double* d = dirs + 3 * first;
+        for (size_t i = 0; i < m; ++i) dx[i] = d[3 * i], dy[i] = d[3 * i + 1], dz[i] = d[3 * i + 2];
+        for (size_t i = 0; i < m; ++i) {
+            double ab[2];
+            map.to_disc(dx[i], dy[i], dz[i], ab);
+            alpha[i] = ab[0], beta[i] = ab[1];
+        }
+        double* x = params + 4 * first;
+        const double* t = uv + 2 * first;
+        for (size_t i = 0; i < m; ++i) x[4 * i] = t[2 * i], x[4 * i + 1] = t[2 * i + 1], x[4 * i + 2] = alpha[i], x[4 * i + 3] = beta[i];
+    }
+}
 
 // Timed in this thread's CPU time: on a shared machine wall time would also count the time the
 // thread waits for a core.

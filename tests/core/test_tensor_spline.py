@@ -109,7 +109,8 @@ def test_single_point_evaluation_agrees_with_scipy(dims, degree, kind, precision
 @pytest.mark.parametrize("kind", ["uniform", "clustered"])
 def test_big_batches_agree_with_scipy(precision, kind):
     """Tens of thousands of points on a 4D spline bigger than the core's cache are evaluated in
-    the order of their (u, v) knot cell and put back: each point still gets scipy's value in the
+    the order of their knot cell on the first three axes and put back (directions mapped first):
+    each point still gets scipy's value in the
     caller's order, a non-finite point NaN; parameters and (u, v, direction) inputs."""
     rng = np.random.default_rng(7 + len(kind) + len(precision))
     s = random_spline(rng, 4, 2, kind, precision=precision, sizes=[16] * 4)
