@@ -239,10 +239,14 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
     using V = typename Lanes<T, WF>::V;
     constexpr int W = Lanes<T, WF>::W;
     constexpr bool padded = Lanes<T, WF>::padded;
-    // A row is covered by NV loads of W values (see Lanes); unpadded rows shorter than W are
-    // done in scalars.
-    constexpr int NV = L < W && !padded ? 0 : (L + W - 1) / W;
-    auto at = [](int v) constexpr { return v + 1 < NV || padded ? W * v : L - W; };
+    // A row is NV vectors of W values (see Lanes) and, unpadded, NT < W values left over, done in
+    // scalars: scalar loads never straddle a cache line, where a vector load moved back to end at
+    // the row's end mostly does (float64 rows of 9 values start every 24 bytes), at the cost of
+    // two loads. Unpadded rows shorter than W are all scalars.
+    constexpr int NV = padded ? (L + W - 1) / W : L / W;
+    constexpr int NT = padded ? 0 : L - NV * W;
+    constexpr int NTA = NT > 0 ? NT : 1;  // array sizes
+    auto at = [](int v) constexpr { return W * v; };
     // The strides go through an empty asm per point: otherwise the compiler hoists the 27 x NV
     // row offsets out of the loop over points and, short of registers, reloads them from the
     // stack, a second load per row load (the contraction is bound by loads).
@@ -272,11 +276,15 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
         return;
     } else {
         V acc[P][NV];
+        T acct[P][NTA];
         if constexpr (D == 2) {
             BSGI_UNROLL
-            for (int r = 0; r < P; ++r)
+            for (int r = 0; r < P; ++r) {
                 BSGI_UNROLL
                 for (int v = 0; v < NV; ++v) acc[r][v] = load_vec<V>(p.block + r * rs + at(v));
+                BSGI_UNROLL
+                for (int t = 0; t < NT; ++t) acct[r][t] = p.block[r * rs + NV * W + t];
+            }
         } else {
             size_t s0 = ax[0].stride, s1 = ax[1].stride;
             asm volatile("" : "+r"(s0), "+r"(s1));
@@ -284,23 +292,35 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
             BSGI_UNROLL
             for (int i = 0; i < P; ++i, pi += s0) {
                 V acc_i[P][NV];
+                T acct_i[P][NTA];
                 const T* pj = pi;
                 BSGI_UNROLL
                 for (int j = 0; j < P; ++j, pj += s1) {
                     const V bj = splat<V, T>(p.b[1], j);
+                    const T bjt = T(p.b[1][j]);
                     BSGI_UNROLL
-                    for (int r = 0; r < P; ++r)
+                    for (int r = 0; r < P; ++r) {
                         BSGI_UNROLL
                         for (int v = 0; v < NV; ++v) {
                             const V row = load_vec<V>(pj + r * rs + at(v));
                             acc_i[r][v] = j == 0 ? bj * row : acc_i[r][v] + bj * row;
                         }
+                        BSGI_UNROLL
+                        for (int t = 0; t < NT; ++t) {
+                            const T x = pj[r * rs + NV * W + t];
+                            acct_i[r][t] = j == 0 ? bjt * x : acct_i[r][t] + bjt * x;
+                        }
+                    }
                 }
                 const V bi = splat<V, T>(p.b[0], i);
+                const T bit = T(p.b[0][i]);
                 BSGI_UNROLL
-                for (int r = 0; r < P; ++r)
+                for (int r = 0; r < P; ++r) {
                     BSGI_UNROLL
                     for (int v = 0; v < NV; ++v) acc[r][v] = i == 0 ? bi * acc_i[r][v] : acc[r][v] + bi * acc_i[r][v];
+                    BSGI_UNROLL
+                    for (int t = 0; t < NT; ++t) acct[r][t] = i == 0 ? bit * acct_i[r][t] : acct[r][t] + bit * acct_i[r][t];
+                }
             }
         }
         V sum[NV];
@@ -309,6 +329,13 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
             sum[v] = splat<V, T>(p.b[D - 2], 0) * acc[0][v];
             BSGI_UNROLL
             for (int r = 1; r < P; ++r) sum[v] += splat<V, T>(p.b[D - 2], r) * acc[r][v];
+        }
+        T sumt[NTA];
+        BSGI_UNROLL
+        for (int t = 0; t < NT; ++t) {
+            sumt[t] = T(p.b[D - 2][0]) * acct[0][t];
+            BSGI_UNROLL
+            for (int r = 1; r < P; ++r) sumt[t] += T(p.b[D - 2][r]) * acct[r][t];
         }
         if constexpr (padded && NV == 1 && W == 16) {
             // The row in one register: out_c = sum_l B_l sum[l C + c] by a lane-wise product and
@@ -330,6 +357,8 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
             for (int v = 0; v < NV; ++v)
                 BSGI_UNROLL
                 for (int e = 0; e < W; ++e) row[at(v) + e] = sum[v][e];
+            BSGI_UNROLL
+            for (int t = 0; t < NT; ++t) row[NV * W + t] = sumt[t];
             BSGI_UNROLL
             for (int c = 0; c < C; ++c) {
                 double v = 0;
