@@ -374,22 +374,20 @@ template <int D, int P, int C, typename T, int WF, bool Uniform, typename Source
 BSGI_INLINE void evaluate_range(const Source& source, const AxisData* ax, const UniformLanes& lanes, const T* coeffs,
                                 size_t begin, size_t end, double* out) {
     if (begin >= end) return;
-    // Software pipeline: the spans and basis of the next point are computed in the same
-    // iteration as the contraction of this one, two independent dependency chains that the
-    // out-of-order core overlaps. Two states used in turn rather than copied, so that nothing
-    // goes through memory.
+    // The spans and basis of a few points first, then their contractions: the dependency chain
+    // of a point's preparation (parameter -> span -> table -> basis, and the block's address) is
+    // then long done when its contraction starts, and the contractions' loads of the points after
+    // it are independent of anything before.
     auto prep = [&](size_t i) BSGI_LAMBDA_INLINE {
         if constexpr (Uniform) return prepare_uniform<D, P, T>(source(i), lanes, coeffs);
         else return prepare<D, P, T>(source(i), ax, coeffs);
     };
-    Prepared<D, T> a = prep(begin), b;
-    for (size_t i = begin;;) {
-        b = prep(i + 1 < end ? i + 1 : i);
-        contract<D, P, C, T, WF>(a, ax, out + i * C);
-        if (++i == end) break;
-        a = prep(i + 1 < end ? i + 1 : i);
-        contract<D, P, C, T, WF>(b, ax, out + i * C);
-        if (++i == end) break;
+    constexpr size_t S = 16;
+    Prepared<D, T> prepared[S];
+    for (size_t first = begin; first < end; first += S) {
+        const size_t n = std::min(end - first, S);
+        for (size_t i = 0; i < n; ++i) prepared[i] = prep(first + i);
+        for (size_t i = 0; i < n; ++i) contract<D, P, C, T, WF>(prepared[i], ax, out + (first + i) * C);
     }
 }
 
