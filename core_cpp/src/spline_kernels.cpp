@@ -391,6 +391,21 @@ BSGI_INLINE void evaluate_range(const Source& source, const AxisData* ax, const 
     }
 }
 
+// The inverse hemisphere map of up to kMapBlock directions, in loops of their own: copied apart by
+// coordinate, the map's square roots and division are independent from point to point and
+// vectorise (element-wise loop), instead of lengthening each point's chain. `map` should be a
+// local copy, so that the compiler knows the stores cannot change it.
+constexpr size_t kMapBlock = 256;
+BSGI_INLINE void map_block(const HemisphereMap& map, const double* d, size_t n, double* alpha, double* beta) {
+    double dx[kMapBlock], dy[kMapBlock], dz[kMapBlock];
+    for (size_t i = 0; i < n; ++i) dx[i] = d[3 * i], dy[i] = d[3 * i + 1], dz[i] = d[3 * i + 2];
+    for (size_t i = 0; i < n; ++i) {
+        double ab[2];
+        map.to_disc(dx[i], dy[i], dz[i], ab);
+        alpha[i] = ab[0], beta[i] = ab[1];
+    }
+}
+
 template <int D, int P, int C, typename T, bool Dirs, bool Uniform, int WF>
 BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t end, double* out) {
     static_assert(D >= 2 && D <= 4, "the last two axes are the rows and their accumulators");
@@ -401,21 +416,12 @@ BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t en
     const UniformLanes lanes = uniform_lanes<D>(ax);
     const T* const coeffs = static_cast<const T*>(args.coeffs);
     if constexpr (Dirs) {
-        // The inverse hemisphere map of a block of directions first, in a loop of its own: its
-        // square roots and division are independent from point to point there (and vectorise),
-        // instead of lengthening each point's chain.
-        constexpr size_t B = 256;
-        double dx[B], dy[B], dz[B], alpha[B], beta[B];
+        // A block of directions mapped first.
+        double alpha[kMapBlock], beta[kMapBlock];
         const HemisphereMap map = *args.map;
-        for (size_t first = begin; first < end; first += B) {
-            const size_t n = std::min(end - first, B);
-            const double* d = args.dirs + 3 * first;
-            for (size_t i = 0; i < n; ++i) dx[i] = d[3 * i], dy[i] = d[3 * i + 1], dz[i] = d[3 * i + 2];
-            for (size_t i = 0; i < n; ++i) {  // element-wise, so it vectorises
-                double ab[2];
-                map.to_disc(dx[i], dy[i], dz[i], ab);
-                alpha[i] = ab[0], beta[i] = ab[1];
-            }
+        for (size_t first = begin; first < end; first += kMapBlock) {
+            const size_t n = std::min(end - first, kMapBlock);
+            map_block(map, args.dirs + 3 * first, n, alpha, beta);
             evaluate_range<D, P, C, T, WF, Uniform>(MappedSource{args.uv, alpha, beta, first}, ax, lanes, coeffs, first,
                                                 first + n, out);
         }
@@ -509,22 +515,13 @@ BSGI_CLONES double fma_loop(long n) {
 
 }  // namespace
 
-// Blocks of directions copied apart by coordinate, so that the map's square roots and division
-// vectorise (element-wise loop).
 BSGI_CLONES void map_to_params(const HemisphereMap& hemisphere, const double* uv, const double* dirs, size_t n,
                                double* params) {
-    const HemisphereMap map = hemisphere;  // a local copy: the stores below cannot change it
-    constexpr size_t B = 256;
-    double dx[B], dy[B], dz[B], alpha[B], beta[B];
-    for (size_t first = 0; first < n; first += B) {
-        const size_t m = std::min(n - first, B);
-        const double* d = dirs + 3 * first;
-        for (size_t i = 0; i < m; ++i) dx[i] = d[3 * i], dy[i] = d[3 * i + 1], dz[i] = d[3 * i + 2];
-        for (size_t i = 0; i < m; ++i) {
-            double ab[2];
-            map.to_disc(dx[i], dy[i], dz[i], ab);
-            alpha[i] = ab[0], beta[i] = ab[1];
-        }
+    const HemisphereMap map = hemisphere;
+    double alpha[kMapBlock], beta[kMapBlock];
+    for (size_t first = 0; first < n; first += kMapBlock) {
+        const size_t m = std::min(n - first, kMapBlock);
+        map_block(map, dirs + 3 * first, m, alpha, beta);
         double* x = params + 4 * first;
         const double* t = uv + 2 * first;
         for (size_t i = 0; i < m; ++i) x[4 * i] = t[2 * i], x[4 * i + 1] = t[2 * i + 1], x[4 * i + 2] = alpha[i], x[4 * i + 3] = beta[i];
