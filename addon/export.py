@@ -303,6 +303,42 @@ def _area_light(scene, obj, warnings):
         scene.add_bilinear_patch(obj.name, corners, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
 
 
+# A point light of radius 0 is a true point in Cycles; the solver needs an area to integrate.
+MIN_POINT_LIGHT_RADIUS = 1e-3
+
+
+def _point_light(scene, obj, warnings):
+    """A point light as Cycles has it since 4.0: a sphere of the light's radius emitting uniformly,
+    radiance P / (4 pi^2 r^2) (power P spread over the sphere's area 4 pi r^2 as a Lambertian
+    emitter, pi L per unit area), solved as an exact NURBS sphere that emits but neither receives
+    nor casts shadows (as a light)."""
+    light = obj.data
+    if getattr(light, "use_nodes", False) and light.node_tree is not None:
+        warnings.append(f"light '{obj.name}': its shader nodes are ignored; its colour and power are used")
+    m = np.array(obj.matrix_world, float)
+    radius = light.shadow_soft_size  # the object's scale does not size a point light
+    if radius < MIN_POINT_LIGHT_RADIUS:
+        warnings.append(f"light '{obj.name}': radius {radius:g} m is solved as a sphere of radius "
+                        f"{MIN_POINT_LIGHT_RADIUS:g} m (the solver integrates light over an area)")
+        radius = MIN_POINT_LIGHT_RADIUS
+    radiance = light.energy / (4 * math.pi**2 * radius**2)
+    emission = [c * radiance for c in light.color]
+    surface = sphere_surface(obj.name, m[:3, 3], radius)
+    scene.add_surface(surface, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
+
+
+def sphere_surface(name: str, centre, radius: float) -> "bsgi.NurbsSurface":
+    """An exact sphere as the rational quadratic NURBS surface Blender's NURBS Sphere primitive
+    makes: u along a half circle from the lower pole to the upper one, v around the axis (closed),
+    front outwards."""
+    h = math.sqrt(0.5)
+    around = [(-1, 0, 1), (-1, -1, h), (0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1), (-1, 1, h)]
+    profile = [(0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1)]  # (distance from the axis, height, weight)
+    points = np.array([(cx * r, cy * r, z, wc * wp) for cx, cy, wc in around for r, z, wp in profile], float)
+    points[:, :3] = points[:, :3] * radius + np.asarray(centre, float)
+    return bsgi.NurbsSurface(name, points, 5, 8, 3, 3, True, True, True, True, False, True)
+
+
 def _v(x, y):
     from mathutils import Vector
 
@@ -640,6 +676,8 @@ def export_scene(depsgraph) -> Export:
         if obj.type == "LIGHT":
             if obj.data.type == "AREA":
                 _area_light(scene, obj, warnings)
+            elif obj.data.type == "POINT":
+                _point_light(scene, obj, warnings)
             else:
                 warnings.append(f"light '{obj.name}': {obj.data.type.lower()} lights are not supported yet; skipped")
             continue

@@ -104,7 +104,8 @@ def run() -> dict:
     #   (float64) or 8 (float32) per 256-bit FMA;
     # - issued work: the vector multiply-adds the kernel actually issues (rows of 9 values in
     #   whole registers, the nested sums (18), the final products), in 256-bit equivalents:
-    #   float64 81 + 27 + 9 = 117; float32 with AVX-512 27 + 9 + 3 + 3 = 42 512-bit operations
+    #   float64 81 + 27 + 9 = 117 (a row of 9 values: two 256-bit operations and a scalar one,
+    #   counted as a whole); float32 with AVX-512 27 + 9 + 3 + 3 = 42 512-bit operations
     #   = 84 (a 512-bit operation takes both 256-bit halves here), with AVX2 54 + 18 + 6 = 78.
     fma = bsgi._core._fma_peak_per_second()
     isa = bsgi._core._kernel_isa()

@@ -52,72 +52,18 @@ def knob_overrides_objects(context, overrides: dict):
             own.angular_coeffs = 0
 
 
-def surfaces_of(export, context):
-    """The exported objects' surfaces again, for a RayCaster (the Scene keeps its own), with the
-    scene index of each: faces in the export's order (quads, triangles, n-gon fans), NURBS splines."""
-    import bsgi
-    from bsgi_addon.export import nurbs_surface
-
-    depsgraph = context.evaluated_depsgraph_get()
-    instances = {inst.object.name: inst.matrix_world.copy() for inst in depsgraph.object_instances
-                 if not inst.is_instance}
-    surfaces, index = [], []
-    for exported in export.objects:
-        obj = context.scene.objects[exported.name].evaluated_get(depsgraph)
-        matrix = instances[exported.name]
-        if exported.kind == "nurbs":
-            splines = [s for s in obj.original.data.splines if s.type == "NURBS"]
-            for (kind, first, count), spline in zip(exported.patches, _drawn(splines)):
-                surfaces.append(nurbs_surface(f"{obj.name}: spline", spline, matrix))
-                index.append(first)
-            continue
-        mesh = obj.to_mesh()
-        try:
-            co = np.empty(len(mesh.vertices) * 3)
-            mesh.vertices.foreach_get("co", co)
-            m = np.array(matrix, float)
-            world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
-            if exported.kind == "chart":  # one MeshChart over the UV map the export chose
-                from bsgi_addon import charts
-
-                triangles, loops = charts.loop_triangles(mesh)
-                surfaces.append(bsgi.MeshChart("c", world, triangles, exported.chart_uvs[loops].astype(float)))
-                index.append(exported.patches[0][1])
-                continue
-            fans = {}
-            if any(p.loop_total > 4 for p in mesh.polygons):
-                mesh.calc_loop_triangles()
-                for tri in mesh.loop_triangles:
-                    fans.setdefault(tri.polygon_index, []).append(list(tri.vertices))
-            for poly, (kind, first, count) in zip(mesh.polygons, exported.patches):
-                verts = list(poly.vertices)
-                if kind == "quad":
-                    surfaces.append(bsgi.BilinearPatch("q", world[verts]))
-                    index.append(first)
-                elif kind == "triangle":
-                    surfaces.append(bsgi.TrianglePatch("t", world[verts]))
-                    index.append(first)
-                else:
-                    for k, tri in enumerate(fans[poly.index]):
-                        surfaces.append(bsgi.TrianglePatch("t", world[tri]))
-                        index.append(first + k)
-        finally:
-            obj.to_mesh_clear()
-    return surfaces, np.array(index)
+def surfaces_of(export):
+    """The exported objects' surfaces as the solved scene holds them, with their scene indices."""
+    index = [first + k for exported in export.objects for _, first, count in exported.patches for k in range(count)]
+    return [export.scene.surface(i) for i in index], np.array(index)
 
 
-def _drawn(splines):
-    from bsgi_addon.export import _nurbs_problem
-
-    return [s for s in splines if not _nurbs_problem(s)]
-
-
-def radiance_at_pairs(export, context, solution, pairs, tolerance):
+def radiance_at_pairs(export, solution, pairs, tolerance):
     """The solution's radiance seen from each pair's eye towards its point; NaN where the solver's
     geometry is not hit within tolerance of the point (tessellation differences at silhouettes)."""
     import bsgi
 
-    surfaces, index = surfaces_of(export, context)
+    surfaces, index = surfaces_of(export)
     caster = bsgi.RayCaster(surfaces)
     eye, point = pairs["eye"], pairs["point"]
     d = point - eye
@@ -159,7 +105,7 @@ def main():
     seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
     peak = status_mb("VmHWM")
     scale = float(np.ptp(pairs["point"], axis=0).max())
-    ours = radiance_at_pairs(export, context, solution, pairs, 1e-3 * scale)
+    ours = radiance_at_pairs(export, solution, pairs, 1e-3 * scale)
     np.savez(out_npz, radiance=ours)
     print(json.dumps({"seconds": seconds, "cpu_seconds": cpu_seconds, "peak_mb": peak - before, "coefficients": solution.stats["coefficients"],
                       "bounces": solution.stats["bounces"]}))

@@ -111,6 +111,14 @@ void bind_scene(py::module_& m) {
             py::arg("bsdf") = nullptr, py::arg("representation") = "auto", py::arg("spatial_coeffs") = 0,
             py::arg("angular_coeffs") = 0, "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it.")
         .def("__len__", &Scene::size)
+        .def(
+            "surface",
+            [](const Scene& s, size_t i) {
+                if (i >= s.size()) throw py::index_error("surface index " + std::to_string(i) + " out of range");
+                // Surfaces have no mutators in Python: sharing the scene's own is safe.
+                return std::const_pointer_cast<Surface>(s[i].surface);
+            },
+            py::arg("i"), "Surface i as the scene holds it (e.g. for a RayCaster whose ids are scene indices).")
         .def("name", [](const Scene& s, size_t i) { return s[i].surface->name(); })
         .def("area", [](const Scene& s, size_t i) { return s[i].surface->area(); })
         .def(

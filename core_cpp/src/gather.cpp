@@ -11,9 +11,12 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 // Emitter cells whose normals turn by more than about 45 degrees are split down to a tenth of
-// their distance from the receiver.
+// their distance from the receiver, and, however far they are, at least kCurvedEmitterDepth
+// times (a small sphere seen from afar is still a sphere: its half facing away must not fall
+// on the few nodes of one cell; a sphere's cells turn by less than 45 degrees after 3 splits).
 constexpr double kMaxEmitterCellBend = 0.7;
 constexpr double kCurvedEmitterCellRatio = 0.1;
+constexpr int kCurvedEmitterDepth = 4;
 
 // B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
 // for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
@@ -101,8 +104,10 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     // A strongly curved cell (a whole sphere: its corners are the poles) turns away from the
     // receiver inside the cell, where the cell's few nodes cannot follow cos_e: it is split
     // further, but not without end (a crease never straightens out).
-    const double limit = bend < kMaxEmitterCellBend ? std::min(ratio, kCurvedEmitterCellRatio) : ratio;
-    if (depth < settings_.emitter_max_depth && 2 * radius > limit * dist) {
+    const bool curved = bend < kMaxEmitterCellBend;
+    const double limit = curved ? std::min(ratio, kCurvedEmitterCellRatio) : ratio;
+    const bool split = 2 * radius > limit * dist || (curved && depth < kCurvedEmitterDepth);
+    if (depth < settings_.emitter_max_depth && split) {
         const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
         emitter_cell(r, emitter, radiance, s0, sm, t0, tm, depth + 1, ratio, both_sides, visit, rays);
         emitter_cell(r, emitter, radiance, sm, s1, t0, tm, depth + 1, ratio, both_sides, visit, rays);

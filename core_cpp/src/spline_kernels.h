@@ -34,6 +34,10 @@ using Kernel = void (*)(const KernelArgs&, size_t begin, size_t end, double* out
 // with `uniform` every axis has uniform spans (AxisData::inv_h > 0).
 Kernel find_kernel(int dims, int order, int channels, bool float32, bool directions, bool uniform);
 
+// (u, v, alpha, beta) rows (n x 4) of n points given by uv (n x 2) and local directions (n x 3),
+// through the inverse hemisphere map.
+void map_to_params(const HemisphereMap& map, const double* uv, const double* dirs, size_t n, double* params);
+
 // The instruction set of the kernels find_kernel returns: "x86-64-v4", "x86-64-v3" or "baseline".
 const char* kernel_isa();
 

@@ -14,9 +14,10 @@ namespace bsgi {
 namespace {
 
 constexpr size_t kChunk = 2048;  // points per parallel work item
-// Big batches on 4D splines bigger than this are evaluated in the order of their (u, v) knot
-// cell, kCellChunk points at a time: then the coefficients of a cell's 3 x 3 spatial rows stay in
-// the core's cache while its points are evaluated, instead of every point reading from all over
+// Big batches on 4D splines bigger than this are evaluated in the order of their knot cell on the
+// first three axes, kCellChunk points at a time: then the 27 rows of coefficients a cell's points
+// read (each row: all of the last axis, about 10 KB in all for the radiance spline) stay in the
+// core's L1 cache while its points are evaluated, instead of every point reading from all over
 // the table.
 constexpr size_t kCellOrderBytes = size_t(1) << 19;
 constexpr size_t kCellChunk = size_t(1) << 14;
@@ -158,61 +159,66 @@ void TensorSpline::fill_axis_data(detail::AxisData* ax) const {
     }
 }
 
-// Points b .. e of a batch through `kernel` in the order of their (u, v) knot cell (a counting
-// sort), their inputs gathered into that order and the values put back in the caller's.
-void TensorSpline::evaluate_in_cell_order(detail::Kernel kernel, const detail::KernelArgs& args, size_t b, size_t e,
-                                          double* out) const {
+// Points b .. e of a 4D batch in the order of their knot cell on the first three axes (a counting
+// sort), through `params_kernel`: directions are mapped to (alpha, beta) first, the parameters
+// gathered into that order, and the values put back in the caller's. `kernel` is the one for the
+// input as given (parameters or directions).
+void TensorSpline::evaluate_in_cell_order(detail::Kernel kernel, detail::Kernel params_kernel, const detail::KernelArgs& args,
+                                          size_t b, size_t e, double* out) const {
     struct Scratch {
         std::vector<uint32_t> cell, count;
-        std::vector<double> in, dirs, values;
+        std::vector<double> mapped, sorted, values;
     };
     static thread_local Scratch sc;
     const size_t m = e - b;
-    const int C = channels_, D = dims();
+    const int C = channels_;
     const bool directions = args.dirs != nullptr;
+    const KnotVector &a0 = axes_[0], &a1 = axes_[1], &a2 = axes_[2];
+    const size_t n1 = size_t(a1.last_span() - a1.degree() + 1), n2 = size_t(a2.last_span() - a2.degree() + 1);
+    const size_t cells = size_t(a0.last_span() - a0.degree() + 1) * n1 * n2;
+    sc.cell.resize(m);
+    const SpanNumber span0{a0}, span1{a1}, span2{a2};
+    // Points that come in runs of a (u, v) cell already (an image of a surface, a grid), judged on
+    // the first ones, are evaluated as they are.
     const double* uv = directions ? args.uv : args.params;
-    const size_t uv_stride = directions ? 2 : size_t(D);
-    const KnotVector &a0 = axes_[0], &a1 = axes_[1];
-    const size_t cells = size_t(a0.last_span() - a0.degree() + 1) * size_t(a1.last_span() - a1.degree() + 1);
-    const size_t n1 = size_t(a1.last_span() - a1.degree() + 1);
-    sc.cell.resize(m), sc.count.assign(cells + 1, 0);
-    const SpanNumber span0{a0}, span1{a1};
-    auto cells_of = [&](size_t from, size_t to) {
-        for (size_t i = from; i < to; ++i) {
-            const double* x = uv + (b + i) * uv_stride;
-            const uint32_t c = uint32_t(span0(x[0]) * n1 + span1(x[1]));
-            sc.cell[i] = c;
-            ++sc.count[c + 1];
-        }
-    };
-    // Points that come in runs of a cell already (an image of a surface, a grid), judged on the
-    // first ones, are evaluated as they are.
+    const size_t uv_stride = directions ? 2 : 4;
     const size_t probe = std::min<size_t>(m, 512);
-    cells_of(0, probe);
     size_t changes = 0;
-    for (size_t i = 1; i < probe; ++i) changes += sc.cell[i] != sc.cell[i - 1];
+    for (size_t i = 1; i < probe; ++i) {
+        const double *x = uv + (b + i) * uv_stride, *y = x - uv_stride;
+        changes += span0(x[0]) != span0(y[0]) || span1(x[1]) != span1(y[1]);
+    }
     if (changes * 16 < probe) {
         kernel(args, b, e, out);
         return;
     }
-    cells_of(probe, m);
+    // Parameters (u, v, alpha, beta) of every point, in the caller's order.
+    const double* x = args.params + 4 * b;
+    if (directions) {
+        sc.mapped.resize(m * 4);
+        detail::map_to_params(*args.map, uv + 2 * b, args.dirs + 3 * b, m, sc.mapped.data());
+        x = sc.mapped.data();
+    }
+    sc.count.assign(cells + 1, 0);
+    for (size_t i = 0; i < m; ++i) {
+        const double* xi = x + 4 * i;
+        const uint32_t c = uint32_t((span0(xi[0]) * n1 + span1(xi[1])) * n2 + span2(xi[2]));
+        sc.cell[i] = c;
+        ++sc.count[c + 1];
+    }
     for (size_t c = 1; c <= cells; ++c) sc.count[c] += sc.count[c - 1];
-    // Inputs copied into cell order in one sequential pass over them (writes to scattered places
-    // cost less than reads from them), rank = each point's place in that order.
-    sc.in.resize(m * uv_stride), sc.values.resize(m * C);
-    if (directions) sc.dirs.resize(m * 3);
+    // Parameters copied into cell order in one sequential pass over them (writes to scattered
+    // places cost less than reads from them), rank = each point's place in that order.
+    sc.sorted.resize(m * 4), sc.values.resize(m * C);
     uint32_t* const rank = sc.cell.data();  // the cell is no longer needed once ranked
     for (size_t i = 0; i < m; ++i) {
         const uint32_t p = sc.count[sc.cell[i]]++;
         rank[i] = p;
-        for (size_t k = 0; k < uv_stride; ++k) sc.in[p * uv_stride + k] = uv[(b + i) * uv_stride + k];
-        if (directions)
-            for (int k = 0; k < 3; ++k) sc.dirs[p * 3 + k] = args.dirs[(b + i) * 3 + k];
+        for (int k = 0; k < 4; ++k) sc.sorted[4 * size_t(p) + k] = x[4 * i + k];
     }
     detail::KernelArgs sorted = args;
-    if (directions) sorted.uv = sc.in.data(), sorted.dirs = sc.dirs.data();
-    else sorted.params = sc.in.data();
-    kernel(sorted, 0, m, sc.values.data());
+    sorted.params = sc.sorted.data(), sorted.uv = nullptr, sorted.dirs = nullptr;
+    params_kernel(sorted, 0, m, sc.values.data());
     for (size_t i = 0; i < m; ++i)
         for (int c = 0; c < C; ++c) out[(b + i) * C + c] = sc.values[size_t(rank[i]) * C + c];
 }
@@ -222,8 +228,8 @@ void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out
                                  const HemisphereMap* map) const {
     detail::Kernel kernel = nullptr;
     std::vector<detail::AxisData> ax;
+    bool uniform = true;
     if (has_fast_kernel()) {
-        bool uniform = true;
         for (const auto& a : axes_) uniform = uniform && a.uniform_spans();
         kernel = detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32, directions,
                                      uniform);
@@ -233,7 +239,10 @@ void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out
     if (kernel && dims() == 4 && bytes() > kCellOrderBytes && count >= kCellChunk) {
         detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
         loader.bind(args);
-        parallel_for(count, kCellChunk, threads, [&](size_t b, size_t e) { evaluate_in_cell_order(kernel, args, b, e, out); });
+        const detail::Kernel params_kernel = detail::find_kernel(4, axes_[0].degree() + 1, channels_,
+                                                                 precision_ == Precision::Float32, false, uniform);
+        parallel_for(count, kCellChunk, threads,
+                     [&](size_t b, size_t e) { evaluate_in_cell_order(kernel, params_kernel, args, b, e, out); });
     } else if (kernel) {
         detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
         loader.bind(args);

@@ -183,7 +183,7 @@ def test_glossy_materials_reach_the_scene_with_the_objects_options(context):
 
 def test_unsupported_lights_and_world_are_warned_about(context):
     scenes.floor_under_lamp()
-    for kind in ("POINT", "SUN"):
+    for kind in ("SPOT", "SUN"):
         light = bpy.data.objects.new(kind, bpy.data.lights.new(kind, kind))
         context.scene.collection.objects.link(light)
     world = bpy.data.worlds.new("Sky")
@@ -193,7 +193,7 @@ def test_unsupported_lights_and_world_are_warned_about(context):
     context.scene.world = world
     result = export.export_scene(context.evaluated_depsgraph_get())
     text = "\n".join(result.warnings)
-    for name in ("light 'POINT'", "light 'SUN'", "world 'Sky'"):
+    for name in ("light 'SPOT'", "light 'SUN'", "world 'Sky'"):
         assert name in text
     assert len(result.scene) == 2  # the floor and the square lamp
 
@@ -325,8 +325,8 @@ def test_unknown_shader_is_approximated_by_the_viewport_colour_with_a_warning(co
     assert any("material 'Leaf'" in w and "ShaderNodeBsdfTranslucent" in w for w in warnings)
 
 
-@pytest.mark.parametrize("kind", ["POINT", "SPOT", "SUN"])
-def test_point_spot_and_sun_lights_are_skipped_by_name(context, kind):
+@pytest.mark.parametrize("kind", ["SPOT", "SUN"])
+def test_spot_and_sun_lights_are_skipped_by_name(context, kind):
     scenes.floor_under_lamp()
     light = bpy.data.objects.new(f"My {kind}", bpy.data.lights.new(kind, kind))
     context.scene.collection.objects.link(light)

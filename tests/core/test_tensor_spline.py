@@ -109,7 +109,8 @@ def test_single_point_evaluation_agrees_with_scipy(dims, degree, kind, precision
 @pytest.mark.parametrize("kind", ["uniform", "clustered"])
 def test_big_batches_agree_with_scipy(precision, kind):
     """Tens of thousands of points on a 4D spline bigger than the core's cache are evaluated in
-    the order of their (u, v) knot cell and put back: each point still gets scipy's value in the
+    the order of their knot cell on the first three axes and put back (directions mapped first):
+    each point still gets scipy's value in the
     caller's order, a non-finite point NaN; parameters and (u, v, direction) inputs."""
     rng = np.random.default_rng(7 + len(kind) + len(precision))
     s = random_spline(rng, 4, 2, kind, precision=precision, sizes=[16] * 4)
@@ -142,7 +143,17 @@ def test_big_batches_agree_with_scipy(precision, kind):
     ab = u[:, :2] / np.sqrt(1 + u[:, 2:3])
     r = np.linalg.norm(ab, axis=1, keepdims=True)
     ab = np.where(r > h.radius, ab * h.radius / np.where(r > 0, r, 1), ab)
-    check(L.evaluate_directions(uv, d, h), scipy_peer(L)(np.column_stack([uv, ab])))
+    got = L.evaluate_directions(uv, d, h)
+    check(got, scipy_peer(L)(np.column_stack([uv, ab])))
+    # A zero or NaN direction gives NaN for its point only (the directions are mapped before
+    # the points are ordered).
+    d[321] = 0.0
+    d[654, 0] = np.nan
+    bad = L.evaluate_directions(uv, d, h)
+    assert np.all(np.isnan(bad[[321, 654]]))
+    keep = np.ones(n, bool)
+    keep[[321, 654]] = False
+    np.testing.assert_array_equal(bad[keep], got[keep])
 
 
 def test_single_point_and_batch_shapes():

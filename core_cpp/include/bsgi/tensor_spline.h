@@ -90,8 +90,8 @@ public:
 private:
     const void* data() const;
     void fill_axis_data(detail::AxisData* ax) const;
-    void evaluate_in_cell_order(detail::Kernel kernel, const detail::KernelArgs& args, size_t b, size_t e,
-                                double* out) const;
+    void evaluate_in_cell_order(detail::Kernel kernel, detail::Kernel params_kernel, const detail::KernelArgs& args,
+                                size_t b, size_t e, double* out) const;
     template <typename Loader>
     void evaluate_with(const Loader& loader, size_t count, double* out, int threads, bool directions,
                        const HemisphereMap* map) const;

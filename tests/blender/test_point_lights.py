@@ -1,0 +1,96 @@
+"""Point lights (addon/export.py _point_light): a sphere of the light's radius with Cycles' radiance
+P / (4 pi^2 r^2); the floor under it against the closed form and against a Cycles render."""
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from bsgi_addon import export, pipeline
+
+POWER, RADIUS, HEIGHT, ALBEDO = 60.0, 0.1, 1.0, 0.5
+LIGHT_AT = (0.3, -0.2, HEIGHT)
+
+
+def floor_under_point_light(context):
+    mat = scenes.diffuse_material("Grey", (ALBEDO,) * 3)
+    scenes.add_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], mat)
+    light = bpy.data.lights.new("Bulb", "POINT")
+    light.energy, light.shadow_soft_size = POWER, RADIUS
+    obj = bpy.data.objects.new("Bulb", light)
+    obj.location = LIGHT_AT
+    context.scene.collection.objects.link(obj)
+    return obj
+
+
+def closed_form(points):
+    """Floor radiance under a Lambertian sphere of radiance L: irradiance pi L (r/d)^2 cos = P cos /
+    (4 pi d^2), whatever the radius (outside the sphere), times albedo / pi."""
+    d = np.asarray(LIGHT_AT) - points
+    dist = np.linalg.norm(d, axis=1)
+    return ALBEDO / math.pi * POWER * (d[:, 2] / dist) / (4 * math.pi * dist**2)
+
+
+def solve_floor(context):
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    floor = next(o for o in job.export.objects if o.name == "Floor")
+    return solution.radiance[floor.patches[0][1]], job.export
+
+
+def test_point_light_is_an_emitting_sphere_of_its_radius(context):
+    floor_under_point_light(context)
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert len(result.scene) == 2 and not result.warnings
+    k = next(i for i in range(len(result.scene)) if result.scene.name(i) == "Bulb")
+    assert result.scene.area(k) == pytest.approx(4 * math.pi * RADIUS**2, rel=1e-6)  # area by quadrature
+
+
+def test_point_light_lights_a_floor_as_the_closed_form(context):
+    floor_under_point_light(context)
+    spline, _ = solve_floor(context)
+    uv = np.array([[0.5, 0.5], [0.65, 0.4], [0.1, 0.9], [0.9, 0.1]])
+    points = np.column_stack([2 * uv - 1, np.zeros(len(uv))])
+    got, want = spline.evaluate(uv)[:, 0], closed_form(points)
+    print("\npoint light floor vs closed form:", np.round(got / want - 1, 4))
+    # Schoenberg smoothing of the peak under the light costs about 1%; another convention (e.g.
+    # P / (4 pi) as radiant intensity over pi r^2) would be off by a factor of pi or more.
+    np.testing.assert_allclose(got, want, rtol=0.03)
+
+
+def test_tiny_point_light_is_solved_as_a_small_sphere_with_a_warning(context):
+    light = floor_under_point_light(context)
+    light.data.shadow_soft_size = 0.0
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert any("light 'Bulb': radius 0" in w for w in result.warnings)
+    spline, _ = solve_floor(context)
+    uv = np.array([[0.5, 0.5], [0.2, 0.8]])
+    points = np.column_stack([2 * uv - 1, np.zeros(len(uv))])
+    np.testing.assert_allclose(spline.evaluate(uv)[:, 0], closed_form(points), rtol=0.03)
+
+
+@pytest.mark.slow
+def test_point_light_convention_is_cycles(context, tmp_path):
+    # Cycles' own render of the floor (direct light only), seen from straight above through an
+    # orthographic camera, against the closed form the solver is checked against above.
+    from test_pipeline import render_exr
+
+    floor_under_point_light(context)
+    cam = bpy.data.cameras.new("Top")
+    cam.type, cam.ortho_scale = "ORTHO", 2.0
+    camera = bpy.data.objects.new("Top", cam)
+    camera.location = (0, 0, 3)
+    context.scene.collection.objects.link(camera)
+    context.scene.camera = camera
+    image = render_exr(context.scene, tmp_path / "top.exr", samples=256, bounces=0)
+    n = image.shape[0]
+    centres = (np.arange(n) + 0.5) / n * 2 - 1
+    x, y = np.meshgrid(centres, -centres)  # image rows run downwards
+    want = closed_form(np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])).reshape(n, n)
+    ratio = image.mean(axis=2) / want
+    print(f"\nCycles / closed form over the floor: median {np.median(ratio):.4f}, "
+          f"5-95% {np.percentile(ratio, 5):.4f}-{np.percentile(ratio, 95):.4f}")
+    assert abs(np.median(ratio) - 1) < 0.03
