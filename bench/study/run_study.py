@@ -53,7 +53,7 @@ PRESETS = ("draft", "preview", "final")
 # time, hemisphere nodes 16x32 = 1.5x) and the final preset (after FINAL_AFTER_PREVIEW_SECONDS of
 # wall time) are left out, so that a full run stays within about two hours on 2 cores.
 EXPENSIVE_KNOBS = {("spatial coefficients", 32), ("hemisphere nodes", "16x32")}
-EXPENSIVE_AFTER_PREVIEW_CPU_SECONDS = 60
+EXPENSIVE_AFTER_PREVIEW_CPU_SECONDS = 20
 FINAL_AFTER_PREVIEW_SECONDS = 60
 CYCLES_SAMPLES = (16, 64, 256, 1024)
 # The atlas: on the Cornell box 51 texels across a 2 m wall (4 cm), as fine as the preview
