@@ -274,6 +274,12 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     return SolverMaterial(albedo, described.emission)
 
 
+def _warn_light_nodes(obj, warnings):
+    light = obj.data
+    if getattr(light, "use_nodes", False) and light.node_tree is not None:
+        warnings.append(f"light '{obj.name}': its shader nodes are ignored; its colour and power are used")
+
+
 def _area_light(scene, obj, warnings):
     light = obj.data
     if getattr(getattr(light, "cycles", None), "is_portal", False):
@@ -282,8 +288,7 @@ def _area_light(scene, obj, warnings):
     if getattr(light, "spread", math.pi) < math.pi - 1e-6:
         warnings.append(f"light '{obj.name}': its spread of {math.degrees(light.spread):.0f} degrees is solved as "
                         "180 (a Lambertian emitter)")
-    if getattr(light, "use_nodes", False) and light.node_tree is not None:
-        warnings.append(f"light '{obj.name}': its shader nodes are ignored; its colour and power are used")
+    _warn_light_nodes(obj, warnings)
     a = light.size / 2
     b = (light.size_y if light.shape in {"RECTANGLE", "ELLIPSE"} else light.size) / 2
     m = obj.matrix_world
@@ -313,8 +318,7 @@ def _point_light(scene, obj, warnings):
     emitter, pi L per unit area), solved as an exact NURBS sphere that emits but neither receives
     nor casts shadows (as a light)."""
     light = obj.data
-    if getattr(light, "use_nodes", False) and light.node_tree is not None:
-        warnings.append(f"light '{obj.name}': its shader nodes are ignored; its colour and power are used")
+    _warn_light_nodes(obj, warnings)
     m = np.array(obj.matrix_world, float)
     radius = light.shadow_soft_size  # the object's scale does not size a point light
     if radius < MIN_POINT_LIGHT_RADIUS:
@@ -442,7 +446,7 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
         verts = list(poly.vertices)
         first = len(scene)
         if len(verts) <= 4:
-            pieces, kind = [(name, verts)], {3: "triangle", 4: "quad"}.get(len(verts), "triangle")
+            pieces, kind = [(name, verts)], "quad" if len(verts) == 4 else "triangle"
         else:
             pieces, kind = [(f"{name} triangle {k}", list(tri)) for k, tri in enumerate(ngon_tris[poly.index])], "ngon"
         try:
