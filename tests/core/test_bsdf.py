@@ -228,6 +228,20 @@ def test_bad_parameters_are_refused(make, message):
         make()
 
 
+def assert_eval_and_pdf_are_mitsubas(mi, ctx, ref, ours, wo, wi, mi_wo, mi_wi, label):
+    """Our BSDF value times cos(wi) and pdf at (wo, wi) equal Mitsuba's at (mi_wo, mi_wi), the same
+    directions in Mitsuba's frame. Mitsuba's si.wi is our wo (towards the viewer), its wo our wi;
+    its eval includes cos(wi)."""
+    f = ours.eval(wo, wi)[:, 0] * wi[:, 2]
+    pdf = ours.pdf(wo, wi)
+    for k in range(len(wo)):
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(*mi_wo[k])
+        value = ref.eval(ctx, si, mi.Vector3f(*mi_wi[k]))[0]
+        assert f[k] == pytest.approx(value, rel=1e-5, abs=1e-7 * max(f.max(), 1)), (*label, wo[k], wi[k])
+        assert pdf[k] == pytest.approx(ref.pdf(ctx, si, mi.Vector3f(*mi_wi[k])), rel=1e-5,
+                                       abs=1e-7 * max(pdf.max(), 1))
+
 def test_ggx_matches_mitsuba_roughconductor():
     mi = pytest.importorskip("mitsuba")
     mi.set_variant("scalar_rgb")
@@ -240,15 +254,7 @@ def test_ggx_matches_mitsuba_roughconductor():
         wo, wi = random_directions(rng, 300), random_directions(rng, 300)
         n = min(len(wo), len(wi))
         wo, wi = wo[:n], wi[:n]
-        # Mitsuba's si.wi is our wo (towards the viewer), its wo our wi; its eval includes cos(wi).
-        f = ours.eval(wo, wi)[:, 0] * wi[:, 2]
-        pdf = ours.pdf(wo, wi)
-        for k in range(n):
-            si = mi.SurfaceInteraction3f()
-            si.wi = mi.Vector3f(*wo[k])
-            value = ref.eval(ctx, si, mi.Vector3f(*wi[k]))[0]
-            assert f[k] == pytest.approx(value, rel=1e-5, abs=1e-7 * max(f.max(), 1)), (ax, ay, wo[k], wi[k])
-            assert pdf[k] == pytest.approx(ref.pdf(ctx, si, mi.Vector3f(*wi[k])), rel=1e-5, abs=1e-7 * max(pdf.max(), 1))
+        assert_eval_and_pdf_are_mitsubas(mi, ctx, ref, ours, wo, wi, wo, wi, (ax, ay))
 
 
 def test_rotated_anisotropic_ggx_is_mitsubas_roughconductor_in_the_turned_frame():
@@ -269,15 +275,7 @@ def test_rotated_anisotropic_ggx_is_mitsubas_roughconductor_in_the_turned_frame(
         def turned(w):
             return np.column_stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]])
         two, twi = turned(wo), turned(wi)
-        f = ours.eval(wo, wi)[:, 0] * wi[:, 2]
-        pdf = ours.pdf(wo, wi)
-        for k in range(n):
-            si = mi.SurfaceInteraction3f()
-            si.wi = mi.Vector3f(*two[k])
-            value = ref.eval(ctx, si, mi.Vector3f(*twi[k]))[0]
-            assert f[k] == pytest.approx(value, rel=1e-5, abs=1e-7 * max(f.max(), 1)), (ax, ay, phi, wo[k], wi[k])
-            assert pdf[k] == pytest.approx(ref.pdf(ctx, si, mi.Vector3f(*twi[k])), rel=1e-5,
-                                           abs=1e-7 * max(pdf.max(), 1))
+        assert_eval_and_pdf_are_mitsubas(mi, ctx, ref, ours, wo, wi, two, twi, (ax, ay, phi))
     # The turn matters: a quarter turn swaps the axes, so an unturned lobe differs.
     a, b = bsgi.GgxReflection(0.4, 0.1, [1.0] * 3, rotation=np.pi / 2), bsgi.GgxReflection(0.1, 0.4, [1.0] * 3)
     c0 = bsgi.GgxReflection(0.4, 0.1, [1.0] * 3)
