@@ -175,6 +175,12 @@ def _warn_tangent(node, material, warnings, anisotropy):
                         "follows each surface's u direction (ds/du), turned by its rotation")
 
 
+def _active_output(tree, kind):
+    """The output node of that type Blender renders with (the active one, else the first)."""
+    outputs = [n for n in tree.nodes if n.type == kind]
+    return next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
+
+
 def _from(socket):
     return socket.links[0].from_node if socket.is_linked else None
 
@@ -186,8 +192,7 @@ def describe_material(material, warnings) -> SurfaceMaterial:
     tree = material.node_tree
     output = None
     if tree is not None:
-        outputs = [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]
-        output = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
+        output = _active_output(tree, "OUTPUT_MATERIAL")
     if output is None or not output.inputs["Surface"].is_linked:
         return SurfaceMaterial(albedo=tuple(material.diffuse_color[:3]))
     return _shader(_from(output.inputs["Surface"]), material, warnings)
@@ -670,7 +675,7 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = 
 
 def export_scene(depsgraph) -> Export:
     """Every visible geometry object's faces as patches (a NURBS surface object's splines as exact
-    surfaces), every area light as an emitter."""
+    surfaces), every area and point light as an emitter, a one-colour world as world light."""
     scene = bsgi.Scene()
     objects, warnings = [], []
     instances: dict = {}  # (object, instancer) -> count, for one warning per pair
@@ -716,7 +721,7 @@ def export_scene(depsgraph) -> Export:
                         f"{'are' if count > 1 else 'is'} solved (casting shadows and reflecting light) but not "
                         "baked: instances share one mesh, which cannot show each instance's own light; make them "
                         "real (Object > Apply > Make Instances Real) to bake them")
-    _world_warning(depsgraph.scene, warnings)
+    _world_light(depsgraph.scene, scene, warnings)
     return Export(scene, objects, list(dict.fromkeys(warnings)))
 
 
@@ -742,19 +747,21 @@ def _add_object(scene, obj, matrix: Matrix, warnings, label: str | None, pending
         obj.to_mesh_clear()
 
 
-def _world_warning(scene, warnings):
-    world = scene.world
+def _world_light(blender_scene, scene, warnings):
+    """The world's background, when it is one colour, as the solver's world light: radiance
+    colour x strength from every direction no surface blocks (as Cycles shines it)."""
+    world = blender_scene.world
     if world is None:
         return
-    color, strength = tuple(world.color), 1.0
-    if world.node_tree is not None:
-        output = next((n for n in world.node_tree.nodes if n.type == "OUTPUT_WORLD"), None)
+    color, strength = tuple(world.color), 1.0  # without nodes Cycles shines the world colour
+    if world.node_tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes):  # 5.x: always nodes
+        output = _active_output(world.node_tree, "OUTPUT_WORLD")
         background = _from(output.inputs["Surface"]) if output is not None else None
         if background is None:
             return
         if background.type != "BACKGROUND" or any(s.is_linked for s in background.inputs):
-            warnings.append(f"world '{world.name}': only a constant background can be solved; its light is ignored")
+            warnings.append(f"world '{world.name}': only a constant background (one colour, no texture or sky) "
+                            "can be solved; its light is ignored")
             return
         color, strength = _socket_color(background, "Color"), _socket_value(background, "Strength", 1.0)
-    if max(color) * strength > 0:
-        warnings.append(f"world '{world.name}': world light is not solved yet; it is ignored (set it to black to match)")
+    scene.world_radiance = _scale(color, max(strength, 0.0))

@@ -256,7 +256,7 @@ def camera(location, target, lens=45.0):
 
 
 def render_settings(scene, resolution=(512, 512)):
-    """A black world (the solver ignores world light, so the render matches the solve), Cycles,
+    """A black world (the examples are lit by their lamps alone, as the study's Mitsuba scenes), Cycles,
     the Standard view transform (baked radiance is shown as it is)."""
     world = bpy.data.worlds.new("Black")
     world.color = (0, 0, 0)

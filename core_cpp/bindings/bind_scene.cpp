@@ -110,6 +110,11 @@ void bind_scene(py::module_& m) {
             py::arg("surface"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true, py::arg("occluder") = true,
             py::arg("bsdf") = nullptr, py::arg("representation") = "auto", py::arg("spatial_coeffs") = 0,
             py::arg("angular_coeffs") = 0, "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it.")
+        .def_property(
+            "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
+            [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },
+            "RGB radiance arriving from every direction no occluder blocks (a constant world background; "
+            "default black).")
         .def("__len__", &Scene::size)
         .def(
             "surface",

@@ -171,7 +171,24 @@ void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) cons
 }
 
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
-                        Receiver::Splines which, int density, Vec3* out, size_t& rays) const {
+                        Receiver::Splines which, int density, bool with_world, Vec3* out, size_t& rays) const {
+    const Vec3 world = with_world ? scene_.world_radiance() : Vec3{0, 0, 0};
+    hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
+        if (hit.surface < 0) return world;
+        const Receiver* h = receiver_of[hit.surface];
+        return h ? h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir)) : Vec3{0, 0, 0};
+    }, out, rays);
+}
+
+void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
+    const Vec3 world = scene_.world_radiance();
+    hemisphere(r, j, 1, [&](const SurfaceHit& hit, const Vec3&) { return hit.surface < 0 ? world : Vec3{0, 0, 0}; }, out,
+               rays);
+}
+
+template <typename Incoming>
+void Gatherer::hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out,
+                          size_t& rays) const {
     const SurfacePoint& p = r.nodes[j];
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
@@ -180,10 +197,7 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
     auto incoming = [&](const Vec3& wi) -> Vec3 {
         const Vec3 dir = p.frame.to_world(wi);
         ++rays;
-        const SurfaceHit hit = caster_.closest_hit(caster_.spawn(p.p, p.frame.z, dir), dir);
-        if (hit.surface < 0) return {0, 0, 0};
-        const Receiver* h = receiver_of[hit.surface];
-        return h ? h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir)) : Vec3{0, 0, 0};
+        return radiance_along(caster_.closest_hit(caster_.spawn(p.p, p.frame.z, dir), dir), dir);
     };
     // Cosine-weighted nodes on each side light arrives from (both where the surface transmits).
     const int in_sides = r.bsdf->transmits() ? 2 : 1;

@@ -456,7 +456,8 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     validate(settings);
     bool any_emitter = false;
     for (const auto& s : scene.surfaces()) any_emitter |= s.material.emits();
-    if (!any_emitter) throw std::invalid_argument("scene has no emitter: add a light or an emissive material");
+    if (!any_emitter && !scene.has_world())
+        throw std::invalid_argument("scene has no emitter: add a light, an emissive material or world light");
 
     std::vector<Plan> plans = plan_scene(scene, settings, 1);
     std::vector<Plan> final_plans;
@@ -496,11 +497,16 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     std::vector<Receiver> receivers = build_receivers(scene, plans, gather, settings, settings.adaptive_knots, progress, rays);
     const std::vector<const Receiver*> receiver_of = index_by_surface(scene, receivers);
 
-    // Direct lighting phase: gather from every emitter into S.L; S.Le <- S.L.
+    // Direct lighting phase: gather from every emitter (and the world) into S.L; S.Le <- S.L.
     const auto t0 = std::chrono::steady_clock::now();
     progress.begin_stage("direct light", 1, stages, node_count(receivers));
-    rays += gather_all(receivers, &Receiver::L, settings, progress,
-                       [&](const Receiver& r, size_t j, Vec3* out, size_t& n) { gather.direct(r, j, out, n); });
+    rays += gather_all(receivers, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
+        gather.direct(r, j, out, n);
+        if (!scene.has_world()) return;
+        std::vector<Vec3> world(r.sides * r.per_node);
+        gather.world(r, j, world.data(), n);
+        for (size_t k = 0; k < world.size(); ++k) out[k] += world[k];
+    });
     for (auto& r : receivers)
         for (int side = 0; side < r.sides; ++side) r.Le[side].coeffs() = r.L[side].coeffs();
     solution.stats.seconds_direct = seconds_since(t0);
@@ -544,7 +550,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         rays += gather_all(receivers, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             const size_t k = size_t(r.index);
             if (!uses_rows(r)) {
-                gather.indirect(r, j, receiver_of, &Receiver::L, 1, out, n);
+                gather.indirect(r, j, receiver_of, &Receiver::L, 1, false, out, n);
                 return;
             }
             Vec3 sum{0, 0, 0};
@@ -585,8 +591,9 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     }
     solution.stats.seconds_indirect = seconds_since(t1);
 
-    // Final gather: finer receivers gather direct light from the emitters and indirect light
-    // from the cumulative radiance Le of the others (emitters count as non-emissive there).
+    // Final gather: finer receivers gather direct light from the emitters, and indirect light
+    // from the cumulative radiance Le of the others (emitters count as non-emissive there) with
+    // the world's light along the same rays.
     std::vector<Receiver> finals;
     if (settings.final_gather) {
         const auto t2 = std::chrono::steady_clock::now();
@@ -595,7 +602,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         rays += gather_all(finals, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             std::vector<Vec3> direct(r.sides * r.per_node);
             gather.direct(r, j, direct.data(), n);
-            gather.indirect(r, j, receiver_of, &Receiver::Le, settings.final_integration_factor, out, n);
+            gather.indirect(r, j, receiver_of, &Receiver::Le, settings.final_integration_factor, true, out, n);
             for (size_t k = 0; k < direct.size(); ++k) out[k] += direct[k];
         });
         solution.stats.seconds_final = seconds_since(t2);

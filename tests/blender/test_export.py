@@ -181,19 +181,15 @@ def test_glossy_materials_reach_the_scene_with_the_objects_options(context):
     assert report["representation"] == "diffuse 2D" and report["shape"] == [10, 10]
 
 
-def test_unsupported_lights_and_world_are_warned_about(context):
+def test_unsupported_lights_are_warned_about(context):
+    # (Worlds: test_world_light.py.)
     scenes.floor_under_lamp()
     for kind in ("SPOT", "SUN"):
         light = bpy.data.objects.new(kind, bpy.data.lights.new(kind, kind))
         context.scene.collection.objects.link(light)
-    world = bpy.data.worlds.new("Sky")
-    world.color = (0.1, 0.2, 0.3)
-    if world.node_tree is not None:
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.1, 0.2, 0.3, 1)
-    context.scene.world = world
     result = export.export_scene(context.evaluated_depsgraph_get())
     text = "\n".join(result.warnings)
-    for name in ("light 'SPOT'", "light 'SUN'", "world 'Sky'"):
+    for name in ("light 'SPOT'", "light 'SUN'"):
         assert name in text
     assert len(result.scene) == 2  # the floor and the square lamp
 

@@ -69,10 +69,15 @@ public:
     // Reflected (and transmitted) direct light at node j of r: r.values() / r.nodes.size()
     // values into out, side-major then angular node.
     void direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
-    // Light arriving from the other surfaces' splines `which` at node j of r, scattered.
-    // `density` multiplies the integration nodes (the final gather uses more).
+    // Light arriving from the other surfaces' splines `which` at node j of r, scattered, and
+    // with `with_world` the world's light along the rays no occluder stops (the final gather:
+    // one set of rays for both). `density` multiplies the integration nodes (the final gather
+    // uses more).
     void indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of, Receiver::Splines which,
-                  int density, Vec3* out, size_t& rays) const;
+                  int density, bool with_world, Vec3* out, size_t& rays) const;
+    // The world's light (Scene::world_radiance) at node j of r, scattered: the hemispherical
+    // integral (26)-(32) over the directions no occluder stops. Same layout as direct().
+    void world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     // Generalized form factors (36)-(37): for a Lambertian, opaque receiver, the row of the
     // transport operator at node j, so that its gathered light is albedo * sum(weight * coefficient)
     // over the receivers' incremental splines: the rays are cast once, not every bounce.
@@ -82,6 +87,10 @@ public:
     Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays) const;
 
 private:
+    // The hemispherical integral at node j of r of radiance_along(hit, world direction), the
+    // radiance arriving along each integration direction given what its ray hit.
+    template <typename Incoming>
+    void hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out, size_t& rays) const;
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Vec3& radiance, double s0, double s1,
                       double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit, size_t& rays) const;

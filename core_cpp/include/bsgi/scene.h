@@ -1,4 +1,5 @@
-// The scene the solver sees: surfaces with their materials, and which of them block light.
+// The scene the solver sees: surfaces with their materials, which of them block light, and the
+// world's light.
 #pragma once
 #include <cmath>
 #include <memory>
@@ -62,12 +63,24 @@ public:
         surfaces_.push_back({std::move(surface), material, receiver, occluder, options});
         return static_cast<int>(surfaces_.size()) - 1;
     }
+    // Constant radiance arriving from every direction in which no occluder is seen: a distant
+    // emitter enclosing the scene (Blender's world background of one colour).
+    void set_world_radiance(const Vec3& radiance) {
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(radiance[c]) || radiance[c] < 0)
+                throw std::invalid_argument("world: radiance must be finite and >= 0");
+        world_ = radiance;
+    }
+    const Vec3& world_radiance() const { return world_; }
+    bool has_world() const { return max_component(world_) > 0; }
+
     size_t size() const { return surfaces_.size(); }
     const SceneSurface& operator[](size_t i) const { return surfaces_[i]; }
     const std::vector<SceneSurface>& surfaces() const { return surfaces_; }
 
 private:
     std::vector<SceneSurface> surfaces_;
+    Vec3 world_{0, 0, 0};
 };
 
 }  // namespace bsgi
