@@ -336,6 +336,18 @@ def _point_light(scene, obj, warnings):
     scene.add_surface(surface, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
 
 
+def _sun_light(scene, obj, warnings):
+    """A sun as Cycles has it: irradiance strength x colour (W/m^2) on a surface facing it, from a
+    disc of the light's angular diameter around the object's +Z axis (the light shines along -Z)."""
+    light = obj.data
+    _warn_light_nodes(obj, warnings)
+    towards = np.array(obj.matrix_world, float)[:3, 2]
+    if not np.linalg.norm(towards) > 0:
+        warnings.append(f"light '{obj.name}': scaled to zero, it has no direction; skipped")
+        return
+    scene.add_distant_light(obj.name, towards, [c * light.energy for c in light.color], light.angle)
+
+
 def sphere_surface(name: str, centre, radius: float) -> "bsgi.NurbsSurface":
     """An exact sphere as the rational quadratic NURBS surface Blender's NURBS Sphere primitive
     makes: u along a half circle from the lower pole to the upper one, v around the axis (closed),
@@ -675,7 +687,8 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = 
 
 def export_scene(depsgraph) -> Export:
     """Every visible geometry object's faces as patches (a NURBS surface object's splines as exact
-    surfaces), every area and point light as an emitter, a one-colour world as world light."""
+    surfaces), every area and point light as an emitter, suns as distant lights, a one-colour world
+    as world light."""
     scene = bsgi.Scene()
     objects, warnings = [], []
     instances: dict = {}  # (object, instancer) -> count, for one warning per pair
@@ -687,6 +700,8 @@ def export_scene(depsgraph) -> Export:
                 _area_light(scene, obj, warnings)
             elif obj.data.type == "POINT":
                 _point_light(scene, obj, warnings)
+            elif obj.data.type == "SUN":
+                _sun_light(scene, obj, warnings)
             else:
                 warnings.append(f"light '{obj.name}': {obj.data.type.lower()} lights are not supported yet; skipped")
             continue

@@ -115,6 +115,24 @@ void bind_scene(py::module_& m) {
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },
             "RGB radiance arriving from every direction no occluder blocks (a constant world background; "
             "default black).")
+        .def(
+            "add_distant_light",
+            [](Scene& s, const std::string& name, const Array& direction, const Array& irradiance, double angle) {
+                s.add_distant_light({name, rgb(direction, "direction"), rgb(irradiance, "irradiance"), angle});
+            },
+            py::arg("name"), py::arg("direction"), py::arg("irradiance"), py::arg("angle") = 0.0,
+            "A light at infinity (a sun): RGB `irradiance` on a surface facing it, from a disc of angular diameter "
+            "`angle` (radians) around `direction` (towards the light); occluders cast its shadows.")
+        .def_property_readonly("distant_lights", [](const Scene& s) {
+            py::list out;
+            for (const DistantLight& l : s.distant_lights()) {
+                py::dict d;
+                d["name"] = l.name, d["direction"] = vec(l.direction), d["irradiance"] = vec(l.irradiance);
+                d["angle"] = l.angle;
+                out.append(d);
+            }
+            return out;
+        })
         .def("__len__", &Scene::size)
         .def(
             "surface",

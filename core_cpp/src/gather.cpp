@@ -79,6 +79,24 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
         if (!flat) self_lit_.push_back(int(i));
     }
     cell_rule_ = emitter_quadrature(settings.emitter_coeffs, settings.emitter_degree);
+    // Distant lights: their disc by the cell rule in 1 - cos theta (uniform in solid angle) and
+    // equally spaced azimuths (exact for the cosine of a tilted receiver); the weights scaled so
+    // that a surface facing the light gets its irradiance.
+    for (const DistantLight& light : scene.distant_lights()) {
+        const Frame f = Frame::from_normal(light.direction);
+        const double cap = 1 - std::cos(0.5 * light.angle);
+        const size_t n = cap > 1e-12 ? cell_rule_.nodes.size() : 1, first = distant_.size();
+        double facing = 0;  // sum of weight * cos over the disc
+        for (size_t p = 0; p < n; ++p)
+            for (size_t k = 0; k < 2 * n; ++k) {
+                const double w = n == 1 ? 1.0 : cell_rule_.weights[p];
+                const double cos_t = n == 1 ? 1.0 : 1 - cap * cell_rule_.nodes[p], phi = kPi * (k + 0.5) / n;
+                const double sin_t = std::sqrt(std::max(0.0, 1 - cos_t * cos_t));
+                distant_.push_back({f.to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t}), light.irradiance * w});
+                facing += w * cos_t;
+            }
+        for (size_t i = first; i < distant_.size(); ++i) distant_[i].irradiance = distant_[i].irradiance / facing;
+    }
 }
 
 // The geometric part of (8) over the parameter cell [s0, s1] x [t0, t1] of an emitter: the
@@ -145,6 +163,13 @@ void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, doub
         if (e == receiver && std::find(self_lit_.begin(), self_lit_.end(), e) == self_lit_.end()) continue;
         const SceneSurface& es = scene_[e];
         emitter_cell(r, *es.surface, es.material.emission, 0, 1, 0, 1, 0, ratio, both_sides, visit, rays);
+    }
+    for (const DistantSample& d : distant_) {
+        const double cos_r = dot(d.direction, r.frame.z);
+        if (cos_r == 0 || (cos_r < 0 && !both_sides)) continue;
+        ++rays;
+        if (caster_.occluded(caster_.spawn(r.p, r.frame.z, d.direction), d.direction)) continue;
+        visit(d.direction, d.irradiance * std::abs(cos_r));
     }
 }
 

@@ -456,7 +456,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     validate(settings);
     bool any_emitter = false;
     for (const auto& s : scene.surfaces()) any_emitter |= s.material.emits();
-    if (!any_emitter && !scene.has_world())
+    if (!any_emitter && !scene.has_world() && scene.distant_lights().empty())
         throw std::invalid_argument("scene has no emitter: add a light, an emissive material or world light");
 
     std::vector<Plan> plans = plan_scene(scene, settings, 1);

@@ -98,9 +98,16 @@ private:
     void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,
                                  size_t& rays) const;
 
+    // A direction of a distant light's disc, and the irradiance it brings to a surface facing it.
+    struct DistantSample {
+        Vec3 direction;
+        Vec3 irradiance;
+    };
+
     const Scene& scene_;
     const SolverSettings& settings_;
     const RayCaster& caster_;
+    std::vector<DistantSample> distant_;  // of all distant lights
     std::vector<int> emitters_;
     std::vector<int> self_lit_;  // curved emitters, which light themselves too
     QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell

@@ -21,6 +21,16 @@ struct Material {
     bool emits() const { return max_component(emission) > 0; }
 };
 
+// A light at infinity (Blender's sun): `irradiance` on a surface facing it, arriving from a disc of
+// angular diameter `angle` (radians, 0: one direction) around `direction` (unit, towards the
+// light), blocked by occluders like any ray.
+struct DistantLight {
+    std::string name;
+    Vec3 direction;
+    Vec3 irradiance;
+    double angle = 0;
+};
+
 // How a surface's radiance is represented: chosen by the solver from the material and the size
 // ("model only what the scene requires") unless given here. Decomposed is (38): a 2D diffuse
 // part D(u, v) at the full spatial resolution plus a 4D glossy part S on coarser spatial knots,
@@ -74,6 +84,20 @@ public:
     const Vec3& world_radiance() const { return world_; }
     bool has_world() const { return max_component(world_) > 0; }
 
+    void add_distant_light(DistantLight light) {
+        const std::string what = "distant light '" + light.name + "': ";
+        const double n = length(light.direction);
+        if (!(n > 0) || !std::isfinite(n)) throw std::invalid_argument(what + "direction must be finite and non-zero");
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(light.irradiance[c]) || light.irradiance[c] < 0)
+                throw std::invalid_argument(what + "irradiance must be finite and >= 0");
+        if (!(light.angle >= 0 && light.angle < 3.141592653589793))
+            throw std::invalid_argument(what + "angle must be in [0, pi) radians");
+        light.direction = light.direction / n;
+        distant_.push_back(std::move(light));
+    }
+    const std::vector<DistantLight>& distant_lights() const { return distant_; }
+
     size_t size() const { return surfaces_.size(); }
     const SceneSurface& operator[](size_t i) const { return surfaces_[i]; }
     const std::vector<SceneSurface>& surfaces() const { return surfaces_; }
@@ -81,6 +105,7 @@ public:
 private:
     std::vector<SceneSurface> surfaces_;
     Vec3 world_{0, 0, 0};
+    std::vector<DistantLight> distant_;
 };
 
 }  // namespace bsgi

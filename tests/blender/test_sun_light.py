@@ -1,0 +1,81 @@
+"""Sun lights (addon/export.py _sun_light): a distant light of irradiance strength x colour along
+the object's +Z axis; a floor beside a wall under it against the closed form and a Cycles render."""
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from bsgi_addon import export, pipeline
+
+ALBEDO, STRENGTH, COLOR, TILT = 0.5, 3.0, (1.0, 0.8, 0.6), 40.0
+EDGE = 1 - math.tan(math.radians(TILT))  # the wall's shadow covers the floor where x > EDGE
+
+
+def floor_beside_wall_under_sun(context, angle_degrees=0.53):
+    grey = scenes.diffuse_material("Grey", (ALBEDO,) * 3)
+    scenes.add_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], grey)
+    scenes.add_quad("Wall", [(1, -1, 0), (1, 1, 0), (1, 1, 1), (1, -1, 1)], grey)
+    light = bpy.data.lights.new("Sun", "SUN")
+    light.energy, light.color, light.angle = STRENGTH, COLOR, math.radians(angle_degrees)
+    sun = bpy.data.objects.new("Sun", light)
+    sun.location = (5, 5, 5)  # where a sun is does not matter
+    sun.rotation_euler = (0, math.radians(TILT), 0)  # +Z turned towards +x: shines down towards -x
+    context.scene.collection.objects.link(sun)
+    return sun
+
+
+def lit():
+    """Floor radiance in the sun: albedo / pi * irradiance * cos(tilt)."""
+    return ALBEDO / math.pi * STRENGTH * np.array(COLOR) * math.cos(math.radians(TILT))
+
+
+def test_sun_is_a_distant_light_along_its_z_axis(context):
+    floor_beside_wall_under_sun(context)
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert not result.warnings
+    (sun,) = result.scene.distant_lights
+    t = math.radians(TILT)
+    np.testing.assert_allclose(sun["direction"], [math.sin(t), 0, math.cos(t)], atol=1e-6)
+    np.testing.assert_allclose(sun["irradiance"], STRENGTH * np.array(COLOR), rtol=1e-6)
+    assert sun["angle"] == pytest.approx(math.radians(0.53), rel=1e-5)
+    assert sun["name"] == "Sun"
+
+
+def test_floor_in_and_out_of_the_suns_shadow_matches_the_closed_form(context):
+    floor_beside_wall_under_sun(context)
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    floor = next(o for o in job.export.objects if o.name == "Floor")
+    spline = solution.radiance[floor.patches[0][1]]
+    x = np.array([-0.9, -0.6, -0.4, 0.75, 0.9])
+    got = spline.evaluate(np.column_stack([(x + 1) / 2, np.full_like(x, 0.3)]))
+    print("\nfloor under the sun / closed form:", np.round(got[:, 0] / lit()[0], 4))
+    np.testing.assert_allclose(got[x < 0], np.tile(lit(), (3, 1)), rtol=0.01)
+    assert np.abs(got[x > 0.5]).max() < 0.01 * lit().max()
+
+
+@pytest.mark.slow
+def test_sun_convention_is_cycles(context, tmp_path):
+    # Cycles' own render (direct light only) from straight above through an orthographic
+    # camera: the floor in the sun against the closed form the solver is checked against above.
+    from test_pipeline import render_exr
+
+    floor_beside_wall_under_sun(context)
+    cam = bpy.data.cameras.new("Top")
+    cam.type, cam.ortho_scale = "ORTHO", 2.0
+    camera = bpy.data.objects.new("Top", cam)
+    camera.location = (0, 0, 3)
+    context.scene.collection.objects.link(camera)
+    context.scene.camera = camera
+    image = render_exr(context.scene, tmp_path / "top.exr", samples=64, bounces=0)
+    n = image.shape[0]
+    x = ((np.arange(n) + 0.5) / n * 2 - 1)[None, :].repeat(n, axis=0)
+    ratio = image[x < EDGE - 0.1] / lit()
+    shade = image[x > EDGE + 0.1].mean(axis=0) / lit()
+    print(f"\nCycles / closed form in the sun: median {np.median(ratio):.4f}; in the shadow {np.round(shade, 4)}")
+    assert abs(np.median(ratio) - 1) < 0.02
+    assert shade.max() < 0.01

@@ -1,0 +1,112 @@
+"""Distant lights (Scene.add_distant_light, Blender's sun): irradiance from a disc at infinity,
+against closed forms and Mitsuba 3's directional emitter."""
+import math
+
+import numpy as np
+import pytest
+
+import bsgi
+from reference import mitsuba_reference, scene_spec
+from reference.scene_spec import quad
+from test_solver_world import WORLD, open_box, with_world
+
+ALBEDO = 0.7
+E = np.array([3.0, 2.0, 1.0])
+
+
+def sun_scene(elevation_from_zenith, angle=0.0, wall=False):
+    """A 2 x 2 floor (normal +z) under a sun tilted towards +x; with `wall`, a 1 m high wall along
+    the floor's x = 1 edge shadows the floor where x > 1 - tan(tilt)."""
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[ALBEDO] * 3, emission=[0, 0, 0])
+    if wall:
+        scene.add_bilinear_patch("wall", quad([1, 0, 0.5], [0, 0, 0.5], [0, 1, 0]), albedo=[0.5] * 3, emission=[0, 0, 0])
+    t = math.radians(elevation_from_zenith)
+    scene.add_distant_light("sun", [math.sin(t), 0, math.cos(t)], E, math.radians(angle))
+    return scene
+
+
+def solve(scene, **kw):
+    s = bsgi.SolverSettings()
+    s.max_bounces = 0
+    for k, v in kw.items():
+        setattr(s, k, v)
+    return bsgi.solve(scene, s)
+
+
+UV = np.random.default_rng(5).uniform(0, 1, (50, 2))
+
+
+@pytest.mark.parametrize("tilt", [0, 30, 75])
+@pytest.mark.parametrize("angle", [0, 0.53, 10])
+def test_open_floor_gets_the_irradiance_times_cosine(tilt, angle):
+    # Lambert: rho / pi * E cos(tilt); a disc of uniform radiance gives exactly E cos(tilt) to a
+    # plane it stays above, whatever its angular size.
+    got = solve(sun_scene(tilt, angle)).radiance[0].evaluate(UV)
+    np.testing.assert_allclose(got, ALBEDO / math.pi * E * math.cos(math.radians(tilt)) * np.ones((len(UV), 1)),
+                               rtol=1e-9)
+
+
+def test_sun_below_the_horizon_gives_no_light():
+    sol = solve(sun_scene(120))
+    assert np.abs(sol.radiance[0].evaluate(UV)).max() == 0
+
+
+def test_wall_shadow_is_dark_and_the_rest_fully_lit():
+    tilt = 40
+    sol = solve(sun_scene(tilt, wall=True), spatial_coeffs=16)
+    edge = 1 - math.tan(math.radians(tilt))  # x of the shadow's edge, 0.16
+    x = np.linspace(-1, 1, 201)
+    uv = np.column_stack([(x + 1) / 2, np.full_like(x, 0.5)])
+    got = sol.radiance[0].evaluate(uv)[:, 0]
+    lit = ALBEDO / math.pi * E[0] * math.cos(math.radians(tilt))
+    # Quadratic splines on 16 coefficients: each value depends on 3 spans (0.14 m each) around it;
+    # beyond them from the edge the solution is the closed form.
+    far = np.abs(x - edge) > 3 * 2 / 14
+    print(f"\nsun shadow: lit side max error {np.abs(got[far & (x < edge)] / lit - 1).max():.2e}, "
+          f"shadow side max {got[far & (x > edge)].max():.2e}; across the edge {got.min():.4f}..{got.max():.4f}")
+    np.testing.assert_allclose(got[far & (x < edge)], lit, rtol=1e-9)
+    assert np.abs(got[far & (x > edge)]).max() < 1e-9 * lit
+    assert got.min() >= -1e-9 and got.max() <= lit * (1 + 1e-9)  # Schoenberg: no overshoot at the edge
+
+
+def test_bad_distant_lights_are_refused_by_name():
+    scene = bsgi.Scene()
+    for kw, what in (({"direction": [0, 0, 0]}, "direction"), ({"irradiance": [-1, 0, 0]}, "irradiance"),
+                     ({"irradiance": [np.nan, 0, 0]}, "irradiance"), ({"angle": -0.1}, "angle"),
+                     ({"angle": 4.0}, "angle")):
+        args = {"direction": [0, 0, 1], "irradiance": [1, 1, 1], "angle": 0.0, **kw}
+        with pytest.raises(ValueError, match=f"distant light 'Sun'.*{what}"):
+            scene.add_distant_light("Sun", **args)
+    scene.add_distant_light("Sun", [0, 0, 2], [1, 1, 1])
+    assert np.allclose(scene.distant_lights[0]["direction"], [0, 0, 1])
+
+
+@pytest.mark.slow
+def test_open_box_under_sun_and_sky_against_mitsuba():
+    # The open box of test_solver_world.py with a sun (a delta direction, as Mitsuba's
+    # directional emitter) besides the world: the splines blur the sun's hard shadow edges.
+    spec = open_box()
+    sun = np.array([0.4, -0.3, 1.0])
+    sun /= np.linalg.norm(sun)
+    mi = mitsuba_reference.load_mitsuba()
+    reference = with_world(mitsuba_reference.to_mitsuba(spec), WORLD)
+    shapes = {f"shape{i}": s for i, s in enumerate(reference.shapes())}
+    reference = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": -1},
+                              "world": {"type": "constant", "radiance": {"type": "rgb", "value": list(WORLD)}},
+                              "sun": {"type": "directional", "direction": list(-sun),
+                                      "irradiance": {"type": "rgb", "value": list(E)}}, **shapes})
+    pairs = mitsuba_reference.visible_pairs(spec, 1500, seed=7)
+    ref, stderr = mitsuba_reference.radiance_along(reference, pairs["eye"], pairs["point"], spp=8192, seed=4)
+    noise = np.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
+    scene = scene_spec.to_bsgi(spec)
+    scene.world_radiance = WORLD
+    scene.add_distant_light("sun", sun, E)
+    sol = bsgi.solve(scene, bsgi.SolverSettings.preset("preview"))
+    ours = scene_spec.solved_radiance(scene, sol, pairs)
+    err = np.sqrt(((ours - ref) ** 2).sum() / (ref ** 2).sum())
+    bias = (ours - ref).sum() / ref.sum()
+    print(f"\nopen box under sun and sky vs Mitsuba 3 (noise {noise:.4f}): NRMSE {err:.4f}, bias {bias:+.4f}")
+    assert noise < 0.01
+    assert err < 0.15
+    assert abs(bias) < 0.03
