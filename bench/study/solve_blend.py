@@ -81,6 +81,19 @@ def radiance_at_pairs(export, solution, pairs, tolerance):
     return out
 
 
+def refuse_light_the_reference_lacks(context, export):
+    """The Mitsuba reference (blend_scene.py, mitsuba_scene.py) has emissive surfaces and area
+    lights only: a scene the solver also lights by point or sun lights or the world would be
+    compared with a darker reference."""
+    extra = [f"{o.data.type.lower()} light '{o.name}'" for o in context.scene.objects
+             if o.type == "LIGHT" and o.data.type in {"POINT", "SUN"}]
+    if max(export.scene.world_radiance) > 0:
+        extra.append(f"world '{context.scene.world.name}'")
+    if extra:
+        raise SystemExit(f"the study's Mitsuba reference has no {', '.join(extra)}: set them to black or remove "
+                         "them to study this scene")
+
+
 def main():
     blend, settings_json, pairs_npz, out_npz = blend_scene.main_argv()
     import bpy
@@ -96,6 +109,7 @@ def main():
     settings = settings_of(spec)
     knob_overrides_objects(context, spec.get("overrides", {}))
     export = export_scene(context.evaluated_depsgraph_get())
+    refuse_light_the_reference_lacks(context, export)
     pairs = dict(np.load(pairs_npz))
     # Reset the peak to the current size (Linux clear_refs), so loading Blender does not count.
     pathlib.Path("/proc/self/clear_refs").write_text("5")

@@ -79,3 +79,19 @@ def test_sun_convention_is_cycles(context, tmp_path):
     print(f"\nCycles / closed form in the sun: median {np.median(ratio):.4f}; in the shadow {np.round(shade, 4)}")
     assert abs(np.median(ratio) - 1) < 0.02
     assert shade.max() < 0.01
+
+
+def test_study_refuses_scenes_its_reference_cannot_light(context):
+    # bench/study compares with a Mitsuba scene of emissive surfaces and area lights only.
+    import importlib.util
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parents[2] / "bench" / "study" / "solve_blend.py"
+    spec = importlib.util.spec_from_file_location("study_solve_blend", path)
+    solve_blend = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(solve_blend)
+    floor_beside_wall_under_sun(context)
+    with pytest.raises(SystemExit, match="sun light 'Sun'"):
+        solve_blend.refuse_light_the_reference_lacks(context, export.export_scene(context.evaluated_depsgraph_get()))
+    bpy.data.objects.remove(bpy.data.objects["Sun"])
+    solve_blend.refuse_light_the_reference_lacks(context, export.export_scene(context.evaluated_depsgraph_get()))
