@@ -321,7 +321,8 @@ def _point_light(scene, obj, warnings):
     """A point light as Cycles has it since 4.0: a sphere of the light's radius emitting uniformly,
     radiance P / (4 pi^2 r^2) (power P spread over the sphere's area 4 pi r^2 as a Lambertian
     emitter, pi L per unit area), solved as an exact NURBS sphere that emits but neither receives
-    nor casts shadows (as a light)."""
+    nor casts shadows (as a light). A spot light is the same sphere with its light limited to a
+    cone around the object's -Z axis. Returns the sphere's index in the scene."""
     light = obj.data
     _warn_light_nodes(obj, warnings)
     m = np.array(obj.matrix_world, float)
@@ -333,7 +334,24 @@ def _point_light(scene, obj, warnings):
     radiance = light.energy / (4 * math.pi**2 * radius**2)
     emission = [c * radiance for c in light.color]
     surface = sphere_surface(obj.name, m[:3, 3], radius)
-    scene.add_surface(surface, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
+    return scene.add_surface(surface, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
+
+
+def _spot_light(scene, obj, warnings):
+    """A spot light as Cycles has it: the point light's sphere, its emission scaled by
+    smoothstep((cos angle - cos(size / 2)) / ((1 - cos(size / 2)) blend)) of the angle between the
+    light's -Z axis and the direction it leaves in."""
+    light = obj.data
+    m = np.array(obj.matrix_world, float)[:3, :3]
+    sx, sy = np.linalg.norm(m[:, 0]), np.linalg.norm(m[:, 1])
+    if not np.linalg.norm(m[:, 2]) > 0:
+        warnings.append(f"light '{obj.name}': scaled to zero, it has no direction; skipped")
+        return
+    if abs(sx - sy) > 1e-6 * max(sx, sy):
+        warnings.append(f"light '{obj.name}': its cone, elliptical from the object's unequal X and Y scale, is "
+                        "solved as a circular cone")
+    index = _point_light(scene, obj, warnings)
+    scene.set_spot_cone(index, -m[:, 2], light.spot_size, light.spot_blend)
 
 
 def _sun_light(scene, obj, warnings):
@@ -702,6 +720,8 @@ def export_scene(depsgraph) -> Export:
                 _point_light(scene, obj, warnings)
             elif obj.data.type == "SUN":
                 _sun_light(scene, obj, warnings)
+            elif obj.data.type == "SPOT":
+                _spot_light(scene, obj, warnings)
             else:
                 warnings.append(f"light '{obj.name}': {obj.data.type.lower()} lights are not supported yet; skipped")
             continue

@@ -116,6 +116,14 @@ void bind_scene(py::module_& m) {
             "RGB radiance arriving from every direction no occluder blocks (a constant world background; "
             "default black).")
         .def(
+            "set_spot_cone",
+            [](Scene& s, size_t i, const Array& axis, double spot_size, double blend) {
+                s.set_spot_cone(i, rgb(axis, "axis"), spot_size, blend);
+            },
+            py::arg("index"), py::arg("axis"), py::arg("spot_size"), py::arg("blend") = 0.0,
+            "Limits emitter `index`'s light to a cone of full angle `spot_size` (radians) around `axis`, "
+            "softened over the fraction `blend` of it: Blender's spot light (Cycles' smoothstep falloff).")
+        .def(
             "add_distant_light",
             [](Scene& s, const std::string& name, const Array& direction, const Array& irradiance, double angle) {
                 s.add_distant_light({name, rgb(direction, "direction"), rgb(irradiance, "irradiance"), angle});

@@ -106,7 +106,7 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
 // until both are resolved. visit(wi, value) gets each visible sample's unit direction (world)
 // and its radiance times cos_r cos_e / d^2 times the area element and weight.
 template <typename Visit>
-void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const Vec3& radiance, double s0, double s1,
+void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
                             double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit,
                             size_t& rays) const {
     const SurfacePoint centre = emitter.evaluate(0.5 * (s0 + s1), 0.5 * (t0 + t1));
@@ -127,10 +127,10 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     const bool split = 2 * radius > limit * dist || (curved && depth < kCurvedEmitterDepth);
     if (depth < settings_.emitter_max_depth && split) {
         const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
-        emitter_cell(r, emitter, radiance, s0, sm, t0, tm, depth + 1, ratio, both_sides, visit, rays);
-        emitter_cell(r, emitter, radiance, sm, s1, t0, tm, depth + 1, ratio, both_sides, visit, rays);
-        emitter_cell(r, emitter, radiance, s0, sm, tm, t1, depth + 1, ratio, both_sides, visit, rays);
-        emitter_cell(r, emitter, radiance, sm, s1, tm, t1, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, light, s0, sm, t0, tm, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, light, sm, s1, t0, tm, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, light, s0, sm, tm, t1, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, light, sm, s1, tm, t1, depth + 1, ratio, both_sides, visit, rays);
         return;
     }
     const double ds = s1 - s0, dt = t1 - t0;
@@ -143,7 +143,9 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             const Vec3 d = ep.p - r.p;
             const double cos_r = dot(d, r.frame.z), cos_e = -dot(d, ep.frame.z);
             if (cos_e <= 0 || cos_r == 0 || (cos_r < 0 && !both_sides)) continue;  // emitters radiate from their front
-            const double d2 = dot(d, d);
+            const double d2 = dot(d, d), len = std::sqrt(d2);
+            const double cone = light.cone ? light.cone->factor(-d / len) : 1.0;  // a spot light's
+            if (cone <= 0) continue;
             // Both ends lifted off their surfaces, and the segment stopped short of the emitter,
             // so neither surface, nor one meeting the emitter along its edge, shadows it.
             const Vec3 origin = caster_.spawn(r.p, r.frame.z, d);
@@ -152,7 +154,7 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             ++rays;
             if (stop <= 0 || caster_.occluded(origin, segment, 0.0, stop)) continue;
             const double w = cell_rule_.weights[p] * cell_rule_.weights[k] * ds * dt;
-            visit(d / std::sqrt(d2), radiance * (w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
+            visit(d / len, light.emission * (cone * w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
         }
 }
 
@@ -162,7 +164,7 @@ void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, doub
     for (int e : emitters_) {
         if (e == receiver && std::find(self_lit_.begin(), self_lit_.end(), e) == self_lit_.end()) continue;
         const SceneSurface& es = scene_[e];
-        emitter_cell(r, *es.surface, es.material.emission, 0, 1, 0, 1, 0, ratio, both_sides, visit, rays);
+        emitter_cell(r, *es.surface, es.material, 0, 1, 0, 1, 0, ratio, both_sides, visit, rays);
     }
     for (const DistantSample& d : distant_) {
         const double cos_r = dot(d.direction, r.frame.z);

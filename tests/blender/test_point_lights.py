@@ -94,3 +94,78 @@ def test_point_light_convention_is_cycles(context, tmp_path):
     print(f"\nCycles / closed form over the floor: median {np.median(ratio):.4f}, "
           f"5-95% {np.percentile(ratio, 5):.4f}-{np.percentile(ratio, 95):.4f}")
     assert abs(np.median(ratio) - 1) < 0.03
+
+
+SPOT_SIZE, SPOT_BLEND = math.radians(70), 0.4
+
+
+def floor_under_spot_light(context):
+    light = floor_under_point_light(context)
+    light.data.type = "SPOT"
+    light.data.spot_size, light.data.spot_blend = SPOT_SIZE, SPOT_BLEND
+    light.rotation_euler = (0, math.radians(15), 0)  # its -Z axis turned towards -x
+    return light
+
+
+def spot_closed_form(points):
+    """The point light's floor radiance times Cycles' cone factor along the direction from the
+    light to the floor point (the sphere is small: 0.1 m at 1 m)."""
+    t = math.radians(15)
+    axis = np.array([-math.sin(t), 0, -math.cos(t)])
+    d = points - np.asarray(LIGHT_AT)
+    cos_angle = d @ axis / np.linalg.norm(d, axis=1)
+    cos_half = math.cos(SPOT_SIZE / 2)
+    f = np.clip((cos_angle - cos_half) / ((1 - cos_half) * SPOT_BLEND), 0, 1)
+    return closed_form(points) * f * f * (3 - 2 * f)
+
+
+def test_spot_light_is_the_point_lights_sphere_in_a_cone(context):
+    floor_under_spot_light(context)
+    spline, export_result = solve_floor(context)
+    assert not export_result.warnings
+    # Well inside the cone and well outside it (the splines blur its soft edge over a few spans).
+    points = np.array([[0, 0, 0], [-0.3, 0, 0], [0.3, -0.2, 0], [0.3, 0.9, 0], [0.95, 0.95, 0]], float)
+    got, want = spline.evaluate((points[:, :2] + 1) / 2)[:, 0], spot_closed_form(points)
+    print("\nspot light floor vs closed form:", np.round(got, 4), np.round(want, 4))
+    assert want[3:].max() == 0 and want[:3].min() > 0.5 * want.max()
+    np.testing.assert_allclose(got, want, atol=0.02 * want.max())
+
+
+def test_spot_light_with_an_elliptical_cone_is_warned_about(context):
+    light = floor_under_spot_light(context)
+    light.scale = (1, 2, 1)
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert any("light 'Bulb'" in w and "circular cone" in w for w in result.warnings)
+
+
+@pytest.mark.slow
+def test_spot_light_convention_is_cycles(context, tmp_path):
+    from test_pipeline import render_exr
+
+    floor_under_spot_light(context)
+    cam = bpy.data.cameras.new("Top")
+    cam.type, cam.ortho_scale = "ORTHO", 2.0
+    camera = bpy.data.objects.new("Top", cam)
+    camera.location = (0, 0, 3)
+    context.scene.collection.objects.link(camera)
+    context.scene.camera = camera
+    image = render_exr(context.scene, tmp_path / "top.exr", samples=256, bounces=0)
+    n = image.shape[0]
+    centres = (np.arange(n) + 0.5) / n * 2 - 1
+    x, y = np.meshgrid(centres, -centres)
+    want = spot_closed_form(np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])).reshape(n, n)
+    got = image.mean(axis=2)
+    inside = want > 0.5 * want.max()
+    ratio = got[inside] / want[inside]
+    # Outside: beyond the cone by more than the sphere's angular radius (Cycles takes the angle
+    # from the point of the sphere it samples).
+    t = math.radians(15)
+    d = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)]) - np.asarray(LIGHT_AT)
+    dist = np.linalg.norm(d, axis=1)
+    angle = np.arccos(d @ np.array([-math.sin(t), 0, -math.cos(t)]) / dist)
+    outside = got.ravel()[angle > SPOT_SIZE / 2 + np.arcsin(RADIUS / dist)]
+    print(f"\nCycles spot / closed form inside the cone: median {np.median(ratio):.4f}; "
+          f"outside it: max {outside.max():.2e} (peak {want.max():.3f}); "
+          f"whole floor RMS difference {np.sqrt(((got - want) ** 2).mean()) / want.max():.4f} of the peak")
+    assert abs(np.median(ratio) - 1) < 0.03
+    assert outside.max() < 0.02 * want.max()

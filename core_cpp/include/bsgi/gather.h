@@ -92,7 +92,7 @@ private:
     template <typename Incoming>
     void hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out, size_t& rays) const;
     template <typename Visit>
-    void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Vec3& radiance, double s0, double s1,
+    void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
                       double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit, size_t& rays) const;
     template <typename Visit>
     void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,

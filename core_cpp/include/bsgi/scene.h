@@ -3,6 +3,7 @@
 #pragma once
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -12,12 +13,29 @@
 
 namespace bsgi {
 
+// A spot light's cone (Cycles' convention): emission towards direction w (unit, away from the
+// emitter) is scaled by smoothstep((w . axis - cos_half) / ((1 - cos_half) blend)), 0 outside
+// the cone of half angle acos(cos_half) and 1 well inside it (a hard edge for blend 0).
+struct SpotCone {
+    Vec3 axis{0, 0, -1};
+    double cos_half = -1;
+    double blend = 0;
+    double factor(const Vec3& w) const {
+        const double t = dot(w, axis) - cos_half;
+        if (t <= 0) return 0;
+        const double f = t / ((1 - cos_half) * blend);
+        if (!(f < 1)) return 1;  // also blend 0
+        return f * f * (3 - 2 * f);
+    }
+};
+
 // How a surface scatters and emits. Without a BSDF the surface is Lambertian with `albedo`.
-// Emission is radiance leaving the front side.
+// Emission is radiance leaving the front side, in every direction or within a spot cone.
 struct Material {
     Vec3 albedo;
     Vec3 emission;
     std::shared_ptr<const Bsdf> bsdf;
+    std::optional<SpotCone> cone;
     bool emits() const { return max_component(emission) > 0; }
 };
 
@@ -97,6 +115,20 @@ public:
         distant_.push_back(std::move(light));
     }
     const std::vector<DistantLight>& distant_lights() const { return distant_; }
+
+    // Makes emitter i a spot light: its emission limited to a cone of full angle `spot_size`
+    // (radians) around `axis`, softened over the fraction `blend` of it (Blender's spot light).
+    void set_spot_cone(size_t i, const Vec3& axis, double spot_size, double blend) {
+        if (i >= surfaces_.size()) throw std::out_of_range("set_spot_cone: no surface " + std::to_string(i));
+        const std::string what = "spot light '" + surfaces_[i].surface->name() + "': ";
+        if (!surfaces_[i].material.emits()) throw std::invalid_argument(what + "emits no light");
+        const double n = length(axis);
+        if (!(n > 0) || !std::isfinite(n)) throw std::invalid_argument(what + "axis must be finite and non-zero");
+        if (!(spot_size > 0 && spot_size <= 3.141592653589793))
+            throw std::invalid_argument(what + "spot size must be in (0, pi] radians");
+        if (!(blend >= 0 && blend <= 1)) throw std::invalid_argument(what + "blend must be in [0, 1]");
+        surfaces_[i].material.cone = SpotCone{axis / n, std::cos(0.5 * spot_size), blend};
+    }
 
     size_t size() const { return surfaces_.size(); }
     const SceneSurface& operator[](size_t i) const { return surfaces_[i]; }
