@@ -181,16 +181,6 @@ def test_glossy_materials_reach_the_scene_with_the_objects_options(context):
     assert report["representation"] == "diffuse 2D" and report["shape"] == [10, 10]
 
 
-def test_spot_lights_are_skipped_by_name(context):
-    # (Suns: test_sun_light.py; worlds: test_world_light.py.)
-    scenes.floor_under_lamp()
-    light = bpy.data.objects.new("My SPOT", bpy.data.lights.new("SPOT", "SPOT"))
-    context.scene.collection.objects.link(light)
-    result = export.export_scene(context.evaluated_depsgraph_get())
-    assert any("light 'My SPOT'" in w and "skipped" in w for w in result.warnings)
-    assert len(result.scene) == 2  # the floor and the square lamp
-
-
 def test_area_light_radiance_follows_cycles(context):
     # Radiance = power / (pi * area), emitted downwards: seen from below at (0, 0, 0).
     lamp = scenes.add_area_light(size=0.5, energy=10.0, location=(0, 0, 1))
