@@ -86,7 +86,7 @@ def refuse_light_the_reference_lacks(context, export):
     lights only: a scene the solver also lights by point or sun lights or the world would be
     compared with a darker reference."""
     extra = [f"{o.data.type.lower()} light '{o.name}'" for o in context.scene.objects
-             if o.type == "LIGHT" and o.data.type in {"POINT", "SUN"}]
+             if o.type == "LIGHT" and o.data.type in {"POINT", "SPOT", "SUN"}]
     if max(export.scene.world_radiance) > 0:
         extra.append(f"world '{context.scene.world.name}'")
     if extra:
