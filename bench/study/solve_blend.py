@@ -83,7 +83,7 @@ def radiance_at_pairs(export, solution, pairs, tolerance):
 
 def refuse_light_the_reference_lacks(context, export):
     """The Mitsuba reference (blend_scene.py, mitsuba_scene.py) has emissive surfaces and area
-    lights only: a scene the solver also lights by point or sun lights or the world would be
+    lights only: a scene the solver also lights by point, spot or sun lights or the world would be
     compared with a darker reference."""
     extra = [f"{o.data.type.lower()} light '{o.name}'" for o in context.scene.objects
              if o.type == "LIGHT" and o.data.type in {"POINT", "SPOT", "SUN"}]
