@@ -32,6 +32,23 @@ def render_exr(scene, path, samples, bounces):
     return OpenEXR.File(str(path)).channels()["RGBA"].pixels[..., :3].astype(np.float64)
 
 
+def render_floor_from_above(context, path, samples):
+    """Cycles' render (direct light only) of the 2 x 2 floor on z = 0 around the origin, straight
+    from above through an orthographic camera that the floor just fills: the image (n x n x 3)
+    and the floor points (n*n x 3) at its pixel centres, row-major."""
+    cam = bpy.data.cameras.new("Top")
+    cam.type, cam.ortho_scale = "ORTHO", 2.0
+    camera = bpy.data.objects.new("Top", cam)
+    camera.location = (0, 0, 3)
+    context.scene.collection.objects.link(camera)
+    context.scene.camera = camera
+    image = render_exr(context.scene, path, samples=samples, bounces=0)
+    n = image.shape[0]
+    centres = (np.arange(n) + 0.5) / n * 2 - 1
+    x, y = np.meshgrid(centres, -centres)  # image rows run downwards
+    return image, np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+
+
 def lit_relative_difference(baked, reference, lit_fraction):
     """Per-pixel relative difference of two renders over the lit pixels (luminance above
     lit_fraction of the reference's 99th percentile); returns (differences, lit mask)."""

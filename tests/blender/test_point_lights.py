@@ -76,21 +76,11 @@ def test_tiny_point_light_is_solved_as_a_small_sphere_with_a_warning(context):
 def test_point_light_convention_is_cycles(context, tmp_path):
     # Cycles' own render of the floor (direct light only), seen from straight above through an
     # orthographic camera, against the closed form the solver is checked against above.
-    from test_pipeline import render_exr
+    from test_pipeline import render_floor_from_above
 
     floor_under_point_light(context)
-    cam = bpy.data.cameras.new("Top")
-    cam.type, cam.ortho_scale = "ORTHO", 2.0
-    camera = bpy.data.objects.new("Top", cam)
-    camera.location = (0, 0, 3)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
-    image = render_exr(context.scene, tmp_path / "top.exr", samples=256, bounces=0)
-    n = image.shape[0]
-    centres = (np.arange(n) + 0.5) / n * 2 - 1
-    x, y = np.meshgrid(centres, -centres)  # image rows run downwards
-    want = closed_form(np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])).reshape(n, n)
-    ratio = image.mean(axis=2) / want
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=256)
+    ratio = image.mean(axis=2).ravel() / closed_form(points)
     print(f"\nCycles / closed form over the floor: median {np.median(ratio):.4f}, "
           f"5-95% {np.percentile(ratio, 5):.4f}-{np.percentile(ratio, 95):.4f}")
     assert abs(np.median(ratio) - 1) < 0.03
@@ -140,30 +130,20 @@ def test_spot_light_with_an_elliptical_cone_is_warned_about(context):
 
 @pytest.mark.slow
 def test_spot_light_convention_is_cycles(context, tmp_path):
-    from test_pipeline import render_exr
+    from test_pipeline import render_floor_from_above
 
     floor_under_spot_light(context)
-    cam = bpy.data.cameras.new("Top")
-    cam.type, cam.ortho_scale = "ORTHO", 2.0
-    camera = bpy.data.objects.new("Top", cam)
-    camera.location = (0, 0, 3)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
-    image = render_exr(context.scene, tmp_path / "top.exr", samples=256, bounces=0)
-    n = image.shape[0]
-    centres = (np.arange(n) + 0.5) / n * 2 - 1
-    x, y = np.meshgrid(centres, -centres)
-    want = spot_closed_form(np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])).reshape(n, n)
-    got = image.mean(axis=2)
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=256)
+    want, got = spot_closed_form(points), image.mean(axis=2).ravel()
     inside = want > 0.5 * want.max()
     ratio = got[inside] / want[inside]
     # Outside: beyond the cone by more than the sphere's angular radius (Cycles takes the angle
     # from the point of the sphere it samples).
     t = math.radians(15)
-    d = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)]) - np.asarray(LIGHT_AT)
+    d = points - np.asarray(LIGHT_AT)
     dist = np.linalg.norm(d, axis=1)
     angle = np.arccos(d @ np.array([-math.sin(t), 0, -math.cos(t)]) / dist)
-    outside = got.ravel()[angle > SPOT_SIZE / 2 + np.arcsin(RADIUS / dist)]
+    outside = got[angle > SPOT_SIZE / 2 + np.arcsin(RADIUS / dist)]
     print(f"\nCycles spot / closed form inside the cone: median {np.median(ratio):.4f}; "
           f"outside it: max {outside.max():.2e} (peak {want.max():.3f}); "
           f"whole floor RMS difference {np.sqrt(((got - want) ** 2).mean()) / want.max():.4f} of the peak")

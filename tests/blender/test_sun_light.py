@@ -62,18 +62,11 @@ def test_floor_in_and_out_of_the_suns_shadow_matches_the_closed_form(context):
 def test_sun_convention_is_cycles(context, tmp_path):
     # Cycles' own render (direct light only) from straight above through an orthographic
     # camera: the floor in the sun against the closed form the solver is checked against above.
-    from test_pipeline import render_exr
+    from test_pipeline import render_floor_from_above
 
     floor_beside_wall_under_sun(context)
-    cam = bpy.data.cameras.new("Top")
-    cam.type, cam.ortho_scale = "ORTHO", 2.0
-    camera = bpy.data.objects.new("Top", cam)
-    camera.location = (0, 0, 3)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
-    image = render_exr(context.scene, tmp_path / "top.exr", samples=64, bounces=0)
-    n = image.shape[0]
-    x = ((np.arange(n) + 0.5) / n * 2 - 1)[None, :].repeat(n, axis=0)
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=64)
+    image, x = image.reshape(-1, 3), points[:, 0]
     ratio = image[x < EDGE - 0.1] / lit()
     shade = image[x > EDGE + 0.1].mean(axis=0) / lit()
     print(f"\nCycles / closed form in the sun: median {np.median(ratio):.4f}; in the shadow {np.round(shade, 4)}")

@@ -81,21 +81,11 @@ def test_world_light_convention_is_cycles(context, tmp_path):
     # Cycles' own render of the floor (direct light only) from straight above through an
     # orthographic camera, against the closed form the solver is checked against above: another
     # convention (strength not a factor, or a pi) would be off by a factor of 2 or more.
-    from test_pipeline import render_exr
+    from test_pipeline import render_floor_from_above
 
     floor_beside_wall(context)
-    cam = bpy.data.cameras.new("Top")
-    cam.type, cam.ortho_scale = "ORTHO", 2.0
-    camera = bpy.data.objects.new("Top", cam)
-    camera.location = (0, 0, 3)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
-    image = render_exr(context.scene, tmp_path / "top.exr", samples=256, bounces=0)
-    n = image.shape[0]
-    centres = (np.arange(n) + 0.5) / n * 2 - 1
-    x, y = np.meshgrid(centres, -centres)  # image rows run downwards
-    want = closed_form(np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])).reshape(n, n, 3)
-    ratio = image / want
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=256)
+    ratio = image.reshape(-1, 3) / closed_form(points)
     print(f"\nCycles / closed form over the floor: median {np.median(ratio):.4f}, "
           f"5-95% {np.percentile(ratio, 5):.4f}-{np.percentile(ratio, 95):.4f}")
     assert abs(np.median(ratio) - 1) < 0.03
