@@ -32,6 +32,17 @@ def render_exr(scene, path, samples, bounces):
     return OpenEXR.File(str(path)).channels()["RGBA"].pixels[..., :3].astype(np.float64)
 
 
+def solve_floor_direct(context):
+    """The add-on's solve (direct light only) of the scene: the spline of the object named
+    'Floor', and the export."""
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    floor = next(o for o in job.export.objects if o.name == "Floor")
+    return solution.radiance[floor.patches[0][1]], job.export
+
+
 def render_floor_from_above(context, path, samples):
     """Cycles' render (direct light only) of the 2 x 2 floor on z = 0 around the origin, straight
     from above through an orthographic camera that the floor just fills: the image (n x n x 3)

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import scenes
-from bsgi_addon import export, pipeline
+from bsgi_addon import export
+from test_pipeline import render_floor_from_above, solve_floor_direct
 
 POWER, RADIUS, HEIGHT, ALBEDO = 60.0, 0.1, 1.0, 0.5
 LIGHT_AT = (0.3, -0.2, HEIGHT)
@@ -32,15 +33,6 @@ def closed_form(points):
     return ALBEDO / math.pi * POWER * (d[:, 2] / dist) / (4 * math.pi * dist**2)
 
 
-def solve_floor(context):
-    context.scene.bsgi.preset = "CUSTOM"
-    context.scene.bsgi.max_bounces = 0
-    job = pipeline.prepare(context)
-    solution = pipeline.run(job)
-    floor = next(o for o in job.export.objects if o.name == "Floor")
-    return solution.radiance[floor.patches[0][1]], job.export
-
-
 def test_point_light_is_an_emitting_sphere_of_its_radius(context):
     floor_under_point_light(context)
     result = export.export_scene(context.evaluated_depsgraph_get())
@@ -51,7 +43,7 @@ def test_point_light_is_an_emitting_sphere_of_its_radius(context):
 
 def test_point_light_lights_a_floor_as_the_closed_form(context):
     floor_under_point_light(context)
-    spline, _ = solve_floor(context)
+    spline, _ = solve_floor_direct(context)
     uv = np.array([[0.5, 0.5], [0.65, 0.4], [0.1, 0.9], [0.9, 0.1]])
     points = np.column_stack([2 * uv - 1, np.zeros(len(uv))])
     got, want = spline.evaluate(uv)[:, 0], closed_form(points)
@@ -66,7 +58,7 @@ def test_tiny_point_light_is_solved_as_a_small_sphere_with_a_warning(context):
     light.data.shadow_soft_size = 0.0
     result = export.export_scene(context.evaluated_depsgraph_get())
     assert any("light 'Bulb': radius 0" in w for w in result.warnings)
-    spline, _ = solve_floor(context)
+    spline, _ = solve_floor_direct(context)
     uv = np.array([[0.5, 0.5], [0.2, 0.8]])
     points = np.column_stack([2 * uv - 1, np.zeros(len(uv))])
     np.testing.assert_allclose(spline.evaluate(uv)[:, 0], closed_form(points), rtol=0.03)
@@ -76,8 +68,6 @@ def test_tiny_point_light_is_solved_as_a_small_sphere_with_a_warning(context):
 def test_point_light_convention_is_cycles(context, tmp_path):
     # Cycles' own render of the floor (direct light only), seen from straight above through an
     # orthographic camera, against the closed form the solver is checked against above.
-    from test_pipeline import render_floor_from_above
-
     floor_under_point_light(context)
     image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=256)
     ratio = image.mean(axis=2).ravel() / closed_form(points)
@@ -111,7 +101,7 @@ def spot_closed_form(points):
 
 def test_spot_light_is_the_point_lights_sphere_in_a_cone(context):
     floor_under_spot_light(context)
-    spline, export_result = solve_floor(context)
+    spline, export_result = solve_floor_direct(context)
     assert not export_result.warnings
     # Well inside the cone and well outside it (the splines blur its soft edge over a few spans).
     points = np.array([[0, 0, 0], [-0.3, 0, 0], [0.3, -0.2, 0], [0.3, 0.9, 0], [0.95, 0.95, 0]], float)
@@ -130,8 +120,6 @@ def test_spot_light_with_an_elliptical_cone_is_warned_about(context):
 
 @pytest.mark.slow
 def test_spot_light_convention_is_cycles(context, tmp_path):
-    from test_pipeline import render_floor_from_above
-
     floor_under_spot_light(context)
     image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=256)
     want, got = spot_closed_form(points), image.mean(axis=2).ravel()

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import scenes
-from bsgi_addon import export, pipeline
+from bsgi_addon import export
+from test_pipeline import render_floor_from_above, solve_floor_direct
 
 ALBEDO, STRENGTH, COLOR, TILT = 0.5, 3.0, (1.0, 0.8, 0.6), 40.0
 EDGE = 1 - math.tan(math.radians(TILT))  # the wall's shadow covers the floor where x > EDGE
@@ -45,12 +46,7 @@ def test_sun_is_a_distant_light_along_its_z_axis(context):
 
 def test_floor_in_and_out_of_the_suns_shadow_matches_the_closed_form(context):
     floor_beside_wall_under_sun(context)
-    context.scene.bsgi.preset = "CUSTOM"
-    context.scene.bsgi.max_bounces = 0
-    job = pipeline.prepare(context)
-    solution = pipeline.run(job)
-    floor = next(o for o in job.export.objects if o.name == "Floor")
-    spline = solution.radiance[floor.patches[0][1]]
+    spline, _ = solve_floor_direct(context)
     x = np.array([-0.9, -0.6, -0.4, 0.75, 0.9])
     got = spline.evaluate(np.column_stack([(x + 1) / 2, np.full_like(x, 0.3)]))
     print("\nfloor under the sun / closed form:", np.round(got[:, 0] / lit()[0], 4))
@@ -62,8 +58,6 @@ def test_floor_in_and_out_of_the_suns_shadow_matches_the_closed_form(context):
 def test_sun_convention_is_cycles(context, tmp_path):
     # Cycles' own render (direct light only) from straight above through an orthographic
     # camera: the floor in the sun against the closed form the solver is checked against above.
-    from test_pipeline import render_floor_from_above
-
     floor_beside_wall_under_sun(context)
     image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=64)
     image, x = image.reshape(-1, 3), points[:, 0]

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import scenes
-from bsgi_addon import export, pipeline
+from bsgi_addon import export
+from test_pipeline import render_floor_from_above, solve_floor_direct
 from core.closed_forms import polygon_irradiance
 
 ALBEDO = 0.5
@@ -64,14 +65,10 @@ def test_textured_or_missing_world_gives_no_world_light(context):
 
 def test_floor_beside_a_wall_under_the_world_matches_lamberts_formula(context):
     floor_beside_wall(context)
-    context.scene.bsgi.preset = "CUSTOM"
-    context.scene.bsgi.max_bounces = 0
-    job = pipeline.prepare(context)
-    solution = pipeline.run(job)
-    floor = next(o for o in job.export.objects if o.name == "Floor")
+    spline, _ = solve_floor_direct(context)
     uv = np.array([[0.5, 0.5], [0.95, 0.5], [0.05, 0.1], [0.8, 0.9], [0.99, 0.99]])
     points = np.column_stack([2 * uv - 1, np.zeros(len(uv))])
-    got, want = solution.radiance[floor.patches[0][1]].evaluate(uv), closed_form(points)
+    got, want = spline.evaluate(uv), closed_form(points)
     print("\nfloor beside a wall under the world vs Lambert's formula:", np.round(got[:, 0] / want[:, 0] - 1, 4))
     np.testing.assert_allclose(got, want, rtol=0.03)
 
@@ -81,8 +78,6 @@ def test_world_light_convention_is_cycles(context, tmp_path):
     # Cycles' own render of the floor (direct light only) from straight above through an
     # orthographic camera, against the closed form the solver is checked against above: another
     # convention (strength not a factor, or a pi) would be off by a factor of 2 or more.
-    from test_pipeline import render_floor_from_above
-
     floor_beside_wall(context)
     image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=256)
     ratio = image.reshape(-1, 3) / closed_form(points)
