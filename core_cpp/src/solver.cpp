@@ -642,6 +642,10 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     for (size_t i = 0; i < scene.size(); ++i)
         if (!scene[i].receiver)
             solution.reports.push_back({scene[i].surface->name(), "emitter", {}, "light object: emits only, no spline"});
+    for (const DistantLight& l : scene.distant_lights())
+        solution.reports.push_back({l.name, "distant light", {}, "a light at infinity (sun): emits only, no spline"});
+    if (scene.has_world())
+        solution.reports.push_back({"world", "world light", {}, "constant radiance from every unblocked direction"});
     progress.finish();
     return solution;
 }

@@ -47,6 +47,13 @@ def test_open_floor_gets_the_irradiance_times_cosine(tilt, angle):
                                rtol=1e-9)
 
 
+def test_solve_reports_the_distant_lights_and_the_world():
+    scene = sun_scene(30)
+    scene.world_radiance = [0.1, 0.1, 0.1]
+    reports = {r["name"]: r["representation"] for r in solve(scene).reports}
+    assert reports == {"floor": "diffuse 2D", "sun": "distant light", "world": "world light"}
+
+
 def test_sun_below_the_horizon_gives_no_light():
     sol = solve(sun_scene(120))
     assert np.abs(sol.radiance[0].evaluate(UV)).max() == 0
