@@ -337,6 +337,16 @@ def _point_light(scene, obj, warnings):
     return scene.add_surface(surface, albedo=[0, 0, 0], emission=emission, receiver=False, occluder=False)
 
 
+def _light_z_axis(obj, warnings):
+    """The light object's +Z axis in world space (it shines along -Z), or None with a warning when
+    the object is scaled to nothing along it."""
+    z = np.array(obj.matrix_world, float)[:3, 2]
+    if not np.linalg.norm(z) > 0:
+        warnings.append(f"light '{obj.name}': scaled to zero, it has no direction; skipped")
+        return None
+    return z
+
+
 def _spot_light(scene, obj, warnings):
     """A spot light as Cycles has it: the point light's sphere, its emission scaled by
     smoothstep((cos angle - cos(size / 2)) / ((1 - cos(size / 2)) blend)) of the angle between the
@@ -344,8 +354,7 @@ def _spot_light(scene, obj, warnings):
     light = obj.data
     m = np.array(obj.matrix_world, float)[:3, :3]
     sx, sy = np.linalg.norm(m[:, 0]), np.linalg.norm(m[:, 1])
-    if not np.linalg.norm(m[:, 2]) > 0:
-        warnings.append(f"light '{obj.name}': scaled to zero, it has no direction; skipped")
+    if _light_z_axis(obj, warnings) is None:
         return
     if abs(sx - sy) > 1e-6 * max(sx, sy):
         warnings.append(f"light '{obj.name}': its cone, elliptical from the object's unequal X and Y scale, is "
@@ -359,9 +368,8 @@ def _sun_light(scene, obj, warnings):
     disc of the light's angular diameter around the object's +Z axis (the light shines along -Z)."""
     light = obj.data
     _warn_light_nodes(obj, warnings)
-    towards = np.array(obj.matrix_world, float)[:3, 2]
-    if not np.linalg.norm(towards) > 0:
-        warnings.append(f"light '{obj.name}': scaled to zero, it has no direction; skipped")
+    towards = _light_z_axis(obj, warnings)
+    if towards is None:
         return
     scene.add_distant_light(obj.name, towards, [c * light.energy for c in light.color], light.angle)
 
