@@ -82,3 +82,11 @@ def test_study_refuses_scenes_its_reference_cannot_light(context):
         solve_blend.refuse_light_the_reference_lacks(context, export.export_scene(context.evaluated_depsgraph_get()))
     bpy.data.objects.remove(bpy.data.objects["Sun"])
     solve_blend.refuse_light_the_reference_lacks(context, export.export_scene(context.evaluated_depsgraph_get()))
+
+
+def test_sun_scaled_to_nothing_is_skipped_by_name(context):
+    sun = floor_beside_wall_under_sun(context)
+    sun.scale = (1, 1, 0)
+    result = export.export_scene(context.evaluated_depsgraph_get())
+    assert any("light 'Sun': scaled to zero" in w for w in result.warnings)
+    assert result.scene.distant_lights == []
