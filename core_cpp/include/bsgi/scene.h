@@ -75,12 +75,10 @@ public:
             const SurfaceOptions& options = {}) {
         if (!surface) throw std::invalid_argument("Scene::add: no surface");
         const std::string& name = surface->name();
-        for (int c = 0; c < 3; ++c) {
+        for (int c = 0; c < 3; ++c)
             if (!std::isfinite(material.albedo[c]) || material.albedo[c] < 0 || material.albedo[c] > 1)
                 throw std::invalid_argument("surface '" + name + "': albedo must be finite and in [0, 1]");
-            if (!std::isfinite(material.emission[c]) || material.emission[c] < 0)
-                throw std::invalid_argument("surface '" + name + "': emission must be finite and >= 0");
-        }
+        require_non_negative(material.emission, "surface '" + name + "': emission");
         // Surfaces that exist as geometry but have no area (NURBS control points on a line, a
         // mesh of slivers) would solve to light on nothing: relative to the squared size, as
         // the patches' own check.
@@ -94,9 +92,7 @@ public:
     // Constant radiance arriving from every direction in which no occluder is seen: a distant
     // emitter enclosing the scene (Blender's world background of one colour).
     void set_world_radiance(const Vec3& radiance) {
-        for (int c = 0; c < 3; ++c)
-            if (!std::isfinite(radiance[c]) || radiance[c] < 0)
-                throw std::invalid_argument("world: radiance must be finite and >= 0");
+        require_non_negative(radiance, "world: radiance");
         world_ = radiance;
     }
     const Vec3& world_radiance() const { return world_; }
@@ -104,14 +100,9 @@ public:
 
     void add_distant_light(DistantLight light) {
         const std::string what = "distant light '" + light.name + "': ";
-        const double n = length(light.direction);
-        if (!(n > 0) || !std::isfinite(n)) throw std::invalid_argument(what + "direction must be finite and non-zero");
-        for (int c = 0; c < 3; ++c)
-            if (!std::isfinite(light.irradiance[c]) || light.irradiance[c] < 0)
-                throw std::invalid_argument(what + "irradiance must be finite and >= 0");
-        if (!(light.angle >= 0 && light.angle < 3.141592653589793))
-            throw std::invalid_argument(what + "angle must be in [0, pi) radians");
-        light.direction = light.direction / n;
+        light.direction = unit_direction(light.direction, what + "direction");
+        require_non_negative(light.irradiance, what + "irradiance");
+        if (!(light.angle >= 0 && light.angle < kPi)) throw std::invalid_argument(what + "angle must be in [0, pi) radians");
         distant_.push_back(std::move(light));
     }
     const std::vector<DistantLight>& distant_lights() const { return distant_; }
@@ -122,12 +113,10 @@ public:
         if (i >= surfaces_.size()) throw std::out_of_range("set_spot_cone: no surface " + std::to_string(i));
         const std::string what = "spot light '" + surfaces_[i].surface->name() + "': ";
         if (!surfaces_[i].material.emits()) throw std::invalid_argument(what + "emits no light");
-        const double n = length(axis);
-        if (!(n > 0) || !std::isfinite(n)) throw std::invalid_argument(what + "axis must be finite and non-zero");
-        if (!(spot_size > 0 && spot_size <= 3.141592653589793))
-            throw std::invalid_argument(what + "spot size must be in (0, pi] radians");
+        const Vec3 unit_axis = unit_direction(axis, what + "axis");
+        if (!(spot_size > 0 && spot_size <= kPi)) throw std::invalid_argument(what + "spot size must be in (0, pi] radians");
         if (!(blend >= 0 && blend <= 1)) throw std::invalid_argument(what + "blend must be in [0, 1]");
-        surfaces_[i].material.cone = SpotCone{axis / n, std::cos(0.5 * spot_size), blend};
+        surfaces_[i].material.cone = SpotCone{unit_axis, std::cos(0.5 * spot_size), blend};
     }
 
     size_t size() const { return surfaces_.size(); }
@@ -135,6 +124,18 @@ public:
     const std::vector<SceneSurface>& surfaces() const { return surfaces_; }
 
 private:
+    static constexpr double kPi = 3.14159265358979323846;
+    // The checks of the scene's inputs, `what` naming the object and the quantity.
+    static void require_non_negative(const Vec3& v, const std::string& what) {
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(v[c]) || v[c] < 0) throw std::invalid_argument(what + " must be finite and >= 0");
+    }
+    static Vec3 unit_direction(const Vec3& v, const std::string& what) {
+        const double n = length(v);
+        if (!(n > 0) || !std::isfinite(n)) throw std::invalid_argument(what + " must be finite and non-zero");
+        return v / n;
+    }
+
     std::vector<SceneSurface> surfaces_;
     Vec3 world_{0, 0, 0};
     std::vector<DistantLight> distant_;
