@@ -352,15 +352,16 @@ def _spot_light(scene, obj, warnings):
     smoothstep((cos angle - cos(size / 2)) / ((1 - cos(size / 2)) blend)) of the angle between the
     light's -Z axis and the direction it leaves in."""
     light = obj.data
+    towards = _light_z_axis(obj, warnings)
+    if towards is None:
+        return
     m = np.array(obj.matrix_world, float)[:3, :3]
     sx, sy = np.linalg.norm(m[:, 0]), np.linalg.norm(m[:, 1])
-    if _light_z_axis(obj, warnings) is None:
-        return
     if abs(sx - sy) > 1e-6 * max(sx, sy):
         warnings.append(f"light '{obj.name}': its cone, elliptical from the object's unequal X and Y scale, is "
                         "solved as a circular cone")
     index = _point_light(scene, obj, warnings)
-    scene.set_spot_cone(index, -m[:, 2], light.spot_size, light.spot_blend)
+    scene.set_spot_cone(index, -towards, light.spot_size, light.spot_blend)
 
 
 def _sun_light(scene, obj, warnings):
