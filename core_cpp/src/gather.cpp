@@ -17,6 +17,11 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kMaxEmitterCellBend = 0.7;
 constexpr double kCurvedEmitterCellRatio = 0.1;
 constexpr int kCurvedEmitterDepth = 4;
+// A world map's pixels brighter than this many times its mean are light seen by shadow rays
+// towards them (an HDRI's sun, a sky's sun disc: too small for the hemisphere nodes to find),
+// in at most this many directions; the rest is gathered over the hemisphere.
+constexpr double kWorldBrightFactor = 20;
+constexpr size_t kWorldBrightSamples = 64;
 
 // B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
 // for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
@@ -96,6 +101,11 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
                 facing += w * cos_t;
             }
         for (size_t i = first; i < distant_.size(); ++i) distant_[i].irradiance = distant_[i].irradiance / facing;
+    }
+    if (const EnvironmentMap* map = scene.world_map()) {
+        EnvironmentMap::Split split = map->split(kWorldBrightFactor, kWorldBrightSamples);
+        for (const auto& b : split.bright) distant_.push_back({b.direction, b.irradiance});
+        world_smooth_.emplace(map->height(), map->width(), std::move(split.smooth));
     }
 }
 
@@ -199,18 +209,16 @@ void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) cons
 
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
                         Receiver::Splines which, int density, bool with_world, Vec3* out, size_t& rays) const {
-    const Vec3 world = with_world ? scene_.world_radiance() : Vec3{0, 0, 0};
     hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
-        if (hit.surface < 0) return world;
+        if (hit.surface < 0) return with_world ? world_along(dir) : Vec3{0, 0, 0};
         const Receiver* h = receiver_of[hit.surface];
         return h ? h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir)) : Vec3{0, 0, 0};
     }, out, rays);
 }
 
 void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
-    const Vec3 world = scene_.world_radiance();
-    hemisphere(r, j, 1, [&](const SurfaceHit& hit, const Vec3&) { return hit.surface < 0 ? world : Vec3{0, 0, 0}; }, out,
-               rays);
+    hemisphere(r, j, 1, [&](const SurfaceHit& hit, const Vec3& dir) { return hit.surface < 0 ? world_along(dir) : Vec3{0, 0, 0}; },
+               out, rays);
 }
 
 template <typename Incoming>

@@ -644,7 +644,11 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
             solution.reports.push_back({scene[i].surface->name(), "emitter", {}, "light object: emits only, no spline"});
     for (const DistantLight& l : scene.distant_lights())
         solution.reports.push_back({l.name, "distant light", {}, "a light at infinity (sun): emits only, no spline"});
-    if (scene.has_world())
+    if (const EnvironmentMap* map = scene.world_map())
+        solution.reports.push_back({"world", "world light", {},
+                                    "an environment map of " + std::to_string(map->width()) + " x " +
+                                        std::to_string(map->height()) + " pixels from every unblocked direction"});
+    else if (scene.has_world())
         solution.reports.push_back({"world", "world light", {}, "constant radiance from every unblocked direction"});
     progress.finish();
     return solution;
