@@ -7,11 +7,27 @@ Nothing of the user's data is changed here: meshes come from the evaluated depsg
 splines, and materials are the user's even where a bake is shown."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 
 import bsgi
 
 from . import geometry, lights
+from .materials import user_slots
+
+
+@dataclass
+class Approximation:
+    """What the solve approximates of one material, light, object or world: each input and how
+    (from the export's warnings, which name their owner first), and the objects a material is on."""
+
+    owner: str  # "material 'Checker'", "light 'Lamp'", "object 'Ball'", "world 'World'"
+    notes: list  # what is approximated and how, one sentence each
+    objects: list = field(default_factory=list)  # for a material: the objects using it
+
+    def text(self) -> str:
+        on = f" (on {', '.join(repr(o) for o in self.objects)})" if self.objects else ""
+        return f"{self.owner}{on}: " + "; ".join(self.notes)
 
 
 @dataclass
@@ -19,6 +35,30 @@ class Export:
     scene: bsgi.Scene
     objects: list  # of ExportedObject, the bake targets
     warnings: list
+    users: dict = field(default_factory=dict)  # material name -> the objects it is on
+
+    def approximations(self) -> list:
+        """The warnings so far as Approximations, one per material, light, object or world."""
+        return approximations(self.warnings, self.users)
+
+
+_OWNER = re.compile(r"^((?:material|light|object|world) '.*?'): (.*)$", re.S)
+
+
+def approximations(warnings: list, users: dict) -> list:
+    """The warnings grouped by what they approximate, once per owner; a material's entry lists
+    the objects using it (users: material name -> object names)."""
+    grouped: dict = {}
+    for warning in warnings:
+        match = _OWNER.match(warning)
+        if match:
+            grouped.setdefault(match.group(1), []).append(match.group(2))
+    result = []
+    for owner, notes in grouped.items():
+        name = owner.split("'", 1)[1][:-1]
+        objects = sorted(users.get(name, ())) if owner.startswith("material") else []
+        result.append(Approximation(owner, list(dict.fromkeys(notes)), objects))
+    return result
 
 
 def export_scene(depsgraph) -> Export:
@@ -29,6 +69,7 @@ def export_scene(depsgraph) -> Export:
     objects, warnings = [], []
     instances: dict = {}  # (object, instancer) -> count, for one warning per pair
     pending_charts: list = []
+    users: dict = {}  # material name -> the objects it is on, for the report
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -45,6 +86,9 @@ def export_scene(depsgraph) -> Export:
         exported = geometry.add_object(scene, obj, inst.matrix_world, warnings, label, pending_charts)
         if exported is None:
             continue
+        for material in user_slots(obj):
+            if material is not None:
+                users.setdefault(material.name, set()).add(obj.original.name)
         if inst.is_instance:
             instances[key] = instances.get(key, 0) + 1
         else:
@@ -66,4 +110,4 @@ def export_scene(depsgraph) -> Export:
                         "baked: instances share one mesh, which cannot show each instance's own light; make them "
                         "real (Object > Apply > Make Instances Real) to bake them")
     lights.world_light(depsgraph.scene, scene, warnings)
-    return Export(scene, objects, list(dict.fromkeys(warnings)))
+    return Export(scene, objects, list(dict.fromkeys(warnings)), users)

@@ -71,7 +71,9 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     """The material description of a shader node (recursing through Mix and Add shaders)."""
     if node is None or depth > 16:
         return SurfaceMaterial()
-    linked = [s.name for s in node.inputs if s.is_linked and s.type != "SHADER" and s.name not in {"Normal", "Tangent"}]
+    linked = [s.name for s in node.inputs
+              if s.is_linked and s.type != "SHADER" and s.name not in {"Normal", "Tangent", "Alpha"}]
+    _warn_ignored_inputs(node, material, warnings)
     if linked:
         warnings.append(f"material '{material.name}': {node.name} inputs {', '.join(linked)} are driven by nodes; "
                         "their own values are used instead")
@@ -134,6 +136,21 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     warnings.append(f"material '{material.name}': shader '{node.bl_idname}' is approximated by the material's "
                     "viewport colour")
     return SurfaceMaterial(albedo=tuple(material.diffuse_color[:3]))
+
+
+def _warn_ignored_inputs(node, material, warnings):
+    """Inputs that change how a surface looks but that the solve does not model, named as what
+    the user made them (a normal map, a bump, a transparency mask)."""
+    normal = node.inputs.get("Normal")
+    if normal is not None and normal.is_linked:
+        source = linked_node(normal)
+        what = {"NORMAL_MAP": "normal map", "BUMP": "bump map"}.get(source.type, f"'{source.name}'")
+        warnings.append(f"material '{material.name}': {node.name}'s Normal input ({what}) is ignored; the surface's "
+                        "own normals are used")
+    alpha = node.inputs.get("Alpha")
+    if alpha is not None and alpha.is_linked:
+        warnings.append(f"material '{material.name}': {node.name}'s Alpha input (transparency driven by nodes) is "
+                        "ignored; the surface is solved opaque")
 
 
 def _warn_tangent(node, material, warnings, anisotropy):
