@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <stdexcept>
 #include <utility>
@@ -64,19 +65,61 @@ Vec3 EnvironmentMap::mean() const {
 EnvironmentMap::Split EnvironmentMap::split(double factor, size_t max_samples) const {
     Split out;
     out.smooth = rgb_;
-    const double level = factor * max_component(mean());
+    // The level: `factor` times the mean of the map clipped at the level (so that the sun
+    // itself does not raise it), by fixed-point iteration from the plain mean.
+    double level = std::numeric_limits<double>::infinity();
+    for (int it = 0; it < 20; ++it) {
+        double sum = 0;
+        for (int r = 0; r < height_; ++r) {
+            double row = 0;
+            for (int c = 0; c < width_; ++c) row += std::min(max_component(pixel(r, c)), level);
+            sum += row * solid_angle(r);
+        }
+        const double next = factor * sum / (4 * kPi);
+        const bool settled = std::abs(next - level) <= 1e-3 * next;
+        level = next;
+        if (settled) break;
+    }
     if (!(level > 0)) return out;
-    // The bright part of each pixel above the level, as (row, col) -> irradiance.
+    // Bright pixels get, in the remainder, the mean of their neighbours outside the bright part
+    // (filled inwards, ring by ring): the remainder stays as smooth as the sky around a sun.
+    std::vector<char> known(size_t(height_) * width_, 1);
+    std::vector<std::pair<int, int>> unknown;
+    for (int r = 0; r < height_; ++r)
+        for (int c = 0; c < width_; ++c)
+            if (max_component(pixel(r, c)) > level) known[size_t(r) * width_ + c] = 0, unknown.emplace_back(r, c);
+    while (!unknown.empty()) {
+        std::vector<std::pair<std::pair<int, int>, Vec3>> filled;
+        std::vector<std::pair<int, int>> still;
+        for (const auto& [r, c] : unknown) {
+            Vec3 sum{0, 0, 0};
+            int n = 0;
+            const int neighbours[4][2] = {{r - 1, c}, {r + 1, c}, {r, (c + 1) % width_}, {r, (c + width_ - 1) % width_}};
+            for (const auto& [nr, nc] : neighbours) {
+                if (nr < 0 || nr >= height_ || !known[size_t(nr) * width_ + nc]) continue;
+                const double* p = &out.smooth[3 * (size_t(nr) * width_ + nc)];
+                sum += Vec3{p[0], p[1], p[2]}, ++n;
+            }
+            if (n) filled.push_back({{r, c}, sum / n});
+            else still.emplace_back(r, c);
+        }
+        if (filled.empty()) break;  // every pixel bright: nothing to fill from (cannot happen for factor > 1)
+        for (const auto& [rc, v] : filled) {
+            double* p = &out.smooth[3 * (size_t(rc.first) * width_ + rc.second)];
+            p[0] = v.x, p[1] = v.y, p[2] = v.z;
+            known[size_t(rc.first) * width_ + rc.second] = 1;
+        }
+        unknown.swap(still);
+    }
+    // The bright part of each pixel: what the remainder does not keep.
     std::map<std::pair<int, int>, Vec3> cells;
     for (int r = 0; r < height_; ++r)
         for (int c = 0; c < width_; ++c) {
+            if (max_component(pixel(r, c)) <= level) continue;
+            const double* kept = &out.smooth[3 * (size_t(r) * width_ + c)];
             const Vec3 L = pixel(r, c);
-            const double m = max_component(L);
-            if (m <= level) continue;
-            const Vec3 kept = L * (level / m);
-            double* s = &out.smooth[3 * (size_t(r) * width_ + c)];
-            s[0] = kept.x, s[1] = kept.y, s[2] = kept.z;
-            cells[{r, c}] = (L - kept) * solid_angle(r);
+            const Vec3 bright{std::max(0.0, L.x - kept[0]), std::max(0.0, L.y - kept[1]), std::max(0.0, L.z - kept[2])};
+            cells[{r, c}] = bright * solid_angle(r);
         }
     // Energy-weighted directions of the cells (one pixel each at first), merged over blocks
     // twice as large until few enough remain.

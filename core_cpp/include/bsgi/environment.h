@@ -41,12 +41,13 @@ public:
         Vec3 direction;
         Vec3 irradiance;
     };
-    // The map as bright directions plus a smooth remainder: each pixel whose largest channel
-    // exceeds `factor` times the map's mean (solid-angle weighted, largest channel) keeps that
-    // level in the remainder (its colour scaled down), the rest is its bright part, a sample of
-    // irradiance (bright radiance x pixel solid angle) at its centre. Neighbouring samples are
-    // merged over 2 x 2, 4 x 4, ... blocks (at the block's energy-weighted mean direction) until
-    // at most `max_samples` remain.
+    // The map as bright directions plus a smooth remainder. Bright pixels are those whose
+    // largest channel exceeds the level `factor` times the mean of the map clipped at that level
+    // (solid-angle weighted, largest channel: the sky's brightness, which the sun does not
+    // raise); in the remainder they take the mean of their neighbours outside the bright part,
+    // and the rest of their light is a sample of irradiance (that radiance x the pixel's solid
+    // angle) at the pixel's centre. Neighbouring samples are merged over 2 x 2, 4 x 4, ... blocks
+    // (at the block's energy-weighted mean direction) until at most `max_samples` remain.
     struct Split {
         std::vector<BrightSample> bright;
         std::vector<double> smooth;  // the remainder's pixels, as rgb
