@@ -53,6 +53,10 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="A mesh with at least this many faces (of one material) is solved as one UV chart: one "
         "radiance spline over its UV map (or a generated one; the mesh's own UV maps are not changed) instead of "
         "a spline per face. 0: always per face")
+    world_map_width: IntProperty(
+        name="World Map Width", default=512, min=8, max=8192,
+        description="Pixels around the horizon of the image a textured world (HDRI, sky) is rendered into "
+        "for the solve (half as many from pole to pole); a one-colour world needs none")
     show_baked: BoolProperty(
         name="Show Baked Radiance", default=True, update=_show_baked_update,
         description="Show the solved radiance, or the objects' own materials")
