@@ -208,6 +208,8 @@ void bind_scene(py::module_& m) {
         .def_readwrite("hemisphere_nodes_theta", &SolverSettings::hemisphere_nodes_theta)
         .def_readwrite("hemisphere_nodes_phi", &SolverSettings::hemisphere_nodes_phi)
         .def_readwrite("bsdf_samples", &SolverSettings::bsdf_samples)
+        .def_readwrite("world_bright_factor", &SolverSettings::world_bright_factor)
+        .def_readwrite("world_bright_samples", &SolverSettings::world_bright_samples)
         .def_readwrite("max_bounces", &SolverSettings::max_bounces)
         .def_readwrite("form_factors", &SolverSettings::form_factors)
         .def_readwrite("tolerance", &SolverSettings::tolerance)

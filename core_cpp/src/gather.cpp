@@ -17,11 +17,6 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kMaxEmitterCellBend = 0.7;
 constexpr double kCurvedEmitterCellRatio = 0.1;
 constexpr int kCurvedEmitterDepth = 4;
-// A world map's pixels brighter than this many times its mean are light seen by shadow rays
-// towards them (an HDRI's sun, a sky's sun disc: too small for the hemisphere nodes to find),
-// in at most this many directions; the rest is gathered over the hemisphere.
-constexpr double kWorldBrightFactor = 20;
-constexpr size_t kWorldBrightSamples = 64;
 
 // B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
 // for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
@@ -103,7 +98,9 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
         for (size_t i = first; i < distant_.size(); ++i) distant_[i].irradiance = distant_[i].irradiance / facing;
     }
     if (const EnvironmentMap* map = scene.world_map()) {
-        EnvironmentMap::Split split = map->split(kWorldBrightFactor, kWorldBrightSamples);
+        // The bright part (an HDRI's sun, a sky's sun disc, too small for the hemisphere nodes
+        // to find) as directions for shadow rays.
+        EnvironmentMap::Split split = map->split(settings.world_bright_factor, size_t(settings.world_bright_samples));
         for (const auto& b : split.bright) distant_.push_back({b.direction, b.irradiance});
         world_smooth_.emplace(map->height(), map->width(), std::move(split.smooth));
     }

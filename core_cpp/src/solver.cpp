@@ -37,6 +37,8 @@ void validate(const SolverSettings& s) {
     need(s.emitter_cell_ratio > 0, "emitter_cell_ratio must be > 0");
     need(s.hemisphere_nodes_theta >= 1 && s.hemisphere_nodes_phi >= 1, "hemisphere nodes must be >= 1");
     need(s.bsdf_samples >= 0, "bsdf_samples must be >= 0");
+    need(s.world_bright_factor > 1, "world_bright_factor must be > 1");
+    need(s.world_bright_samples >= 1, "world_bright_samples must be >= 1");
     need(s.max_bounces >= 0, "max_bounces must be >= 0");
     need(s.tolerance >= 0, "tolerance must be >= 0");
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");

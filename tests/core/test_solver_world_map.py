@@ -184,3 +184,32 @@ def test_bad_world_maps_are_refused_by_name():
     assert np.all(scene.world_radiance == 0)
     reports = {r["name"]: r["reason"] for r in bsgi.solve(scene, settings()).reports}
     assert "8 x 4" in reports["world"]
+
+
+def test_glossy_floor_sees_a_one_pixel_sun_as_the_distant_light_there():
+    # A map black but for one pixel is, for every receiver, a distant light of irradiance
+    # radiance x solid angle from the pixel's centre (angle 0): the same glossy spline whichever
+    # way it is given (distant lights are checked against closed forms and Mitsuba elsewhere).
+    h, w, row, col = 64, 128, 20, 50
+    image = np.zeros((h, w, 3))
+    image[row, col] = [900.0, 600.0, 300.0]
+    omega = 2 * math.pi / w * (math.cos(math.pi * row / h) - math.cos(math.pi * (row + 1) / h))
+    sun = direction(math.pi * (row + 0.5) / h, math.pi * (1 - 2 * (col + 0.5) / w))
+
+    def glossy_floor():
+        scene = bsgi.Scene()
+        scene.add_bilinear_patch("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[0] * 3, emission=[0] * 3,
+                                 bsdf=bsgi.GgxReflection(0.3, 0.3, [0.9, 0.9, 0.9]))
+        return scene
+
+    mapped, distant = glossy_floor(), glossy_floor()
+    mapped.world_map = image
+    distant.add_distant_light("sun", sun, image[row, col] * omega)
+    s = settings(spatial_coeffs=8)
+    got, want = (bsgi.solve(sc, s).surfaces[0] for sc in (mapped, distant))
+    assert got.kind == "glossy"
+    dirs = np.array([[0.3, 0.1, 0.95], [-0.5, -0.3, 0.81], [0.0, 0.0, 1.0]])
+    for d in dirs:
+        d = d / np.linalg.norm(d)
+        a, b = got.evaluate(UV, np.tile(d, (len(UV), 1))), want.evaluate(UV, np.tile(d, (len(UV), 1)))
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * np.abs(b).max())
