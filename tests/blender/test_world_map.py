@@ -156,8 +156,9 @@ def test_world_visibility_and_light_paths(context, tmp_path):
     _, warnings = exported_map(context, width=32)
     assert any("world 'HDRI'" in m and "'Camera Trick'" in m for m in warnings)
     w.cycles_visibility.camera = False  # rendered all the same, and put back
+    w.cycles.sampling_method = "MANUAL"
     image, _ = exported_map(context, width=32)
-    assert image.max() > 100 and not w.cycles_visibility.camera
+    assert image.max() > 100 and not w.cycles_visibility.camera and w.cycles.sampling_method == "MANUAL"
 
 
 def floor_beside_wall(context):
