@@ -69,7 +69,7 @@ def main(argv=None) -> int:
     except ValueError:
         pass  # already registered in this session
     pipeline = importlib.import_module(f"{addon.__name__}.pipeline")
-    ExportError = importlib.import_module(f"{addon.__name__}.export").ExportError
+    ExportError = importlib.import_module(f"{addon.__name__}.errors").ExportError
 
     if args.blend:
         try:
@@ -89,8 +89,8 @@ def main(argv=None) -> int:
     except (ExportError, ValueError, RuntimeError, MemoryError) as error:
         print(f"bsgi: error: {error}", file=sys.stderr)
         return 1
-    for warning in rep["warnings"]:
-        print(f"bsgi: warning: {warning}")
+    for line in pipeline.report_lines(rep):
+        print(f"bsgi: warning: {line}")
     print(f"bsgi: solved {rep['surfaces']} surfaces, {rep['coefficients']} coefficients, {rep['bounces']} bounces "
           f"in {rep['solve_seconds']:.2f} s (bake {rep['bake_seconds']:.2f} s); {pipeline.summary_text(rep)}")
     out = pathlib.Path(args.out).resolve() if args.out else None

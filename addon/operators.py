@@ -11,7 +11,7 @@ import bsgi
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from . import bake, pipeline, solution_file
-from .export import ExportError
+from .errors import ExportError
 
 
 class BSGI_OT_solve(bpy.types.Operator):
@@ -92,8 +92,8 @@ class BSGI_OT_solve(bpy.types.Operator):
         return {"FINISHED"}
 
     def _report_done(self, rep):
-        for warning in rep["warnings"]:
-            self.report({"WARNING"}, warning)
+        for line in pipeline.report_lines(rep):
+            self.report({"WARNING"}, line)
         self.report({"INFO"}, f"B-spline GI: solved {rep['surfaces']} surfaces ({rep['coefficients']} coefficients, "
                     f"{rep['bounces']} bounces) in {rep['solve_seconds']:.2f} s, baked in {rep['bake_seconds']:.2f} s; "
                     f"{pipeline.summary_text(rep)}")

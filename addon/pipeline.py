@@ -67,7 +67,18 @@ def report(job: Job, solution: bsgi.Solution, solve_seconds: float, bake_seconds
         "rays": stats["rays"],
         "representations": representation_summary(solution.reports),
         "warnings": job.export.warnings,
+        # Per material, light, object and the world: what is approximated and how.
+        "approximations": [{"owner": a.owner, "objects": a.objects, "notes": a.notes, "text": a.text()}
+                           for a in job.export.approximations()],
     }
+
+
+def report_lines(rep: dict) -> list:
+    """The report's warnings as a user reads them: one line per material, light, object or world
+    naming all it approximates (and a material's objects), then the other warnings."""
+    grouped = [a["text"] for a in rep["approximations"]]
+    owned = {f"{a['owner']}: {note}" for a in rep["approximations"] for note in a["notes"]}
+    return grouped + [w for w in rep["warnings"] if w not in owned]
 
 
 def representation_summary(reports) -> dict:
@@ -95,4 +106,9 @@ def summary_text(rep: dict) -> str:
     if largest:
         text += (f"; largest '{largest['name']}' {'x'.join(map(str, largest['shape']))} "
                  f"({largest['coefficients']} coefficients)")
+    approximated = rep.get("approximations", [])
+    if approximated:
+        notes = sum(len(a["notes"]) for a in approximated)
+        text += (f"; {notes} approximation{'s' if notes > 1 else ''} in {len(approximated)} "
+                 f"{'item' if len(approximated) == 1 else 'items'} (see the warnings)")
     return text
