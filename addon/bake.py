@@ -32,8 +32,28 @@ MAX_ATLAS_TEXELS = 1 << 24
 
 
 def tile_size(radiance) -> int:
-    """Texels per face side: two per coefficient, so the image resolves the spline's knots."""
-    return max(8, 2 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]))
+    """Texels per face side: two per coefficient, so the image resolves the spline's knots, and
+    at least the resolution of the face's textures."""
+    return max(8, 2 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]), _texture_side(radiance))
+
+
+def _texture_side(radiance) -> int:
+    """The larger side of a textured surface's albedo or emission texture (0 without)."""
+    images = [getattr(radiance, t, None) for t in ("albedo", "emission")]
+    return max((max(i.shape[:2]) for i in images if i is not None), default=0)
+
+
+def texture_at(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """A surface texture (h, w, 3) at (u, v) rows, as the core's Texture::at: bilinear between
+    texel centres (i + 0.5) / w, clamped at the edges."""
+    h, w = image.shape[:2]
+    x = np.clip(np.clip(uv[:, 0], 0, 1) * w - 0.5, 0, w - 1)
+    y = np.clip(np.clip(uv[:, 1], 0, 1) * h - 0.5, 0, h - 1)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    a, b = (x - x0)[:, None], (y - y0)[:, None]
+    image = image.astype(np.float64)
+    return (image[y0, x0] * (1 - a) + image[y0, x1] * a) * (1 - b) + (image[y1, x0] * (1 - a) + image[y1, x1] * a) * b
 
 
 def _upper(radiance):
@@ -83,11 +103,17 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool) -> np.
         if spline is None:
             continue
         if spline.dims == 2:
-            out += spline.evaluate(np.ascontiguousarray(uv, np.float64))[None]
+            smooth = spline.evaluate(np.ascontiguousarray(uv, np.float64))
+            # A textured surface's diffuse spline holds irradiance / pi: its albedo texture is the detail.
+            albedo = None if lower else getattr(radiance, "albedo", None)
+            out += (smooth if albedo is None else smooth * texture_at(albedo, uv))[None]
             continue
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
         out += spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+    emission = None if lower else getattr(radiance, "emission", None)
+    if emission is not None:
+        out += texture_at(emission, uv)[None]
     return out
 
 
@@ -227,7 +253,7 @@ def _nurbs_layout(obj, spline, radiance):
 def chart_image_size(radiance) -> int:
     """Side of a chart's image: four texels per coefficient (a chart's islands are smaller than
     the UV square they share), at least 64."""
-    return max(64, 4 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]))
+    return max(64, 4 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]), _texture_side(radiance))
 
 
 def _chart_layout(obj, radiance):
@@ -411,6 +437,11 @@ def _store_splines(obj, faces) -> None:
                         arrays = bsgi.spline_to_arrays(spline)
                         arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
                         entry[side] = arrays
+                for texture in ("albedo", "emission"):
+                    image = getattr(r, texture)
+                    if image is not None:  # float32 texels, flat, with their shape
+                        entry[texture] = {"texels": image.astype(np.float64).ravel(),
+                                          "shape": np.array(image.shape, np.int32)}
             group[f"{i}.{k}"] = entry
     obj[PROP_RADIANCE] = group
 
@@ -439,8 +470,12 @@ def _stored_radiance(entry):
         return bsgi.SurfaceRadiance(kind, upper.axes[2].knots[-1] if upper.dims == 4 else 1.0, upper)
     if entry["kind"] == "emitter":
         return None
+    textures = {t: np.frombuffer(memoryview(entry[t]["texels"]), np.float64).reshape(
+                    tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
+                for t in ("albedo", "emission") if t in entry}
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
-                                *(_spline(entry[side]) if side in entry else None for side in ("upper", "lower", "diffuse")))
+                                *(_spline(entry[side]) if side in entry else None for side in ("upper", "lower", "diffuse")),
+                                **textures)
 
 
 def _spline(stored):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import bsgi
 
-from . import geometry, lights
+from . import geometry, lights, textures
 from .materials import user_slots
 
 
@@ -36,6 +36,7 @@ class Export:
     objects: list  # of ExportedObject, the bake targets
     warnings: list
     users: dict = field(default_factory=dict)  # material name -> the objects it is on
+    textures: dict = field(default_factory=dict)  # the texture bake's {"seconds", "texels"}
 
     def approximations(self) -> list:
         """The warnings so far as Approximations, one per material, light, object or world."""
@@ -103,6 +104,9 @@ def export_scene(depsgraph) -> Export:
         if exported.not_baked:
             warnings.append(f"object '{exported.name}': solved (it casts shadows and reflects light) but not baked: "
                             f"{exported.not_baked}")
+    # Node-driven colour and emission, as Blender evaluates them (instances share their mesh and
+    # keep the sockets' own values).
+    textured = textures.apply_textures(depsgraph, scene, objects, warnings)
     objects = [exported for exported in objects if not exported.not_baked]
     for (name, parent), count in instances.items():
         warnings.append(f"object '{name}': {count} instance{'s' if count > 1 else ''} from '{parent}' "
@@ -110,4 +114,4 @@ def export_scene(depsgraph) -> Export:
                         "baked: instances share one mesh, which cannot show each instance's own light; make them "
                         "real (Object > Apply > Make Instances Real) to bake them")
     lights.world_light(depsgraph.scene, scene, warnings)
-    return Export(scene, objects, list(dict.fromkeys(warnings)), users)
+    return Export(scene, objects, list(dict.fromkeys(warnings)), users, textured)

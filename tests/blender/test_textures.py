@@ -1,0 +1,236 @@
+"""Textured materials (addon/textures.py): node trees driving a material's colour and emission
+are evaluated by Blender (a Cycles bake of the diffuse-colour and emission passes), solved as
+albedo and emission textures over each surface's (u, v), and shown by the bake; checked against
+Blender's own evaluation and a Cycles path-traced render."""
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from bsgi_addon import pipeline
+from bsgi_addon.export import export_scene
+from test_pipeline import lit_relative_difference, render_exr
+
+LIGHT, DARK = (0.8, 0.8, 0.8), (0.8, 0.1, 0.1)  # the checker's colours: white and red
+SQUARES = 4  # per side of the floor (Checker scale over its UVs)
+STRIPES = np.array([[0.15, 0.3, 0.7], [0.9, 0.75, 0.2]], np.float32)  # the wall image's two colours
+IMAGE_SIZE = 16
+
+
+def principled(name, colour_node_builder):
+    """A Principled BSDF without a specular lobe (Specular IOR Level 0: a diffuse surface for
+    Cycles and for the solve) whose Base Color the builder drives."""
+    m = bpy.data.materials.new(name)
+    tree = m.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    bsdf.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1)  # what the solve used to take
+    tree.links.new(colour_node_builder(tree).outputs["Color"], bsdf.inputs["Base Color"])
+    return m
+
+
+def checker(tree):
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    node = tree.nodes.new("ShaderNodeTexChecker")
+    node.inputs["Color1"].default_value = (*LIGHT, 1)
+    node.inputs["Color2"].default_value = (*DARK, 1)
+    node.inputs["Scale"].default_value = SQUARES
+    tree.links.new(coords.outputs["UV"], node.inputs["Vector"])
+    return node
+
+
+def stripes_image():
+    """A packed float image the test makes: vertical stripes, two texels wide, of two colours."""
+    image = bpy.data.images.new("Wall stripes", IMAGE_SIZE, IMAGE_SIZE, alpha=False, float_buffer=True)
+    pixels = np.ones((IMAGE_SIZE, IMAGE_SIZE, 4), np.float32)
+    pixels[..., :3] = STRIPES[(np.arange(IMAGE_SIZE) // 2) % 2][None, :, :]
+    image.pixels.foreach_set(pixels.ravel())
+    image.pack()
+    return image, pixels[..., :3]
+
+
+def image_texture(tree):
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.image = bpy.data.images["Wall stripes"]
+    return node
+
+
+def add_uv_quad(name, corners, material):
+    obj = scenes.add_quad(name, corners, material)
+    uv = obj.data.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", np.array([0, 0, 1, 0, 1, 1, 0, 1], np.float32))
+    return obj
+
+
+def floor_and_wall(context):
+    """A checker floor (2 x 2 at z = 0, facing up) and a striped wall (at y = 1, facing the
+    floor) under a square area light tilted towards the wall; every surface lit and seen on its
+    front."""
+    stripes_image()
+    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], principled("Checker", checker))
+    wall = add_uv_quad("Wall", [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], principled("Stripes", image_texture))
+    lamp = scenes.add_area_light(location=(0, -0.2, 1.6), size=1.0, energy=120.0)
+    lamp.rotation_euler = (math.radians(30), 0, 0)  # its -Z towards the wall and down
+    return floor, wall
+
+
+def surface_texture(export, name):
+    exported = next(o for o in export.objects if o.name == name)
+    return exported
+
+
+def solved_textures(context):
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    return job, solution
+
+
+def test_baked_albedo_is_blenders_evaluation(context):
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 32
+    job, solution = solved_textures(context)
+    export = job.export
+    assert not any("driven by nodes" in w for w in export.warnings), export.warnings
+    floor_index = surface_texture(export, "Floor").patches[0][1]
+    wall_index = surface_texture(export, "Wall").patches[0][1]
+    albedo = solution.surfaces[floor_index].albedo
+    assert albedo.shape == (32, 32, 3)
+    # Texels inside a square hold its colour, as Cycles evaluates the Checker node there.
+    c = (np.arange(32) + 0.5) / 32
+    u, v = np.meshgrid(c, c)
+    inside = (np.abs(u * SQUARES - np.round(u * SQUARES)) > 0.1) & (np.abs(v * SQUARES - np.round(v * SQUARES)) > 0.1)
+    light = ((np.floor(u * SQUARES) + np.floor(v * SQUARES)) % 2 == 1)
+    print(f"\nchecker texels: light {albedo[inside & light].mean(axis=0)}, dark {albedo[inside & ~light].mean(axis=0)}")
+    np.testing.assert_allclose(albedo[inside & light], np.broadcast_to(LIGHT, albedo[inside & light].shape), atol=1e-3)
+    np.testing.assert_allclose(albedo[inside & ~light], np.broadcast_to(DARK, albedo[inside & ~light].shape), atol=1e-3)
+    np.testing.assert_allclose(albedo.reshape(-1, 3).mean(axis=0), np.add(LIGHT, DARK) / 2, atol=2e-3)
+    # The wall: the packed image over its UVs (the face's (u, v)); its mean is the image's.
+    wall_albedo = solution.surfaces[wall_index].albedo
+    np.testing.assert_allclose(wall_albedo.reshape(-1, 3).mean(axis=0), STRIPES.mean(axis=0), atol=5e-3)
+    # Per column the stripes' colours (each stripe four texels wide at 32 texels).
+    column = wall_albedo[16]
+    assert np.abs(column[1] - STRIPES[0]).max() < 0.02 and np.abs(column[5] - STRIPES[1]).max() < 0.02
+    print(f"texture bake: {export.textures['seconds']:.2f} s for {export.textures['texels']} texels")
+
+
+def test_texture_bake_leaves_the_users_data_as_it_was(context):
+    floor, wall = floor_and_wall(context)
+    scene = context.scene
+    scene.render.engine = "BLENDER_EEVEE"
+    scene.cycles.samples = 7
+    floor.select_set(True)
+    context.view_layer.objects.active = wall
+
+    def state():
+        return {
+            "ids": {kind: sorted(x.name for x in getattr(bpy.data, kind))
+                    for kind in ("objects", "meshes", "materials", "images", "node_groups")},
+            "nodes": {m.name: sorted(n.name for n in m.node_tree.nodes) for m in bpy.data.materials},
+            "active_nodes": {m.name: getattr(m.node_tree.nodes.active, "name", None) for m in bpy.data.materials},
+            "uv_maps": {o.name: [u.name for u in o.data.uv_layers] for o in scene.objects if o.type == "MESH"},
+            "selected": sorted(o.name for o in scene.objects if o.select_get()),
+            "active": context.view_layer.objects.active.name,
+            "render": (scene.render.engine, scene.cycles.samples, scene.render.bake.margin),
+        }
+
+    before = state()
+    export = export_scene(context.evaluated_depsgraph_get())
+    assert export.textures["texels"] > 0
+    assert state() == before
+
+
+def test_textured_emission_lights_with_its_pattern(context):
+    # A screen whose emission is a Checker: half its squares black. The floor under it gets the
+    # light of the mean emission (its squares are small seen from the floor), and the screen
+    # itself shows its squares.
+    m = bpy.data.materials.new("Screen")
+    tree = m.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 4.0
+    node = checker(tree)
+    node.inputs["Color1"].default_value = (1, 1, 1, 1)
+    node.inputs["Color2"].default_value = (0, 0, 0, 1)
+    tree.links.new(node.outputs["Color"], emission.inputs["Color"])
+    tree.links.new(emission.outputs[0], out.inputs["Surface"])
+    add_uv_quad("Screen", [(-0.5, -0.5, 1), (-0.5, 0.5, 1), (0.5, 0.5, 1), (0.5, -0.5, 1)], m)  # facing down
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], scenes.diffuse_material("Grey", (0.5,) * 3))
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    job, solution = solved_textures(context)
+    screen = solution.surfaces[surface_texture(job.export, "Screen").patches[0][1]]
+    shown = screen.evaluate(np.array([[0.125, 0.125], [0.375, 0.125]]), np.array([[0, 0, 1.0]] * 2))
+    np.testing.assert_allclose(sorted(shown[:, 0]), [0, 4], atol=0.05)
+    # The floor's centre against the same screen emitting its mean (2) everywhere, by Lambert:
+    # E = 2 * (form factor of a 1 x 1 square at height 1 seen from below its centre) * pi.
+    floor = solution.surfaces[surface_texture(job.export, "Floor").patches[0][1]]
+    got = floor.evaluate(np.array([[0.5, 0.5]]), np.array([[0, 0, 1.0]]))[0, 0]
+    a = 0.5  # half side over height
+    form_factor = 4 * (a / math.sqrt(1 + a * a) * math.atan(a / math.sqrt(1 + a * a))) / (2 * math.pi) * 2
+    want = 0.5 / math.pi * 2.0 * math.pi * form_factor
+    print(f"\nfloor under a checker screen: {got:.4f}, mean-emission closed form {want:.4f}")
+    assert abs(got / want - 1) <= 0.02
+
+
+def floor_pixels(scene, n):
+    """Per pixel of an n x n render of the scene camera: the floor's (u, v) where the pixel centre's
+    ray meets the floor before the wall, NaN elsewhere."""
+    camera = scene.camera
+    frame = [camera.matrix_world @ p for p in camera.data.view_frame(scene=scene)]  # tr, br, bl, tl
+    tr, br, bl, tl = (np.array(p) for p in frame)
+    origin = np.array(camera.matrix_world.translation)
+    uv = np.full((n, n, 2), np.nan)
+    for row in range(n):
+        for col in range(n):
+            a, b = (col + 0.5) / n, (row + 0.5) / n  # b from the top
+            top = tl + a * (tr - tl)
+            bottom = bl + a * (br - bl)
+            d = top + b * (bottom - top) - origin
+            if d[2] >= 0:
+                continue
+            t = -origin[2] / d[2]
+            p = origin + t * d
+            if -1 < p[0] < 1 and -1 < p[1] < 1:
+                uv[row, col] = ((p[0] + 1) / 2, (p[1] + 1) / 2)
+    return uv
+
+
+@pytest.mark.slow
+def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
+    floor_and_wall(context)
+    scene = context.scene
+    scenes.add_camera(location=(0.0, -3.2, 1.4), tilt_degrees=75.0)
+    bounces = 4
+    scene.bsgi.preset = "CUSTOM"
+    scene.bsgi.max_bounces = bounces
+    scene.bsgi.tolerance = 0
+    reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=bounces)
+    report = pipeline.solve_and_bake(context)
+    baked = render_exr(scene, tmp_path / "baked.exr", samples=16, bounces=0)
+    rel, lit = lit_relative_difference(baked, reference, 0.02)
+    median = float(np.median(rel))
+    # The checker's contrast: mean over the light squares over the mean over the dark ones, on
+    # floor pixels away from the squares' edges (where the pixel filter blends them).
+    uv = floor_pixels(scene, reference.shape[0])
+    s = uv * SQUARES
+    away = np.all(np.abs(s - np.round(s)) > 0.15, axis=2)
+    light = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 1) & away
+    dark = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 0) & away
+
+    def contrast(image):
+        lum = image.sum(axis=2)
+        return lum[light].mean() / lum[dark].mean()
+
+    ratio = contrast(baked) / contrast(reference)
+    print(f"\nchecker floor and image wall, baked vs Cycles ({bounces} bounces, 1024 spp): median relative "
+          f"difference {median:.4f} over {lit.sum()} lit pixels (mean {rel.mean():.4f}); checker contrast "
+          f"Cycles {contrast(reference):.3f}, bake {contrast(baked):.3f} (ratio {ratio:.4f}, {light.sum()} light and "
+          f"{dark.sum()} dark pixels); solve {report['solve_seconds']:.2f} s, bake {report['bake_seconds']:.2f} s")
+    assert lit.sum() > 0.5 * lit.size
+    assert light.sum() > 50 and dark.sum() > 50
+    assert median <= 0.03
+    assert abs(ratio - 1) <= 0.03
