@@ -92,6 +92,9 @@ def export_scene(depsgraph) -> Export:
                 users.setdefault(material.name, set()).add(obj.original.name)
         if inst.is_instance:
             instances[key] = instances.get(key, 0) + 1
+            if textures.has_textures(obj):
+                warnings.append(f"object '{obj.name}': its instances' node-driven colour and emission use the "
+                                "sockets' own values (textures are baked on real objects; make the instances real)")
         else:
             if obj.type in geometry.EVALUATED_ONLY:
                 exported.not_baked = (f"{geometry.EVALUATED_ONLY[obj.type]} objects are meshes only as Blender evaluates "

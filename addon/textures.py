@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 
 from .errors import ExportError
-from .materials import describe_material, solver_material, user_slots
+from .materials import active_output, describe_material, linked_node, socket_value, solver_material, user_slots
 
 BAKE_UV = "BSGI Texture Bake"
 BAKE_SAMPLES = 16  # jittered per texel: the texel's mean colour (a box filter over it)
@@ -29,6 +29,17 @@ DEFAULT_TEXELS = 64
 def texture_texels(scene) -> int:
     settings = getattr(scene, "bsgi", None)
     return settings.texture_texels if settings is not None else DEFAULT_TEXELS
+
+
+def has_textures(obj) -> bool:
+    """Whether any of the object's materials has node-driven colour or emission."""
+    return any(_slot_flags(obj))
+
+
+def _slot_flags(obj):
+    for m in user_slots(obj):
+        described = describe_material(m, [])
+        yield described.albedo_textured or described.emission_textured
 
 
 def apply_textures(depsgraph, scene, objects, warnings) -> dict:
@@ -244,3 +255,27 @@ def _bake_settings(copy):
             if o.name in view_layer.objects:
                 o.select_set(True)
         view_layer.objects.active = active
+
+
+def colour_source(material):
+    """How the bake can show a textured diffuse material's own colour nodes (sharp, at their own
+    resolution) instead of its baked texture: (node, colour input, diffuse weight, specular) when
+    the material's output takes a Principled BSDF or a Diffuse BSDF whose colour is driven by nodes
+    and the solve made it Lambertian with an albedo texture and no emission texture, so that its
+    albedo is colour x weight + specular; else None."""
+    if material is None or material.node_tree is None:
+        return None
+    output = active_output(material.node_tree, "OUTPUT_MATERIAL")
+    node = linked_node(output.inputs["Surface"]) if output is not None else None
+    colour = {"BSDF_PRINCIPLED": "Base Color", "BSDF_DIFFUSE": "Color"}.get(getattr(node, "type", None))
+    if colour is None or not node.inputs[colour].is_linked:
+        return None
+    solved = solver_material(material, describe_material(material, []), [])
+    if solved.kind != "lambert" or not solved.albedo_textured or solved.emission_textured:
+        return None
+    weight = 1.0
+    if node.type == "BSDF_PRINCIPLED":
+        metallic = socket_value(node, "Metallic")
+        transmission = socket_value(node, "Transmission Weight") * (1 - metallic)
+        weight = 1 - metallic - transmission
+    return node, colour, weight, tuple(solved.specular)

@@ -234,3 +234,55 @@ def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
     assert light.sum() > 50 and dark.sum() > 50
     assert median <= 0.03
     assert abs(ratio - 1) <= 0.03
+
+
+def test_bake_shows_the_users_colour_nodes_times_the_irradiance_spline(context, tmp_path):
+    # Four texels per face side: the solve's texture holds one texel per checker square, and a
+    # bake showing it would blur the squares into each other. The baked material shows the
+    # Checker node itself times the smooth factor: Cycles' render of the bake from above is the
+    # checker colour times irradiance / pi, as the core evaluates it, up to the pixel filter.
+    from test_pipeline import render_floor_from_above
+
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 4
+    pipeline.solve_and_bake(context)
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=4)
+    n = image.shape[0]
+    u, v = (points[:, 0] + 1) / 2, (points[:, 1] + 1) / 2
+    job_floor = bpy.data.objects["Floor"]
+    from bsgi_addon import bake
+
+    radiance = bake.stored_faces(job_floor)[0][1][0]
+    smooth = radiance.upper.evaluate(np.column_stack([u, v]))
+    light = ((np.floor(u * SQUARES) + np.floor(v * SQUARES)) % 2 == 1)[:, None]
+    want = smooth * np.where(light, LIGHT, DARK)
+    s = np.column_stack([u, v]) * SQUARES
+    away = np.all(np.abs(s - np.round(s)) > 2.5 * SQUARES / n, axis=1)  # the pixel filter's reach from an edge
+    got = image.reshape(-1, 3)
+    err = np.abs(got[away] - want[away]).sum(axis=1) / want[away].sum(axis=1)
+    # What the solve's 4 x 4 texture itself would show there (bilinear between its texels).
+    texels = smooth * bake.texture_at(radiance.albedo, np.column_stack([u, v]))
+    blurred = np.abs(texels[away] - want[away]).sum(axis=1) / want[away].sum(axis=1)
+    print(f"\nbaked checker floor from above, 4 texels per face: max relative difference {err.max():.4f} "
+          f"(mean {err.mean():.4f}) over {away.sum()} pixels away from the squares' edges; the 4 x 4 texture "
+          f"would be {blurred.max():.3f} off")
+    assert away.sum() > 0.3 * len(away)
+    assert err.max() <= 0.02 < blurred.max()
+
+
+def test_clearing_the_bake_leaves_the_users_materials_and_images(context):
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    nodes = {m.name: sorted(n.name for n in m.node_tree.nodes) for m in bpy.data.materials}
+    images = sorted(i.name for i in bpy.data.images)
+    pipeline.solve_and_bake(context)
+    assert "BSGI Wall slot 0" in bpy.data.materials
+    from bsgi_addon import bake
+
+    for obj in (floor, wall):
+        bake.clear_bake(obj)
+    assert {m.name: sorted(n.name for n in m.node_tree.nodes) for m in bpy.data.materials} == nodes
+    assert sorted(i.name for i in bpy.data.images) == images
+    assert floor.material_slots[0].material.name == "Checker" and wall.material_slots[0].material.name == "Stripes"
