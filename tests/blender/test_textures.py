@@ -286,3 +286,49 @@ def test_clearing_the_bake_leaves_the_users_materials_and_images(context):
     assert {m.name: sorted(n.name for n in m.node_tree.nodes) for m in bpy.data.materials} == nodes
     assert sorted(i.name for i in bpy.data.images) == images
     assert floor.material_slots[0].material.name == "Checker" and wall.material_slots[0].material.name == "Stripes"
+
+
+def checker_colour(uv):
+    """The Checker node's colour (Scale SQUARES) at UV coordinates (N, 2), and whether each is
+    far enough from a square's edge to hold one colour in a texel."""
+    s = uv * SQUARES
+    light = (np.floor(s[:, 0]) + np.floor(s[:, 1])) % 2 == 1
+    away = np.all(np.abs(s - np.round(s)) > 0.15, axis=1)
+    return np.where(light[:, None], LIGHT, DARK), away
+
+
+def test_triangle_and_chart_textures_follow_their_parameters(context):
+    # A triangle face: its (u, v) (the collapsed square) lies at UV (u, u v) of corners at UV
+    # (0, 0), (1, 0), (1, 1). A grid of 8 x 8 faces solved as one UV chart: (u, v) are its UVs.
+    material = principled("Checker", checker)
+    mesh = bpy.data.meshes.new("Triangle")
+    mesh.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0)], [], [(0, 1, 2)])
+    mesh.uv_layers.new(name="UVMap").data.foreach_set("uv", np.array([0, 0, 1, 0, 1, 1], np.float32))
+    mesh.materials.append(material)
+    context.scene.collection.objects.link(bpy.data.objects.new("Triangle", mesh))
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=9, y_subdivisions=9, size=2, location=(3, 0, 0))
+    grid = context.active_object
+    grid.name = "Grid"
+    grid.data.materials.append(material)
+    scenes.add_area_light(location=(1.5, 0, 2), size=4)
+    context.scene.bsgi.chart_min_faces = 16
+    context.scene.bsgi.texture_texels = 16
+    export = export_scene(context.evaluated_depsgraph_get())
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    c = (np.arange(16) + 0.5) / 16
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    triangle = solution.surfaces[next(o for o in export.objects if o.name == "Triangle").patches[0][1]]
+    want, away = checker_colour(np.column_stack([u, u * v]))
+    got = triangle.albedo.reshape(-1, 3)
+    print(f"\ntriangle texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    chart = next(o for o in export.objects if o.name == "Grid")
+    assert chart.kind == "chart"
+    albedo = solution.surfaces[chart.patches[0][1]].albedo
+    assert albedo.shape == (64, 64, 3)
+    c = (np.arange(64) + 0.5) / 64
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    want, away = checker_colour(np.column_stack([u, v]))
+    got = albedo.reshape(-1, 3)
+    print(f"chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
