@@ -54,7 +54,7 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         "radiance spline over its UV map (or a generated one; the mesh's own UV maps are not changed) instead of "
         "a spline per face. 0: always per face")
     texture_texels: IntProperty(
-        name="Texture Texels", default=64, min=4, max=4096,
+        name="Texture Texels", default=32, min=4, max=4096,
         description="Texels per face side (four times as many per UV chart side) at which Blender's evaluation of "
         "node-driven colours and emission (image and procedural textures, colour ramps, vertex colours) is baked for "
         "the solve and shown in the bake; cost grows with their square")
