@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import bsgi
 
 from . import geometry, lights, textures
-from .materials import user_slots
+from .materials import averaged_inputs, user_slots
 
 
 @dataclass
@@ -66,6 +66,12 @@ def export_scene(depsgraph) -> Export:
     """Every visible geometry object's faces as patches (a NURBS surface object's splines as exact
     surfaces), every area and point light as an emitter, suns as distant lights, a one-colour world
     as world light."""
+    # Node-driven roughness and metallic, one mean per material, as Blender evaluates them.
+    with averaged_inputs(textures.socket_means(depsgraph)):
+        return _export_scene(depsgraph)
+
+
+def _export_scene(depsgraph) -> Export:
     scene = bsgi.Scene()
     objects, warnings = [], []
     instances: dict = {}  # (object, instancer) -> count, for one warning per pair

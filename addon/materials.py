@@ -4,6 +4,7 @@ Also the node-tree helpers the world's export shares. No solve state here."""
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,9 +69,37 @@ def socket_color(node, name, default=(0.0, 0.0, 0.0)):
     return tuple(value[:3]) if hasattr(value, "__len__") else (float(value),) * 3
 
 
+# Node-driven scalar inputs that the solve takes as one value per material: their mean over the
+# surfaces using the material, as Blender evaluates them (textures.socket_means), for the export
+# under way: (material name, node name, input name) -> mean.
+AVERAGED_INPUTS = {
+    "BSDF_PRINCIPLED": ("Roughness", "Metallic"),
+    "BSDF_GLOSSY": ("Roughness",),
+    "BSDF_ANISOTROPIC": ("Roughness",),
+    "BSDF_GLASS": ("Roughness",),
+}
+_averaged: dict = {}
+
+
+@contextmanager
+def averaged_inputs(means: dict):
+    """Within the block, socket_value gives these means for their node-driven inputs."""
+    _averaged.update(means)
+    try:
+        yield
+    finally:
+        _averaged.clear()
+
+
 def socket_value(node, name, default=0.0):
     sock = node.inputs.get(name)
     return float(sock.default_value) if sock is not None else default
+
+
+def _scalar(material, node, name, default=0.0):
+    """A roughness or metallic input: its mean where nodes drive it (averaged_inputs), else its value."""
+    mean = _averaged.get((material.name, node.name, name))
+    return mean if mean is not None else socket_value(node, name, default)
 
 
 def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
@@ -78,9 +107,13 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     if node is None or depth > 16:
         return SurfaceMaterial()
     colour, glow = TEXTURED_INPUTS.get(node.type, ((), ()))
+    averaged = [name for name in AVERAGED_INPUTS.get(node.type, ()) if (material.name, node.name, name) in _averaged]
     linked = [s.name for s in node.inputs if s.is_linked and s.type != "SHADER"
-              and s.name not in {"Normal", "Tangent", "Alpha", *colour, *glow}]
+              and s.name not in {"Normal", "Tangent", "Alpha", *colour, *glow, *averaged}]
     _warn_ignored_inputs(node, material, warnings)
+    for name in averaged:
+        warnings.append(f"material '{material.name}': {node.name}'s {name} is driven by nodes and solved as its mean "
+                        f"{_averaged[(material.name, node.name, name)]:.3f} over the surfaces using the material")
     if linked:
         warnings.append(f"material '{material.name}': {node.name} inputs {', '.join(linked)} are driven by nodes; "
                         "their own values are used instead")
@@ -102,14 +135,14 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         stretch = 1 / (1 + a) if a < 0 else 1 - a
         rotation = socket_value(node, "Rotation") if a else 0.0
         _warn_tangent(node, material, warnings, a)
-        return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=socket_value(node, "Roughness", 0.5),
+        return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=_scalar(material, node, "Roughness", 0.5),
                                stretch=stretch, rotation=2 * math.pi * rotation)
     if kind == "BSDF_GLASS":
-        return SurfaceMaterial(transmission=1.0, roughness=socket_value(node, "Roughness", 0.0),
+        return SurfaceMaterial(transmission=1.0, roughness=_scalar(material, node, "Roughness", 0.0),
                                ior=socket_value(node, "IOR", 1.5))
     if kind == "BSDF_PRINCIPLED":
         base = socket_color(node, "Base Color")
-        metallic = socket_value(node, "Metallic")
+        metallic = _scalar(material, node, "Metallic")
         # Metals do not transmit: Blender's metallic part covers the transmission.
         transmission = socket_value(node, "Transmission Weight", socket_value(node, "Transmission")) * (1 - metallic)
         specular_level = socket_value(node, "Specular IOR Level", 0.5)
@@ -134,7 +167,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         rotation = socket_value(node, "Anisotropic Rotation") if a else 0.0
         _warn_tangent(node, material, warnings, a)
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
-                               roughness=socket_value(node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
+                               roughness=_scalar(material, node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
                                rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
                                **textured)
     if kind == "ADD_SHADER":

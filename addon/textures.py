@@ -18,7 +18,8 @@ import bpy
 import numpy as np
 
 from .errors import ExportError
-from .materials import active_output, describe_material, linked_node, socket_value, solver_material, user_slots
+from .materials import (AVERAGED_INPUTS, active_output, describe_material, linked_node, socket_value, solver_material,
+                        user_slots)
 
 BAKE_UV = "BSGI Texture Bake"
 BAKE_SAMPLES = 4  # jittered per texel: about the texel's mean colour (cost: 1.5 us per texel and sample here)
@@ -63,7 +64,7 @@ def apply_textures(depsgraph, scene, objects, warnings) -> dict:
 
 
 def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -> int:
-    with _temporary_copy(depsgraph, obj, materials) as (copy, mesh):
+    with _temporary_copy(depsgraph, obj) as (copy, mesh):
         if exported.kind == "chart":
             side = 4 * texels
             uvs = exported.solve_uvs
@@ -71,7 +72,7 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
                 raise ExportError(f"object '{exported.name}': its chart's UVs do not match its evaluated mesh")
             layout = _ChartLayout(side, uvs)
         else:
-            layout = _TileLayout(mesh, exported, texels)
+            layout = _TileLayout(mesh, [kind for kind, _, _ in exported.patches], texels)
         if any(m.albedo_textured for m in materials):
             colour = _bake(copy, mesh, layout, "DIFFUSE")
             _set_textures(scene, mesh, exported, layout, colour, materials, albedo=True, warnings=warnings)
@@ -87,12 +88,12 @@ class _TileLayout:
     the tile is the surface's texel over [i/t, (i+1)/t] x [j/t, (j+1)/t]; a triangle's corners
     at (0, 0), (1, 0), (1, 1) of the tile, where the collapsed square (u, v) lies at (u, u v)."""
 
-    def __init__(self, mesh, exported, t):
+    def __init__(self, mesh, kinds, t):
         self.t = t
         self.grid = max(1, math.ceil(math.sqrt(len(mesh.polygons))))
         self.width = self.height = self.grid * (t + PAD) + PAD
         uvs = np.zeros((len(mesh.loops), 2), np.float32)
-        for poly, (kind, _, _) in zip(mesh.polygons, exported.patches):
+        for poly, kind in zip(mesh.polygons, kinds):
             if kind == "ngon":
                 continue
             ox, oy = self.origin(poly.index)
@@ -162,7 +163,7 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warn
 
 
 @contextmanager
-def _temporary_copy(depsgraph, obj, materials):
+def _temporary_copy(depsgraph, obj):
     """A temporary object with the evaluated mesh of obj (faces in the order the export solved
     them, the user's UV maps and attributes) and copies of its slot materials, at obj's matrix;
     removed afterwards with everything it used."""
@@ -279,3 +280,73 @@ def colour_source(material):
         transmission = socket_value(node, "Transmission Weight") * (1 - metallic)
         weight = 1 - metallic - transmission
     return node, colour, weight, tuple(solved.specular)
+
+
+MEAN_TEXELS = 8  # per face side, for the mean of a node-driven roughness or metallic
+
+
+def socket_means(depsgraph) -> dict:
+    """(material name, node name, input name) -> the mean of each node-driven roughness or metallic input
+    (materials.AVERAGED_INPUTS) over the mesh faces using its material, area-weighted, as
+    Blender evaluates it: the input's own nodes baked as emission on a temporary copy of each
+    mesh. The solve's BSDF has one roughness and metallic per material."""
+    users: dict = {}  # material -> [(object, slot)]
+    for obj in depsgraph.scene.objects:
+        if obj.type == "MESH" and obj.visible_get():
+            for slot, material in enumerate(user_slots(obj)):
+                if _averaged_sockets(material):
+                    users.setdefault(material, []).append((obj, slot))
+    means = {}
+    for material, where in users.items():
+        for node, name in _averaged_sockets(material):
+            total = area = 0.0
+            for obj, slot in where:
+                t, a = _socket_integral(depsgraph, obj, slot, node, name)
+                total, area = total + t, area + a
+            if area > 0:
+                means[(material.name, node.name, name)] = total / area
+    if users:
+        depsgraph.update()  # the temporary copies are gone: the depsgraph the export iterates must know
+    return means
+
+
+def _averaged_sockets(material) -> list:
+    if material is None or material.node_tree is None:
+        return []
+    return [(node, name) for node in material.node_tree.nodes for name in AVERAGED_INPUTS.get(node.type, ())
+            if node.inputs.get(name) is not None and node.inputs[name].is_linked]
+
+
+def _socket_integral(depsgraph, obj, slot, node, name):
+    """(integral, area) over obj's faces of the slot of the input's value, from an emission bake
+    of the nodes driving it on per-face tiles."""
+    with _temporary_copy(depsgraph, obj) as (copy, mesh):
+        slots = np.zeros(len(mesh.polygons), np.int32)
+        mesh.polygons.foreach_get("material_index", slots)
+        mine = np.flatnonzero(np.minimum(slots, len(mesh.materials) - 1) == slot)
+        if not len(mine):
+            return 0.0, 0.0
+        tree = mesh.materials[slot].node_tree
+        source = tree.nodes[node.name].inputs[name].links[0].from_socket
+        emission = tree.nodes.new("ShaderNodeEmission")
+        tree.links.new(source, emission.inputs["Color"])
+        output = active_output(tree, "OUTPUT_MATERIAL")
+        tree.links.new(emission.outputs[0], output.inputs["Surface"])
+        kinds = [{3: "triangle", 4: "quad"}.get(p.loop_total, "ngon") for p in mesh.polygons]
+        layout = _TileLayout(mesh, kinds, MEAN_TEXELS)
+        pixels = _bake(copy, mesh, layout, "EMIT")
+        c = (np.arange(MEAN_TEXELS) + 0.5) / MEAN_TEXELS
+        u = np.meshgrid(c, c)[0][..., None]
+        scale = abs(np.linalg.det(np.array(copy.matrix_world)[:3, :3])) ** (2 / 3)
+        total = area = 0.0
+        for index in mine:
+            kind = kinds[index]
+            if kind == "ngon":
+                continue
+            values = layout.texture(pixels, index, kind)[..., :1]
+            # The collapsed square of a triangle: area element proportional to u.
+            weights = np.ones_like(values) if kind == "quad" else u
+            a = mesh.polygons[index].area * scale
+            total += a * float((values * weights).sum() / weights.sum())
+            area += a
+        return total, area

@@ -332,3 +332,30 @@ def test_triangle_and_chart_textures_follow_their_parameters(context):
     got = albedo.reshape(-1, 3)
     print(f"chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
     np.testing.assert_allclose(got[away], want[away], atol=0.02)
+
+
+def test_node_driven_roughness_is_its_mean_named_in_a_warning(context):
+    # A metal whose Roughness is a checker of 0.3 and 0.7 (Blender's evaluation: mean 0.5 over
+    # the floor's 4 x 4 squares) is solved as GGX with alpha = 0.5^2.
+    m = scenes.metal_material("Worn metal", 0.9)
+    tree = m.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    node = checker(tree)
+    node.inputs["Color1"].default_value = (0.3, 0.3, 0.3, 1)
+    node.inputs["Color2"].default_value = (0.7, 0.7, 0.7, 1)
+    tree.links.new(node.outputs["Fac"], bsdf.inputs["Roughness"])  # Fac: 1 on Color1's squares
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
+    scenes.add_area_light()
+    from bsgi_addon import materials, textures
+
+    with materials.averaged_inputs(textures.socket_means(context.evaluated_depsgraph_get())):
+        warnings = []
+        solved = materials.solver_material(m, materials.describe_material(m, warnings), warnings)
+    # Fac is 0 or 1: its mean over the floor is a half.
+    print(f"\nchecker-driven roughness solved as alpha {solved.alpha:.4f}")
+    assert solved.kind == "ggx"
+    assert solved.alpha == pytest.approx(0.5 ** 2, abs=0.01)
+    assert any("Worn metal" in w and "Roughness is driven by nodes and solved as its mean 0.50" in w for w in warnings)
+    export = export_scene(context.evaluated_depsgraph_get())
+    assert any("Roughness is driven by nodes and solved as its mean" in w for w in export.warnings), export.warnings
+    assert not any("driven by nodes; their own values" in w for w in export.warnings)
