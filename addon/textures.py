@@ -276,9 +276,12 @@ def colour_source(material):
         return None
     weight = 1.0
     if node.type == "BSDF_PRINCIPLED":
-        metallic = socket_value(node, "Metallic")
-        transmission = socket_value(node, "Transmission Weight") * (1 - metallic)
-        weight = 1 - metallic - transmission
+        # Cycles' diffuse colour under the dielectric specular layer is the base colour times
+        # 1 - f0 at normal incidence (measured: 0.960 for f0 0.04, 0.925 for 0.08); metals and
+        # transmission mix in otherwise, and show the baked texture instead.
+        if any(node.inputs[name].is_linked or socket_value(node, name) > 0 for name in ("Metallic", "Transmission Weight")):
+            return None
+        weight = 1 - max(solved.specular)
     return node, colour, weight, tuple(solved.specular)
 
 

@@ -359,3 +359,28 @@ def test_node_driven_roughness_is_its_mean_named_in_a_warning(context):
     export = export_scene(context.evaluated_depsgraph_get())
     assert any("Roughness is driven by nodes and solved as its mean" in w for w in export.warnings), export.warnings
     assert not any("driven by nodes; their own values" in w for w in export.warnings)
+
+
+def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
+    # Principled with its default specular layer (f0 0.04): Cycles' diffuse colour is the base
+    # colour times 1 - f0, the solve adds f0 (the highlight's energy) to it, and the bake's
+    # copy of the colour nodes shows colour x weight + specular: the same albedo.
+    m = principled("Checker", checker)
+    bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
+    scenes.add_area_light()
+    from bsgi_addon import textures
+
+    _, weight, specular = textures.colour_source(m)[1:]
+    export = export_scene(context.evaluated_depsgraph_get())
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    albedo = solution.surfaces[0].albedo
+    c = (np.arange(albedo.shape[0]) + 0.5) / albedo.shape[0]
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    albedo = albedo.reshape(-1, 3)
+    colour, away = checker_colour(np.column_stack([u, v]))
+    shown = colour * weight + np.asarray(specular)
+    err = np.abs(albedo[away] / shown[away] - 1).max()
+    print(f"\nf0 {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + f0, max relative difference {err:.4f}")
+    assert err <= 0.005
