@@ -384,3 +384,25 @@ def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
     err = np.abs(albedo[away] / shown[away] - 1).max()
     print(f"\nf0 {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + f0, max relative difference {err:.4f}")
     assert err <= 0.005
+
+
+def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path):
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 8
+    pipeline.solve_and_bake(context)
+    from bsgi_addon import bake, solution_file
+
+    solved = bake.stored_faces(floor)[0][1][0]
+    uv = np.random.default_rng(4).uniform(0, 1, (20, 2))
+    up = np.tile([0.0, 0.0, 1.0], (20, 1))
+    bake.rebake(floor)
+    np.testing.assert_array_equal(bake.stored_faces(floor)[0][1][0].evaluate(uv, up), solved.evaluate(uv, up))
+    path = tmp_path / "textured.npz"
+    solution_file.export_solution(context.scene, path)
+    for obj in (floor, wall):
+        bake.clear_bake(obj)
+    solution_file.import_solution(context.scene, path)
+    loaded = bake.stored_faces(floor)[0][1][0]
+    np.testing.assert_allclose(loaded.evaluate(uv, up), solved.evaluate(uv, up), rtol=1e-6)
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
