@@ -244,7 +244,7 @@ def _mesh_layout(obj, faces):
 
 def nurbs_image_size(radiance) -> tuple:
     """(width, height) of a NURBS surface's image: two texels per coefficient in u and v, at least 16."""
-    return tuple(max(16, 2 * axis.num_coeffs) for axis in _upper(radiance).axes[:2])
+    return tuple(max(16, 2 * axis.num_coeffs, _texture_side(radiance)) for axis in _upper(radiance).axes[:2])
 
 
 def _nurbs_layout(obj, spline, radiance):
@@ -349,10 +349,13 @@ def _detail_slots(obj, faces):
     """({slot: colour source}, slot per face) for the slots of a mesh whose material's colour
     nodes the bake can show (textures.colour_source) and whose faces all carry an albedo
     texture; ({}, []) otherwise."""
-    if obj.type != "MESH" or not faces:
+    if not faces or obj.type not in {"MESH", "SURFACE"} or (obj.type == "SURFACE" and len(faces) != 1):
         return {}, []
     slots = user_slots(obj)
-    indices = [p.material_index for p in obj.data.polygons][:1 if faces[0][0] == "chart" else None]
+    if obj.type == "SURFACE":  # one spline, shown through its mesh's UVMap like the user's nodes
+        indices = [user_spline_material_index(obj, list(obj.data.splines).index(geometry.baked_splines(obj)[0]))]
+    else:
+        indices = [p.material_index for p in obj.data.polygons][:1 if faces[0][0] == "chart" else None]
     face_slots = [min(i, len(slots) - 1) for i in indices]
     if len(face_slots) != len(faces):
         return {}, []
@@ -389,7 +392,8 @@ def _bake_nurbs(obj, faces) -> list:
     if len(faces) != 1:
         return _bake_nurbs_splines(obj, faces)
     spline = geometry.baked_splines(obj)[0]
-    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _nurbs_layout(obj, spline, faces[0][1][0]), faces)
+    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _nurbs_layout(obj, spline, faces[0][1][0]), faces,
+                                      _detail_slots(obj, faces))
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
     return warnings

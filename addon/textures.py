@@ -22,6 +22,7 @@ from .materials import (AVERAGED_INPUTS, active_output, describe_material, linke
                         user_slots)
 
 BAKE_UV = "BSGI Texture Bake"
+NURBS_UV = "UVMap"  # Blender's UV map of a NURBS surface's mesh: the normalized (u, v)
 BAKE_SAMPLES = 4  # jittered per texel: about the texel's mean colour (cost: 1.5 us per texel and sample here)
 PAD = 2  # texels between tiles, filled by the bake's margin
 DEFAULT_TEXELS = 32
@@ -55,9 +56,10 @@ def apply_textures(depsgraph, scene, objects, warnings) -> dict:
         materials = [solver_material(m, describe_material(m, []), []) for m in user_slots(obj)]
         if not any(m.albedo_textured or m.emission_textured for m in materials):
             continue
-        if exported.kind == "nurbs":
+        if exported.kind == "nurbs" and len(exported.patches) > 1:
             warnings.append(f"object '{exported.name}': its materials' node-driven colour or emission is solved with "
-                            "the sockets' own values (textures are baked on meshes, not yet on NURBS surfaces)")
+                            "the sockets' own values (textures are baked on NURBS objects of one spline; Blender "
+                            "gives every spline the whole UV square)")
             continue
         baked += _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings)
     return {"seconds": time.perf_counter() - start, "texels": baked}
@@ -71,6 +73,11 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
             if uvs is None or len(uvs) != len(mesh.loops):
                 raise ExportError(f"object '{exported.name}': its chart's UVs do not match its evaluated mesh")
             layout = _ChartLayout(side, uvs)
+        elif exported.kind == "nurbs":
+            # The mesh Blender makes of a NURBS surface has UVs = its normalized (u, v) parameters.
+            uvs = np.empty(len(mesh.loops) * 2, np.float32)
+            mesh.uv_layers[NURBS_UV].data.foreach_get("uv", uvs)
+            layout = _ChartLayout(4 * texels, uvs.reshape(-1, 2))
         else:
             layout = _TileLayout(mesh, [kind for kind, _, _ in exported.patches], texels)
         if any(m.albedo_textured for m in materials):
@@ -139,7 +146,7 @@ def _bilinear(image, x, y):
 def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warnings):
     slot_of = np.zeros(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", slot_of)
-    if exported.kind == "chart":
+    if exported.kind in {"chart", "nurbs"}:  # one surface over the image
         surfaces = [(exported.patches[0][1], int(slot_of[0]), pixels)]
     else:
         surfaces = []

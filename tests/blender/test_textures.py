@@ -406,3 +406,27 @@ def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path):
     loaded = bake.stored_faces(floor)[0][1][0]
     np.testing.assert_allclose(loaded.evaluate(uv, up), solved.evaluate(uv, up), rtol=1e-6)
     assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+
+
+def test_nurbs_surface_texture_is_over_its_parameters(context, tmp_path):
+    # A NURBS patch's mesh has UVs = its normalized (u, v): the Checker over them is the texture
+    # over the solver surface's parameters, and the bake shows the Checker node itself.
+    bpy.ops.surface.primitive_nurbs_surface_surface_add(radius=1.0)
+    patch = context.active_object
+    patch.data.materials.append(principled("Checker", checker))
+    scenes.add_area_light(location=(0, 0, 2))
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 8
+    export = export_scene(context.evaluated_depsgraph_get())
+    assert not any("node-driven" in w for w in export.warnings), export.warnings
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    albedo = solution.surfaces[export.objects[0].patches[0][1]].albedo
+    assert albedo.shape == (32, 32, 3)
+    c = (np.arange(32) + 0.5) / 32
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    want, away = checker_colour(np.column_stack([u, v]))
+    got = albedo.reshape(-1, 3)
+    print(f"\nNURBS texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    pipeline.solve_and_bake(context)
+    assert patch.material_slots[0].material.name == f"BSGI {patch.name} slot 0"
