@@ -474,3 +474,25 @@ def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
     assert ratio(reference) > 1.3  # the pattern shows (the screen's mean would give 1)
     assert median <= 0.025
     assert abs(ratio(baked) / ratio(reference) - 1) <= 0.01
+
+
+def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):
+    # A grid under a Subdivision Surface modifier is solved as one chart over its UV map as the
+    # modifier carries it: the Checker over those UVs is the chart's texture.
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=5, y_subdivisions=5, size=2)
+    grid = context.active_object
+    grid.data.materials.append(principled("Checker", checker))
+    grid.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    scenes.add_area_light(location=(0, 0, 2))
+    context.scene.bsgi.texture_texels = 16
+    export = export_scene(context.evaluated_depsgraph_get())
+    chart = export.objects[0]
+    assert chart.kind == "chart"
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    albedo = solution.surfaces[chart.patches[0][1]].albedo
+    c = (np.arange(albedo.shape[0]) + 0.5) / albedo.shape[0]
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    want, away = checker_colour(np.column_stack([u, v]))
+    got = albedo.reshape(-1, 3)
+    print(f"\nsubdivided grid chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
