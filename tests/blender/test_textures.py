@@ -76,9 +76,8 @@ def floor_and_wall(context):
     return floor, wall
 
 
-def surface_texture(export, name):
-    exported = next(o for o in export.objects if o.name == name)
-    return exported
+def exported_object(export, name):
+    return next(o for o in export.objects if o.name == name)
 
 
 def solved_textures(context):
@@ -94,8 +93,8 @@ def test_baked_albedo_is_blenders_evaluation(context):
     job, solution = solved_textures(context)
     export = job.export
     assert not any("driven by nodes" in w for w in export.warnings), export.warnings
-    floor_index = surface_texture(export, "Floor").patches[0][1]
-    wall_index = surface_texture(export, "Wall").patches[0][1]
+    floor_index = exported_object(export, "Floor").patches[0][1]
+    wall_index = exported_object(export, "Wall").patches[0][1]
     albedo = solution.surfaces[floor_index].albedo
     assert albedo.shape == (32, 32, 3)
     # Texels inside a square hold its colour, as Cycles evaluates the Checker node there.
@@ -162,12 +161,12 @@ def test_textured_emission_lights_with_its_pattern(context):
     context.scene.bsgi.preset = "CUSTOM"
     context.scene.bsgi.max_bounces = 0
     job, solution = solved_textures(context)
-    screen = solution.surfaces[surface_texture(job.export, "Screen").patches[0][1]]
+    screen = solution.surfaces[exported_object(job.export, "Screen").patches[0][1]]
     shown = screen.evaluate(np.array([[0.125, 0.125], [0.375, 0.125]]), np.array([[0, 0, 1.0]] * 2))
     np.testing.assert_allclose(sorted(shown[:, 0]), [0, 4], atol=0.05)
     # The floor's centre against the same screen emitting its mean (2) everywhere, by Lambert:
     # E = 2 * (form factor of a 1 x 1 square at height 1 seen from below its centre) * pi.
-    floor = solution.surfaces[surface_texture(job.export, "Floor").patches[0][1]]
+    floor = solution.surfaces[exported_object(job.export, "Floor").patches[0][1]]
     got = floor.evaluate(np.array([[0.5, 0.5]]), np.array([[0, 0, 1.0]]))[0, 0]
     a = 0.5  # half side over height
     form_factor = 4 * (a / math.sqrt(1 + a * a) * math.atan(a / math.sqrt(1 + a * a))) / (2 * math.pi) * 2
@@ -457,7 +456,7 @@ def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
     scene.bsgi.preset = "CUSTOM"
     scene.bsgi.max_bounces = 0
     reference, points = render_floor_from_above(context, tmp_path / "reference.exr", samples=512)
-    pipeline.solve_and_bake(context)
+    report = pipeline.solve_and_bake(context)
     baked, _ = render_floor_from_above(context, tmp_path / "baked.exr", samples=4)
     rel, lit = lit_relative_difference(baked, reference, 0.02)
     median = float(np.median(rel))
@@ -470,7 +469,7 @@ def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
         return lum[near & (y > 0.15) & (y < 0.45)].mean() / lum[near & (y < -0.15) & (y > -0.45)].mean()
     print(f"\nfloor beside a checker screen, baked vs Cycles (direct, 512 spp): median relative difference "
           f"{median:.4f} over {lit.sum()} lit pixels (mean {rel.mean():.4f}); near the screen, white side over "
-          f"black side: Cycles {ratio(reference):.3f}, bake {ratio(baked):.3f}")
+          f"black side: Cycles {ratio(reference):.3f}, bake {ratio(baked):.3f}; solve {report['solve_seconds']:.2f} s")
     assert ratio(reference) > 1.3  # the pattern shows (the screen's mean would give 1)
     assert median <= 0.025
     assert abs(ratio(baked) / ratio(reference) - 1) <= 0.01
