@@ -94,7 +94,7 @@ def test_emission_texture_is_what_the_surface_shows():
     np.testing.assert_allclose(screen.evaluate(uv, up(3)), [[1, 0, 0], [0, 0, 4], [0.5, 0, 2]], atol=1e-12)
 
 
-def bounce_onto_wall(floor_albedo, texture=None):
+def bounce_onto_wall(floor_albedo, texture=None, form_factors=False):
     """A wall facing a floor lit from above; the wall's radiance at a grid of points."""
     wall = np.array([[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]], float)  # at y = 1, u along x, normal -y
     lamp = np.array([[0.3, 0.2, 0.9], [0.3, 0.6, 0.9], [0.7, 0.6, 0.9], [0.7, 0.2, 0.9]], float)
@@ -104,7 +104,9 @@ def bounce_onto_wall(floor_albedo, texture=None):
     scene.add_bilinear_patch("lamp", lamp, albedo=[0] * 3, emission=[5.0] * 3, receiver=False, occluder=False)
     if texture is not None:
         scene.set_albedo_texture(0, texture)
-    sol = bsgi.solve(scene, settings(bounces=8, coeffs=12))
+    s = settings(bounces=8, coeffs=12)
+    s.form_factors = form_factors
+    sol = bsgi.solve(scene, s)
     uv = texel_centres(5)
     return sol, sol.surfaces[1].evaluate(uv, up(len(uv)))
 
@@ -192,3 +194,12 @@ def test_textured_solution_round_trips(tmp_path):
     uv = np.random.default_rng(2).uniform(0, 1, (30, 2))
     np.testing.assert_array_equal(stored.evaluate(uv, up(30)), floor.evaluate(uv, up(30)))
     np.testing.assert_array_equal(stored.albedo, floor.albedo)
+
+
+def test_form_factors_give_way_to_textures():
+    # Rows of scalar weights cannot colour the light by a texel: with textures the bounces gather.
+    image = checker(8)
+    plain, wall = bounce_onto_wall([0.5] * 3, image)
+    rows, wall_rows = bounce_onto_wall([0.5] * 3, image, form_factors=True)
+    assert rows.stats["transport_terms"] == 0
+    np.testing.assert_array_equal(wall_rows, wall)
