@@ -17,13 +17,18 @@ import numpy as np
 
 import bsgi
 
-from . import charts, geometry, view_radiance
+from . import charts, geometry, textures, view_radiance
+from .materials import user_slots
 from .user_materials import PROP_SLOTS, PROP_SPLINE_INDICES, UV_NAME, is_baked, user_spline_material_index
 
 PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
 PROP_SPLINE_MATERIALS = "bsgi_spline_materials"  # SURFACE objects of several splines: a material per spline
 PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and solution export
+# Slots of textured diffuse materials: a baked material of their own that shows the user's colour
+# nodes times the irradiance spline, per slot ("" for the object's baked material).
+PROP_SLOT_MATERIALS = "bsgi_slot_materials"
+PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay when it is cleared)
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
 # Largest radiance atlas per object, in texels (256 MiB of float RGBA): past it the angular
@@ -32,8 +37,28 @@ MAX_ATLAS_TEXELS = 1 << 24
 
 
 def tile_size(radiance) -> int:
-    """Texels per face side: two per coefficient, so the image resolves the spline's knots."""
-    return max(8, 2 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]))
+    """Texels per face side: two per coefficient, so the image resolves the spline's knots, and
+    at least the resolution of the face's textures."""
+    return max(8, 2 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]), _texture_side(radiance))
+
+
+def _texture_side(radiance) -> int:
+    """The larger side of a textured surface's albedo or emission texture (0 without)."""
+    images = [getattr(radiance, t, None) for t in ("albedo", "emission")]
+    return max((max(i.shape[:2]) for i in images if i is not None), default=0)
+
+
+def texture_at(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """A surface texture (h, w, 3) at (u, v) rows, as the core's Texture::at: bilinear between
+    texel centres (i + 0.5) / w, clamped at the edges."""
+    h, w = image.shape[:2]
+    x = np.clip(np.clip(uv[:, 0], 0, 1) * w - 0.5, 0, w - 1)
+    y = np.clip(np.clip(uv[:, 1], 0, 1) * h - 0.5, 0, h - 1)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    a, b = (x - x0)[:, None], (y - y0)[:, None]
+    image = image.astype(np.float64)
+    return (image[y0, x0] * (1 - a) + image[y0, x1] * a) * (1 - b) + (image[y1, x0] * (1 - a) + image[y1, x1] * a) * b
 
 
 def _upper(radiance):
@@ -72,10 +97,12 @@ def _sides(faces) -> int:
     return 2 if any(r is not None and r.lower is not None for _, radiances in faces for r in radiances) else 1
 
 
-def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool) -> np.ndarray:
+def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth: bool = False) -> np.ndarray:
     """(len(disc), len(uv), 3): the radiance leaving the (u, v) rows of uv at each disc point
     (alpha, beta), on the upper or the lower side, as SurfaceRadiance::evaluate gives it along
-    the direction that the map (20)-(22) sends (alpha, beta) to. No lower spline: black."""
+    the direction that the map (20)-(22) sends (alpha, beta) to. No lower spline: black. With
+    smooth, a textured surface's smooth factor (irradiance / pi), which its material multiplies
+    by the user's own colour nodes."""
     out = np.zeros((len(disc), len(uv), 3))
     if radiance is None:
         return out
@@ -83,11 +110,17 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool) -> np.
         if spline is None:
             continue
         if spline.dims == 2:
-            out += spline.evaluate(np.ascontiguousarray(uv, np.float64))[None]
+            factor = spline.evaluate(np.ascontiguousarray(uv, np.float64))
+            # A textured surface's diffuse spline holds irradiance / pi: its albedo texture is the detail.
+            albedo = None if lower or smooth else getattr(radiance, "albedo", None)
+            out += (factor if albedo is None else factor * texture_at(albedo, uv))[None]
             continue
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
         out += spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+    emission = None if lower else getattr(radiance, "emission", None)
+    if emission is not None:
+        out += texture_at(emission, uv)[None]
     return out
 
 
@@ -211,7 +244,7 @@ def _mesh_layout(obj, faces):
 
 def nurbs_image_size(radiance) -> tuple:
     """(width, height) of a NURBS surface's image: two texels per coefficient in u and v, at least 16."""
-    return tuple(max(16, 2 * axis.num_coeffs) for axis in _upper(radiance).axes[:2])
+    return tuple(max(16, 2 * axis.num_coeffs, _texture_side(radiance)) for axis in _upper(radiance).axes[:2])
 
 
 def _nurbs_layout(obj, spline, radiance):
@@ -227,7 +260,7 @@ def _nurbs_layout(obj, spline, radiance):
 def chart_image_size(radiance) -> int:
     """Side of a chart's image: four texels per coefficient (a chart's islands are smaller than
     the UV square they share), at least 64."""
-    return max(64, 4 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]))
+    return max(64, 4 * max(axis.num_coeffs for axis in _upper(radiance).axes[:2]), _texture_side(radiance))
 
 
 def _chart_layout(obj, radiance):
@@ -254,7 +287,7 @@ def frame_pixels(layout: Layout):
     return tangent, normal
 
 
-def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int) -> np.ndarray:
+def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int, smooth=frozenset()) -> np.ndarray:
     """(sides * A * height, A * width, 4): the spatial atlas once per angular sample, tile (i, j)
     at the disc point (alpha_i, beta_j) = -R + 2R (i, j) / (A - 1) (the centre for A = 1); the
     lower hemisphere's tiles in the rows above the upper ones'. Samples outside the disc hold
@@ -269,15 +302,18 @@ def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int)
         mask = layout.face == index
         uv = layout.uv[mask]
         for side in range(sides):
-            values[side][:, mask] = np.mean([_radiance_at(r, uv, disc, side == 1) for r in radiances], axis=0)
+            values[side][:, mask] = np.mean([_radiance_at(r, uv, disc, side == 1, index in smooth) for r in radiances],
+                                            axis=0)
     values = values.reshape(sides, samples, samples, h, w, 3).transpose(0, 1, 3, 2, 4, 5)
     pixels = np.ones((sides * samples * h, samples * w, 4), np.float32)
     pixels[..., :3] = values.reshape(sides * samples * h, samples * w, 3)
     return pixels
 
 
-def _bake_layout(obj, name: str, layout: Layout, faces):
-    """The images and the material of one spatial layout: (material, warnings)."""
+def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
+    """The images and the material of one spatial layout: (material, warnings). detail:
+    {slot: colour source}, and per face its slot (see _detail_slots), for textured slots that
+    get a material of their own."""
     warnings = []
     samples, sides = angular_samples(faces), _sides(faces)
     h, w = layout.shape
@@ -289,12 +325,48 @@ def _bake_layout(obj, name: str, layout: Layout, faces):
         samples = fitting
     radius = _disc_radius(obj, faces)
     tangent, normal = frame_pixels(layout)
-    atlas = atlas_pixels(layout, faces, samples, radius, sides)
-    material = view_radiance.material(
-        name, layout.uv_map, _radiance_image(name, atlas), _radiance_image(f"{name} tangent", tangent),
-        _radiance_image(f"{name} normal", normal), spatial_size=(w, h), disc_radius=radius,
-        angular_samples=samples, sides=sides)
+    sources, face_slots = detail or ({}, [])
+    smooth = {i for i, slot in enumerate(face_slots) if slot in sources}
+    atlas = atlas_pixels(layout, faces, samples, radius, sides, smooth)
+    images = (_radiance_image(name, atlas), _radiance_image(f"{name} tangent", tangent),
+              _radiance_image(f"{name} normal", normal))
+
+    def made(material_name, with_detail=None):
+        return view_radiance.material(material_name, layout.uv_map, *images, spatial_size=(w, h), disc_radius=radius,
+                                      angular_samples=samples, sides=sides, detail=with_detail)
+
+    material = made(name)
+    slots = user_slots(obj)
+    if sources:
+        material[PROP_SLOT_MATERIALS] = [made(f"{name} slot {k}", (slots[k], sources[k])).name if k in sources else ""
+                                         for k in range(len(slots))]
+    elif PROP_SLOT_MATERIALS in material:
+        del material[PROP_SLOT_MATERIALS]
     return material, warnings
+
+
+def _detail_slots(obj, faces):
+    """({slot: colour source}, slot per face) for the slots of a mesh whose material's colour
+    nodes the bake can show (textures.colour_source) and whose faces all carry an albedo
+    texture; ({}, []) otherwise."""
+    if not faces or obj.type not in {"MESH", "SURFACE"} or (obj.type == "SURFACE" and len(faces) != 1):
+        return {}, []
+    slots = user_slots(obj)
+    if obj.type == "SURFACE":  # one spline, shown through its mesh's UVMap like the user's nodes
+        indices = [user_spline_material_index(obj, list(obj.data.splines).index(geometry.baked_splines(obj)[0]))]
+    else:
+        indices = [p.material_index for p in obj.data.polygons][:1 if faces[0][0] == "chart" else None]
+    face_slots = [min(i, len(slots) - 1) for i in indices]
+    if len(face_slots) != len(faces):
+        return {}, []
+    sources = {}
+    for k, material in enumerate(slots):
+        source = textures.colour_source(material)
+        mine = [radiances for (_, radiances), slot in zip(faces, face_slots) if slot == k]
+        if source is not None and mine and all(r is not None and r.albedo is not None and r.emission is None
+                                               for radiances in mine for r in radiances):
+            sources[k] = source
+    return sources, face_slots
 
 
 def bake_object(obj, faces, chart_uvs=None) -> list:
@@ -307,7 +379,8 @@ def bake_object(obj, faces, chart_uvs=None) -> list:
         return _bake_nurbs(obj, faces)
     if faces and faces[0][0] == "chart":
         return _bake_chart(obj, faces, chart_uvs)
-    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _mesh_layout(obj, faces), faces)
+    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _mesh_layout(obj, faces), faces,
+                                      _detail_slots(obj, faces))
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
     return warnings
@@ -319,7 +392,8 @@ def _bake_nurbs(obj, faces) -> list:
     if len(faces) != 1:
         return _bake_nurbs_splines(obj, faces)
     spline = geometry.baked_splines(obj)[0]
-    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _nurbs_layout(obj, spline, faces[0][1][0]), faces)
+    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _nurbs_layout(obj, spline, faces[0][1][0]), faces,
+                                      _detail_slots(obj, faces))
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
     return warnings
@@ -344,7 +418,8 @@ def _bake_chart(obj, faces, chart_uvs) -> list:
             raise ValueError(f"object '{obj.name}': its chart's UV map '{UV_NAME}' is gone and none of its own UV "
                              "maps is a chart; solve again")
         return _bake_chart(obj, faces, uvs)
-    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _chart_layout(obj, faces[0][1][0]), faces)
+    material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _chart_layout(obj, faces[0][1][0]), faces,
+                                      _detail_slots(obj, faces))
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
     return warnings
@@ -411,6 +486,11 @@ def _store_splines(obj, faces) -> None:
                         arrays = bsgi.spline_to_arrays(spline)
                         arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
                         entry[side] = arrays
+                for texture in ("albedo", "emission"):
+                    image = getattr(r, texture)
+                    if image is not None:  # float32 texels, flat, with their shape
+                        entry[texture] = {"texels": image.astype(np.float64).ravel(),
+                                          "shape": np.array(image.shape, np.int32)}
             group[f"{i}.{k}"] = entry
     obj[PROP_RADIANCE] = group
 
@@ -439,8 +519,12 @@ def _stored_radiance(entry):
         return bsgi.SurfaceRadiance(kind, upper.axes[2].knots[-1] if upper.dims == 4 else 1.0, upper)
     if entry["kind"] == "emitter":
         return None
+    textures = {t: np.frombuffer(memoryview(entry[t]["texels"]), np.float64).reshape(
+                    tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
+                for t in ("albedo", "emission") if t in entry}
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
-                                *(_spline(entry[side]) if side in entry else None for side in ("upper", "lower", "diffuse")))
+                                *(_spline(entry[side]) if side in entry else None for side in ("upper", "lower", "diffuse")),
+                                **textures)
 
 
 def _spline(stored):
@@ -479,6 +563,7 @@ def _radiance_image(name: str, pixels: np.ndarray):
     image.colorspace_settings.name = "Non-Color"
     image.pixels.foreach_set(pixels.ravel())
     image.pack()
+    image[PROP_BAKED_IMAGE] = True
     return image
 
 
@@ -496,6 +581,11 @@ def _link_baked_material(obj, material) -> None:
             slot.link = link
         obj[PROP_SLOTS] = saved
     obj[PROP_MATERIAL] = material.name
+    slot_materials = list(material.get(PROP_SLOT_MATERIALS, []))
+    if slot_materials:
+        obj[PROP_SLOT_MATERIALS] = slot_materials
+    elif PROP_SLOT_MATERIALS in obj:
+        del obj[PROP_SLOT_MATERIALS]
     show_baked(obj, True)
 
 
@@ -513,6 +603,10 @@ def show_baked(obj, baked: bool) -> None:
         slot.material = material if baked else bpy.data.materials.get(object_material)
         if not baked:
             slot.link = link
+    if baked:
+        for slot, name in zip(obj.material_slots, obj.get(PROP_SLOT_MATERIALS, [])):
+            if name:
+                slot.material = bpy.data.materials.get(name)
     _show_spline_materials(obj, baked)
 
 
@@ -525,8 +619,8 @@ def clear_bake(obj) -> None:
         for _ in range(int(obj[PROP_ADDED_SLOT])):
             obj.data.materials.pop()
         del obj[PROP_ADDED_SLOT]
-    names = [obj[PROP_MATERIAL], *obj.get(PROP_SPLINE_MATERIALS, [])]
-    for prop in (PROP_SLOTS, PROP_MATERIAL, PROP_SPLINE_MATERIALS, PROP_SPLINE_INDICES):
+    names = [obj[PROP_MATERIAL], *obj.get(PROP_SPLINE_MATERIALS, []), *filter(None, obj.get(PROP_SLOT_MATERIALS, []))]
+    for prop in (PROP_SLOTS, PROP_MATERIAL, PROP_SPLINE_MATERIALS, PROP_SPLINE_INDICES, PROP_SLOT_MATERIALS):
         if prop in obj:
             del obj[prop]
     if PROP_RADIANCE in obj:
@@ -534,10 +628,13 @@ def clear_bake(obj) -> None:
     uv = obj.data.uv_layers.get(UV_NAME) if obj.type == "MESH" else None
     if uv is not None:
         obj.data.uv_layers.remove(uv)
+    images = set()
     for name in dict.fromkeys(names):
         material = bpy.data.materials.get(name)
         if material is not None:
-            images = {n.image.name for n in material.node_tree.nodes if n.type == "TEX_IMAGE" and n.image}
+            images |= {n.image.name for n in material.node_tree.nodes if n.type == "TEX_IMAGE" and n.image}
             bpy.data.materials.remove(material)
-            for image in images:
-                bpy.data.images.remove(bpy.data.images[image])
+    for name in images:  # the bake's own (a textured slot's material also shows the user's images)
+        image = bpy.data.images.get(name)
+        if image is not None and (image.get(PROP_BAKED_IMAGE) or name.startswith("BSGI ")):
+            bpy.data.images.remove(image)

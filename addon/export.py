@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import bsgi
 
-from . import geometry, lights
-from .materials import user_slots
+from . import geometry, lights, textures
+from .materials import averaged_inputs, user_slots
 
 
 @dataclass
@@ -36,6 +36,7 @@ class Export:
     objects: list  # of ExportedObject, the bake targets
     warnings: list
     users: dict = field(default_factory=dict)  # material name -> the objects it is on
+    textures: dict = field(default_factory=dict)  # the texture bake's {"seconds", "texels"}
 
     def approximations(self) -> list:
         """The warnings so far as Approximations, one per material, light, object or world."""
@@ -65,6 +66,12 @@ def export_scene(depsgraph) -> Export:
     """Every visible geometry object's faces as patches (a NURBS surface object's splines as exact
     surfaces), every area and point light as an emitter, suns as distant lights, a one-colour world
     as world light."""
+    # Node-driven roughness and metallic, one mean per material, as Blender evaluates them.
+    with averaged_inputs(textures.socket_means(depsgraph)):
+        return _export_scene(depsgraph)
+
+
+def _export_scene(depsgraph) -> Export:
     scene = bsgi.Scene()
     objects, warnings = [], []
     instances: dict = {}  # (object, instancer) -> count, for one warning per pair
@@ -91,6 +98,9 @@ def export_scene(depsgraph) -> Export:
                 users.setdefault(material.name, set()).add(obj.original.name)
         if inst.is_instance:
             instances[key] = instances.get(key, 0) + 1
+            if textures.has_textures(obj):
+                warnings.append(f"object '{obj.name}': its instances' node-driven colour and emission use the "
+                                "sockets' own values (textures are baked on real objects; make the instances real)")
         else:
             if obj.type in geometry.EVALUATED_ONLY:
                 exported.not_baked = (f"{geometry.EVALUATED_ONLY[obj.type]} objects are meshes only as Blender evaluates "
@@ -103,6 +113,9 @@ def export_scene(depsgraph) -> Export:
         if exported.not_baked:
             warnings.append(f"object '{exported.name}': solved (it casts shadows and reflects light) but not baked: "
                             f"{exported.not_baked}")
+    # Node-driven colour and emission, as Blender evaluates them (instances share their mesh and
+    # keep the sockets' own values).
+    textured = textures.apply_textures(depsgraph, scene, objects, warnings)
     objects = [exported for exported in objects if not exported.not_baked]
     for (name, parent), count in instances.items():
         warnings.append(f"object '{name}': {count} instance{'s' if count > 1 else ''} from '{parent}' "
@@ -110,4 +123,4 @@ def export_scene(depsgraph) -> Export:
                         "baked: instances share one mesh, which cannot show each instance's own light; make them "
                         "real (Object > Apply > Make Instances Real) to bake them")
     lights.world_light(depsgraph.scene, scene, warnings)
-    return Export(scene, objects, list(dict.fromkeys(warnings)), users)
+    return Export(scene, objects, list(dict.fromkeys(warnings)), users, textured)

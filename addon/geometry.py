@@ -34,6 +34,7 @@ class ExportedObject:
     patches: list = field(default_factory=list)
     kind: str = "mesh"  # "mesh" | "nurbs" | "chart" (one MeshChart: patches = [("chart", index, 1)])
     chart_uvs: object = None  # a chart's UV coordinates per loop of the user's mesh, (loops, 2), for the bake
+    solve_uvs: object = None  # a chart's (u, v) per loop of the evaluated mesh it was solved on, (loops, 2)
     # Why the object is solved (it casts shadows and reflects light) but cannot be baked, or "".
     not_baked: str = ""
 
@@ -194,6 +195,7 @@ def build_chart(scene, job: _ChartJob, warnings) -> None:
     job.exported.kind = "chart"
     bake_uvs = uvs if job.base is None else job.base_uvs
     job.exported.chart_uvs = None if job.exported.not_baked else bake_uvs.astype(np.float32)
+    job.exported.solve_uvs = uvs.astype(np.float32)
     job.exported.patches = [("chart", first, 1)]
 
 

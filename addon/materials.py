@@ -4,6 +4,7 @@ Also the node-tree helpers the world's export shares. No solve state here."""
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,10 +33,15 @@ class SurfaceMaterial:
     transmission: float = 0.0
     ior: float = 1.5
     emission: tuple = (0.0, 0.0, 0.0)  # radiance
+    # Colour or emission driven by nodes: Blender evaluates them (textures.py bakes them), the
+    # values above are the sockets' own.
+    albedo_textured: bool = False
+    emission_textured: bool = False
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
-                               self.rotation, self.transmission * k, self.ior, _scale(self.emission, k))
+                               self.rotation, self.transmission * k, self.ior, _scale(self.emission, k),
+                               self.albedo_textured, self.emission_textured)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -43,7 +49,8 @@ class SurfaceMaterial:
         dominant = self if glossy else other
         return SurfaceMaterial(_add(self.albedo, other.albedo), _add(self.specular, other.specular), dominant.roughness,
                                dominant.stretch, dominant.rotation, self.transmission + other.transmission, dominant.ior,
-                               _add(self.emission, other.emission))
+                               _add(self.emission, other.emission), self.albedo_textured or other.albedo_textured,
+                               self.emission_textured or other.emission_textured)
 
 
 def _scale(c, k):
@@ -62,26 +69,62 @@ def socket_color(node, name, default=(0.0, 0.0, 0.0)):
     return tuple(value[:3]) if hasattr(value, "__len__") else (float(value),) * 3
 
 
+# Node-driven scalar inputs that the solve takes as one value per material: their mean over the
+# surfaces using the material, as Blender evaluates them (textures.socket_means), for the export
+# under way: (material name, node name, input name) -> mean.
+AVERAGED_INPUTS = {
+    "BSDF_PRINCIPLED": ("Roughness", "Metallic"),
+    "BSDF_GLOSSY": ("Roughness",),
+    "BSDF_ANISOTROPIC": ("Roughness",),
+    "BSDF_GLASS": ("Roughness",),
+}
+_averaged: dict = {}
+
+
+@contextmanager
+def averaged_inputs(means: dict):
+    """Within the block, socket_value gives these means for their node-driven inputs."""
+    _averaged.update(means)
+    try:
+        yield
+    finally:
+        _averaged.clear()
+
+
 def socket_value(node, name, default=0.0):
     sock = node.inputs.get(name)
     return float(sock.default_value) if sock is not None else default
+
+
+def _scalar(material, node, name, default=0.0):
+    """A roughness or metallic input: its mean where nodes drive it (averaged_inputs), else its value."""
+    mean = _averaged.get((material.name, node.name, name))
+    return mean if mean is not None else socket_value(node, name, default)
 
 
 def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     """The material description of a shader node (recursing through Mix and Add shaders)."""
     if node is None or depth > 16:
         return SurfaceMaterial()
-    linked = [s.name for s in node.inputs
-              if s.is_linked and s.type != "SHADER" and s.name not in {"Normal", "Tangent", "Alpha"}]
+    colour, glow = TEXTURED_INPUTS.get(node.type, ((), ()))
+    averaged = [name for name in AVERAGED_INPUTS.get(node.type, ()) if (material.name, node.name, name) in _averaged]
+    linked = [s.name for s in node.inputs if s.is_linked and s.type != "SHADER"
+              and s.name not in {"Normal", "Tangent", "Alpha", *colour, *glow, *averaged}]
     _warn_ignored_inputs(node, material, warnings)
+    for name in averaged:
+        warnings.append(f"material '{material.name}': {node.name}'s {name} is driven by nodes and solved as its mean "
+                        f"{_averaged[(material.name, node.name, name)]:.3f} over the surfaces using the material")
     if linked:
         warnings.append(f"material '{material.name}': {node.name} inputs {', '.join(linked)} are driven by nodes; "
                         "their own values are used instead")
+    textured = {"albedo_textured": any(_is_linked(node, name) for name in colour),
+                "emission_textured": any(_is_linked(node, name) for name in glow)}
     kind = node.type
     if kind == "BSDF_DIFFUSE":
-        return SurfaceMaterial(albedo=socket_color(node, "Color"))
+        return SurfaceMaterial(albedo=socket_color(node, "Color"), **textured)
     if kind == "EMISSION":
-        return SurfaceMaterial(emission=_scale(socket_color(node, "Color"), socket_value(node, "Strength", 1.0)))
+        return SurfaceMaterial(emission=_scale(socket_color(node, "Color"), socket_value(node, "Strength", 1.0)),
+                               **textured)
     if getattr(node, "distribution", "GGX") in {"BECKMANN", "ASHIKHMIN_SHIRLEY"}:
         warnings.append(f"material '{material.name}': {node.name}'s {node.distribution.replace('_', '-').title()} "
                         "microfacet distribution is solved as GGX")
@@ -92,14 +135,14 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         stretch = 1 / (1 + a) if a < 0 else 1 - a
         rotation = socket_value(node, "Rotation") if a else 0.0
         _warn_tangent(node, material, warnings, a)
-        return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=socket_value(node, "Roughness", 0.5),
+        return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=_scalar(material, node, "Roughness", 0.5),
                                stretch=stretch, rotation=2 * math.pi * rotation)
     if kind == "BSDF_GLASS":
-        return SurfaceMaterial(transmission=1.0, roughness=socket_value(node, "Roughness", 0.0),
+        return SurfaceMaterial(transmission=1.0, roughness=_scalar(material, node, "Roughness", 0.0),
                                ior=socket_value(node, "IOR", 1.5))
     if kind == "BSDF_PRINCIPLED":
         base = socket_color(node, "Base Color")
-        metallic = socket_value(node, "Metallic")
+        metallic = _scalar(material, node, "Metallic")
         # Metals do not transmit: Blender's metallic part covers the transmission.
         transmission = socket_value(node, "Transmission Weight", socket_value(node, "Transmission")) * (1 - metallic)
         specular_level = socket_value(node, "Specular IOR Level", 0.5)
@@ -124,8 +167,9 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         rotation = socket_value(node, "Anisotropic Rotation") if a else 0.0
         _warn_tangent(node, material, warnings, a)
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
-                               roughness=socket_value(node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
-                               rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission)
+                               roughness=_scalar(material, node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
+                               rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
+                               **textured)
     if kind == "ADD_SHADER":
         return _shader(linked_node(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(linked_node(node.inputs[1]), material, warnings, depth + 1))
@@ -136,6 +180,21 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     warnings.append(f"material '{material.name}': shader '{node.bl_idname}' is approximated by the material's "
                     "viewport colour")
     return SurfaceMaterial(albedo=tuple(material.diffuse_color[:3]))
+
+
+# Per shader node: the inputs colouring its diffuse reflection and its emission that Blender
+# evaluates for the solve when nodes drive them (a Cycles bake of the diffuse-colour and
+# emission passes, textures.py).
+TEXTURED_INPUTS = {
+    "BSDF_DIFFUSE": (("Color",), ()),
+    "BSDF_PRINCIPLED": (("Base Color",), ("Emission Color", "Emission Strength")),
+    "EMISSION": ((), ("Color", "Strength")),
+}
+
+
+def _is_linked(node, name) -> bool:
+    socket = node.inputs.get(name)
+    return socket is not None and socket.is_linked
 
 
 def _warn_ignored_inputs(node, material, warnings):
@@ -206,6 +265,12 @@ class SolverMaterial:
     f0: tuple = (0.0, 0.0, 0.0)
     eta: float = 1.0
     bsdf: object = None  # bsgi.Bsdf, None for Lambert (the scene then uses albedo)
+    # Node-driven colour of a Lambertian material and node-driven emission: baked by textures.py
+    # into the surfaces' albedo and emission textures. `specular` is the glossy reflectance the
+    # albedo absorbs (the baked diffuse colour plus it is the albedo, as for constants).
+    albedo_textured: bool = False
+    emission_textured: bool = False
+    specular: tuple = (0.0, 0.0, 0.0)
 
 
 def _alpha(name: str, roughness: float, warnings) -> float:
@@ -237,6 +302,19 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     (transmission). The core has one BSDF per surface, so the other parts are approximated and
     named in a warning."""
     name = material.name if material is not None else "(none)"
+    chosen = _solver_material(name, described, warnings)
+    chosen.emission_textured = described.emission_textured
+    if described.albedo_textured:
+        if chosen.kind == "lambert":
+            chosen.albedo_textured = True
+            chosen.specular = described.specular
+        else:
+            warnings.append(f"material '{name}': its colour is driven by nodes on a {chosen.kind.replace('_', ' ')} "
+                            "surface, which is solved with the socket's own value (textures colour diffuse surfaces)")
+    return chosen
+
+
+def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverMaterial:
     diffuse = sum(described.albedo) / 3
     glossy = sum(described.specular) / 3
     transmission = described.transmission

@@ -53,6 +53,11 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="A mesh with at least this many faces (of one material) is solved as one UV chart: one "
         "radiance spline over its UV map (or a generated one; the mesh's own UV maps are not changed) instead of "
         "a spline per face. 0: always per face")
+    texture_texels: IntProperty(
+        name="Texture Texels", default=32, min=4, max=4096,
+        description="Texels per face side (four times as many per UV chart side) at which Blender's evaluation of "
+        "node-driven colours and emission (image and procedural textures, colour ramps, vertex colours) is baked for "
+        "the solve and shown in the bake; cost grows with their square")
     world_map_width: IntProperty(
         name="World Map Width", default=512, min=8, max=8192,
         description="Pixels around the horizon of the image a textured world (HDRI, sky) is rendered into "

@@ -215,16 +215,32 @@ class _MaterialBuilder:
 
 
 def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, disc_radius: float,
-             angular_samples: int, sides: int):
+             angular_samples: int, sides: int, detail=None):
     """The baked emission material of one object: the frame images and the radiance atlas
     looked up through the groups, at the coordinates of the UV map `uv_map` in the spatial
-    atlas of spatial_size = (width, height) texels."""
-    mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
+    atlas of spatial_size = (width, height) texels.
+
+    With detail = (user material, its colour source as textures.colour_source gives it), the
+    atlas holds irradiance / pi (the smooth factor) and the material is a copy of the user's,
+    whose own colour nodes (image textures at their own resolution and UV maps, procedurals,
+    vertex colours) give the albedo it is multiplied by: the decomposition (38) with the
+    texture as the detail factor. The copy's shader is left unconnected."""
+    old = bpy.data.materials.get(name)
+    if detail is not None:
+        if old is not None:
+            bpy.data.materials.remove(old)
+        mat = detail[0].copy()
+        mat.name = name
+        for node in [n for n in mat.node_tree.nodes if n.type == "OUTPUT_MATERIAL"]:
+            mat.node_tree.nodes.remove(node)
+    else:
+        mat = old or bpy.data.materials.new(name)
     mat.use_fake_user = True  # kept in the .blend while the originals are shown
     if mat.node_tree is None:
         mat.use_nodes = True
     tree = mat.node_tree
-    tree.nodes.clear()
+    if detail is None:
+        tree.nodes.clear()
     link = tree.links.new
     m = _MaterialBuilder(tree)
     uv = m.node("ShaderNodeUVMap", 0, uv_map=uv_map)
@@ -256,6 +272,18 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     link(m.blend(tangent, spatial, 2), view.inputs["Tangent"])
     link(m.blend(normal, spatial, 2), view.inputs["Normal"])
     emission = m.node("ShaderNodeEmission", 11)
+    if detail is not None:
+        # albedo = the user's colour x diffuse weight + specular, as the solve's albedo texture.
+        node, colour, weight, specular = detail[1]
+        source = tree.nodes[node.name].inputs[colour].links[0].from_socket
+        albedo = m.node("ShaderNodeVectorMath", 9, operation="MULTIPLY_ADD")
+        link(source, albedo.inputs[0])
+        albedo.inputs[1].default_value = (weight,) * 3
+        albedo.inputs[2].default_value = specular
+        shown = m.node("ShaderNodeVectorMath", 10, operation="MULTIPLY")
+        link(total, shown.inputs[0])
+        link(albedo.outputs["Vector"], shown.inputs[1])
+        total = shown.outputs["Vector"]
     link(total, emission.inputs["Color"])
     out = m.node("ShaderNodeOutputMaterial", 12)
     link(emission.outputs["Emission"], out.inputs["Surface"])

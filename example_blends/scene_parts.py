@@ -276,9 +276,13 @@ def empty_scene():
 
 
 def save(path):
-    """Saved compressed, with no packed images (a generated scene has none), and no .blend1 backup."""
+    """Saved compressed, with no packed images (image files are referenced relative to the scene), and no
+    .blend1 backup."""
     bpy.context.preferences.filepaths.save_version = 0
     bpy.ops.wm.save_as_mainfile(filepath=str(path), compress=True)
+    if any(image.filepath for image in bpy.data.images):  # image files: found relative to the scene
+        bpy.ops.file.make_paths_relative()
+        bpy.ops.wm.save_mainfile(compress=True)
     print(f"wrote {path}")
 
 

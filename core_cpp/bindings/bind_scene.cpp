@@ -29,6 +29,22 @@ Vec3 rgb(const Array& a, const char* what) {
 
 py::array_t<double> vec(const Vec3& v) { return py::array_t<double>(3, &v.x); }
 
+using Image = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+// An (height, width, 3) array over the surface's (u, v): rows along v, columns along u.
+std::shared_ptr<const Texture> texture(const Image& a, const std::string& what, bool at_most_one) {
+    if (a.ndim() != 3 || a.shape(2) != 3) throw std::invalid_argument(what + " must be an array of shape (height, width, 3)");
+    return std::make_shared<Texture>(int(a.shape(1)), int(a.shape(0)), std::vector<float>(a.data(), a.data() + a.size()), what,
+                                     at_most_one);
+}
+
+py::object image(const std::shared_ptr<const Texture>& t) {
+    if (!t) return py::none();
+    py::array_t<float> out({py::ssize_t(t->height()), py::ssize_t(t->width()), py::ssize_t(3)});
+    std::copy(t->rgb().begin(), t->rgb().end(), out.mutable_data());
+    return std::move(out);
+}
+
 Material material(const Array& albedo, const Array& emission, std::shared_ptr<const Bsdf> bsdf) {
     return {rgb(albedo, "albedo"), rgb(emission, "emission"), std::move(bsdf)};
 }
@@ -146,6 +162,26 @@ void bind_scene(py::module_& m) {
             "Limits emitter `index`'s light to a cone of full angle `spot_size` (radians) around `axis`, "
             "softened over the fraction `blend` of it: Blender's spot light (Cycles' smoothstep falloff).")
         .def(
+            "set_albedo_texture",
+            [](Scene& s, size_t i, const Image& albedo) {
+                if (i >= s.size()) throw py::index_error("set_albedo_texture: no surface " + std::to_string(i));
+                s.set_albedo_texture(i, texture(albedo, "surface '" + s[i].surface->name() + "': albedo texture", true));
+            },
+            py::arg("index"), py::arg("albedo"),
+            "Gives surface `index` a spatially varying albedo: an (height, width, 3) image over its (u, v) in [0, 1]^2 "
+            "(columns along u, rows along v, row 0 at v = 0; bilinear), values in [0, 1]. It colours a Lambertian "
+            "surface or the diffuse base of a decomposed one: the spline holds irradiance / pi and the outgoing "
+            "radiance is albedo(u, v) times it.")
+        .def(
+            "set_emission_texture",
+            [](Scene& s, size_t i, const Image& emission) {
+                if (i >= s.size()) throw py::index_error("set_emission_texture: no surface " + std::to_string(i));
+                s.set_emission_texture(i, texture(emission, "surface '" + s[i].surface->name() + "': emission texture", false));
+            },
+            py::arg("index"), py::arg("emission"),
+            "Gives surface `index` a spatially varying emitted radiance (front side): an (height, width, 3) image over "
+            "its (u, v) laid out as for set_albedo_texture, values >= 0. It replaces the constant emission.")
+        .def(
             "add_distant_light",
             [](Scene& s, const std::string& name, const Array& direction, const Array& irradiance, double angle) {
                 s.add_distant_light({name, rgb(direction, "direction"), rgb(irradiance, "irradiance"), angle});
@@ -235,7 +271,8 @@ void bind_scene(py::module_& m) {
                                 "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "
                                 "(glossy), a second spline for the lower hemisphere where it transmits.")
         .def(py::init([](const std::string& kind, double disc_radius, const TensorSpline& upper,
-                         std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse) {
+                         std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse, std::optional<Image> albedo,
+                         std::optional<Image> emission) {
                  const Representation r = kind == "glossy" ? Representation::Glossy
                                           : kind == "decomposed" ? Representation::Decomposed
                                           : kind == "diffuse" ? Representation::Diffuse
@@ -250,11 +287,20 @@ void bind_scene(py::module_& m) {
                      throw std::invalid_argument("SurfaceRadiance: a " + kind + " surface needs RGB splines of " +
                                                  std::to_string(dims) + " dimensions" +
                                                  (r == Representation::Decomposed ? " and a 2D diffuse part" : ""));
-                 return SurfaceRadiance{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse)};
+                 if (albedo && r == Representation::Glossy)
+                     throw std::invalid_argument("SurfaceRadiance: an albedo texture needs a diffuse or decomposed surface");
+                 SurfaceRadiance out{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse)};
+                 if (albedo) out.albedo = texture(*albedo, "SurfaceRadiance: albedo", true);
+                 if (emission) out.emission = texture(*emission, "SurfaceRadiance: emission", false);
+                 return out;
              }),
              py::arg("kind"), py::arg("disc_radius"), py::arg("upper"), py::arg("lower") = std::nullopt,
-             py::arg("diffuse") = std::nullopt,
+             py::arg("diffuse") = std::nullopt, py::arg("albedo") = std::nullopt, py::arg("emission") = std::nullopt,
              "Rebuilds a solved surface's radiance (as a solution file stores it).")
+        .def_property_readonly("albedo", [](const SurfaceRadiance& r) { return image(r.albedo); },
+                               "The albedo texture (height, width, 3) multiplying the diffuse spline (irradiance / pi), or None.")
+        .def_property_readonly("emission", [](const SurfaceRadiance& r) { return image(r.emission); },
+                               "The emission texture (height, width, 3) added to the front side, or None (emission in the spline).")
         .def_property_readonly("kind", [](const SurfaceRadiance& r) { return kind_name(r.kind); })
         .def_readonly("upper", &SurfaceRadiance::upper)
         .def_readonly("lower", &SurfaceRadiance::lower)

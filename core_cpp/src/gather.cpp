@@ -59,8 +59,8 @@ Vec3 Receiver::own_radiance(Splines which, double u, double v, const Vec3& local
     return side < sides ? evaluate_side(kind, map, (this->*which)[side], u, v, local) : Vec3{0, 0, 0};
 }
 
-Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local) const {
-    const Vec3 L = own_radiance(which, u, v, local);
+Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel) const {
+    const Vec3 L = own_radiance(which, u, v, local) * texel;
     return partner ? L + partner->own_radiance(which, u, v, local) : L;
 }
 
@@ -79,6 +79,15 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
         if (!flat) self_lit_.push_back(int(i));
     }
     cell_rule_ = emitter_quadrature(settings.emitter_coeffs, settings.emitter_degree);
+    // Node p covers the share of the cell its weight gives it (midway between nodes where a
+    // rule has negative weights).
+    const auto& w = cell_rule_.weights;
+    const bool positive = std::all_of(w.begin(), w.end(), [](double x) { return x > 0; });
+    cell_edges_.assign(1, 0.0);
+    for (size_t p = 0; p < w.size(); ++p)
+        cell_edges_.push_back(positive ? cell_edges_.back() + w[p]
+                                       : (p + 1 < w.size() ? 0.5 * (cell_rule_.nodes[p] + cell_rule_.nodes[p + 1]) : 1.0));
+    for (double& e : cell_edges_) e /= cell_edges_.back();
     // Distant lights: their disc by the cell rule in 1 - cos theta (uniform in solid angle) and
     // equally spaced azimuths (exact for the cosine of a tilted receiver); the weights scaled so
     // that a surface facing the light gets its irradiance.
@@ -142,6 +151,9 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     }
     const double ds = s1 - s0, dt = t1 - t0;
     const double offset = caster_.offset();
+    // Each node stands for the part of the cell its weight covers: an emission texture is
+    // averaged over that part (exact for the integral where the geometric factor is constant).
+    const std::vector<double>& edge = cell_edges_;
     for (size_t p = 0; p < cell_rule_.nodes.size(); ++p)
         for (size_t k = 0; k < cell_rule_.nodes.size(); ++k) {
             const double s = s0 + ds * cell_rule_.nodes[p], t = t0 + dt * cell_rule_.nodes[k];
@@ -161,7 +173,8 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             ++rays;
             if (stop <= 0 || caster_.occluded(origin, segment, 0.0, stop)) continue;
             const double w = cell_rule_.weights[p] * cell_rule_.weights[k] * ds * dt;
-            visit(d / len, light.emission * (cone * w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
+            const Vec3 Le = light.emission_over(s0 + ds * edge[p], s0 + ds * edge[p + 1], t0 + dt * edge[k], t0 + dt * edge[k + 1]);
+            visit(d / len, Le * (cone * w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
         }
 }
 
@@ -204,12 +217,26 @@ void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) cons
     }, rays);
 }
 
+// The albedo texture as a ray sees it: box-filtered over the ray's footprint, the solid angle
+// of one integration direction spread over the hit surface at the hit's distance and slant
+// (a checker far away is its mean colour, close by its squares).
+Vec3 Gatherer::texel_seen(const Texture& texture, const SurfaceHit& hit, const Vec3& dir, double solid_angle) const {
+    const SurfacePoint p = scene_[hit.surface].surface->evaluate(hit.u, hit.v);
+    const double slant = std::max(std::abs(dot(dir, p.frame.z)), 0.1);
+    const double side = hit.t * std::sqrt(solid_angle / slant);  // of the footprint, on the surface
+    const double su = length(p.dpdu), sv = length(p.dpdv);
+    return texture.filtered(hit.u, hit.v, su > 0 ? 0.5 * side / su : 0.5, sv > 0 ? 0.5 * side / sv : 0.5);
+}
+
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
                         Receiver::Splines which, int density, bool with_world, Vec3* out, size_t& rays) const {
+    const double solid_angle = 2 * kPi / (double(settings_.hemisphere_nodes_theta) * settings_.hemisphere_nodes_phi * density * density);
     hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
         if (hit.surface < 0) return with_world ? world_along(dir) : Vec3{0, 0, 0};
         const Receiver* h = receiver_of[hit.surface];
-        return h ? h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir)) : Vec3{0, 0, 0};
+        if (!h) return {0, 0, 0};
+        const Vec3 texel = h->albedo ? texel_seen(*h->albedo, hit, dir, solid_angle) : Vec3{1, 1, 1};
+        return h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel);
     }, out, rays);
 }
 

@@ -75,17 +75,26 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     // (38) is for mildly glossy surfaces: the glossy part then needs few spatial knots. Where
     // the lobe reflects as much as the base (a strong coat), the full 4D spline is kept.
     const bool mild = sum && max_component(directional_albedo(*p.bsdf->glossy_part())) <= 0.5 * max_component(p.bsdf->diffuse_albedo());
+    const bool textured = bool(ss.material.albedo_texture);
     if (ss.options.representation == Representation::Auto) {
-        p.kind = lambertian ? Representation::Diffuse : (mild ? Representation::Decomposed : Representation::Glossy);
+        // An albedo texture colours the diffuse base, which only D of (38) keeps apart.
+        p.kind = lambertian ? Representation::Diffuse
+                            : (mild || textured ? Representation::Decomposed : Representation::Glossy);
         why << (lambertian ? "Lambertian material: 2D"
                            : p.bsdf->name() + (mild ? " BSDF, a diffuse base under a mild glossy lobe: D(u,v) + S(u,v,alpha,beta) (38)"
-                                                    : " BSDF: view-dependent 4D"));
+                                                    : textured ? " BSDF with a textured diffuse base: D(u,v) + S(u,v,alpha,beta) (38)"
+                                                               : " BSDF: view-dependent 4D"));
     } else if (ss.options.representation == Representation::Decomposed && !sum) {
         throw std::invalid_argument("surface '" + ss.surface->name() + "': the decomposition (38) needs a BSDF with a "
                                     "diffuse base and a glossy lobe (e.g. DiffuseGgx), not " + p.bsdf->name());
     } else {
         p.kind = ss.options.representation;
         why << "representation set on the surface";
+    }
+    if (textured) {
+        // D holds irradiance / pi (albedo 1); the texture multiplies it where it is seen.
+        why << "; albedo texture " << ss.material.albedo_texture->width() << " x " << ss.material.albedo_texture->height();
+        if (p.kind == Representation::Diffuse) p.bsdf = std::make_shared<Lambert>(Vec3{1, 1, 1});
     }
     p.sides = p.kind == Representation::Glossy && p.bsdf->transmits() ? 2 : 1;
     if (p.sides == 2) why << ", transmits: second spline for the lower hemisphere";
@@ -142,7 +151,7 @@ std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int sp
         glossy.nv = std::max(s.spatial_degree + 1, p.nv / 2);
         glossy.partner_of = int(plans.size());
         p.kind = Representation::Diffuse;
-        p.bsdf = std::make_shared<Lambert>(p.bsdf->diffuse_albedo());
+        p.bsdf = std::make_shared<Lambert>(scene[i].material.albedo_texture ? Vec3{1, 1, 1} : p.bsdf->diffuse_albedo());
         p.na = 1;
         p.reason += "; S on " + std::to_string(glossy.nu) + " x " + std::to_string(glossy.nv) + " spatial coefficients";
         plans.push_back(std::move(p));
@@ -220,6 +229,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     r.bsdf = p.bsdf.get();
     r.sides = p.sides;
     r.map = HemisphereMap::for_max_angle(s.angular_delta);
+    if (p.partner_of < 0) r.albedo = scene[p.surface].material.albedo_texture.get();
     std::vector<KnotVector> axes{ku, kv};
     if (p.kind == Representation::Glossy) {
         const double R = r.map.radius();
@@ -483,7 +493,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
                                         "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
                                         "give it a roughness");
 
-    const int ff_stage = settings.form_factors && settings.max_bounces > 0 ? 1 : 0;
+    const int ff_stage = settings.form_factors && !scene.has_albedo_textures() && settings.max_bounces > 0 ? 1 : 0;
     const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? 1 : 0);
     progress.begin_stage("building ray scene", 0, stages, 1);
     std::vector<const Surface*> occluders(scene.size(), nullptr);
@@ -520,10 +530,12 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     bool converged = false;
     // With form factors, Lambertian receivers keep their rows of the transport operator.
     std::vector<std::vector<std::vector<TransportTerm>>> rows(receivers.size());
+    // A row's weights are scalars: they cannot carry the colour of a textured surface its rays hit.
+    const bool rows_possible = settings.form_factors && !scene.has_albedo_textures();
     auto uses_rows = [&](const Receiver& r) {
-        return settings.form_factors && r.kind == Representation::Diffuse && !r.bsdf->transmits();
+        return rows_possible && r.kind == Representation::Diffuse && !r.bsdf->transmits();
     };
-    if (settings.form_factors && settings.max_bounces > 0) {
+    if (rows_possible && settings.max_bounces > 0) {
         progress.begin_stage("form factors", 2, stages, node_count(receivers));
         std::vector<std::pair<int, int>> items;
         for (size_t k = 0; k < receivers.size(); ++k) {
@@ -620,9 +632,15 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         if (r.is_partner) continue;  // consumed with its diffuse part
         for (const Receiver* part = &r; part; part = part->is_partner ? nullptr : part->partner)
             for (int side = 0; side < part->sides; ++side) solution.stats.coefficients += part->Le[side].coeffs().size() / 3;
-        const Vec3 e = scene[r.surface].material.emission;
-        auto& c = r.Le[0].coeffs();
-        for (size_t i = 0; i < c.size(); i += 3) c[i] += e.x, c[i + 1] += e.y, c[i + 2] += e.z;
+        const Material& m = scene[r.surface].material;
+        std::shared_ptr<const Texture> emission = m.emission_texture;
+        if (!emission && m.albedo_texture && m.emits())  // kept out of the textured spline: one texel
+            emission = std::make_shared<Texture>(1, 1, std::vector<float>{float(m.emission.x), float(m.emission.y), float(m.emission.z)},
+                                                 "emission", false);
+        if (!emission) {
+            auto& c = r.Le[0].coeffs();
+            for (size_t i = 0; i < c.size(); i += 3) c[i] += m.emission.x, c[i + 1] += m.emission.y, c[i + 2] += m.emission.z;
+        }
         std::optional<SurfaceRadiance> out;
         std::string kind;
         if (r.partner) {
@@ -634,6 +652,8 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
             if (r.sides == 2) out->lower = std::move(r.Le[1]);
             kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 ? "glossy 4D + transmission" : "glossy 4D");
         }
+        out->albedo = m.albedo_texture;
+        out->emission = emission;
         const Plan& p = (settings.final_gather ? final_plans : plans)[k];
         std::vector<int> shape;
         for (size_t n : out->upper.shape()) shape.push_back(int(n));

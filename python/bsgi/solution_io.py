@@ -47,7 +47,8 @@ def settings_from_dict(values: dict) -> _core.SolverSettings:
 class StoredSolution:
     """What a solution file holds: per surface its radiance (None for pure emitters), as the
     upper-hemisphere spline (`radiance`) and as the whole SurfaceRadiance (`surfaces`: kind,
-    disc radius, the lower-hemisphere spline of transmitting surfaces)."""
+    disc radius, the lower-hemisphere spline of transmitting surfaces, the albedo and emission
+    textures of textured surfaces)."""
 
     radiance: list
     surfaces: list
@@ -78,6 +79,10 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
             if spline is not None:
                 for key, value in spline_to_arrays(spline).items():
                     arrays[f"surface{i}/{side}/{key}"] = value
+        for texture in ("albedo", "emission"):  # textured surfaces: float32 images over (u, v)
+            image = getattr(surface, texture) if surface else None
+            if image is not None:
+                arrays[f"surface{i}/{texture}"] = image
     meta = {"format": FORMAT, "names": list(names), "settings": settings_to_dict(settings),
             "stats": dict(stats or {}), "solved": [k is not None for k in kinds], "kinds": kinds, "disc_radii": radii}
     with open(path, "wb") as f:
@@ -103,6 +108,8 @@ def load_solution(path) -> StoredSolution:
                 sides[side] = spline_from_arrays(found) if found else None
             radiance.append(sides["upper"])
             radius = meta["disc_radii"][i]
+            textures = {t: data[f"surface{i}/{t}"] if f"surface{i}/{t}" in data.files else None
+                        for t in ("albedo", "emission")}
             surfaces.append(_core.SurfaceRadiance(meta["kinds"][i], radius if radius is not None else 1.0,
-                                                  sides["upper"], sides["lower"], sides["diffuse"]))
+                                                  sides["upper"], sides["lower"], sides["diffuse"], **textures))
     return StoredSolution(radiance, surfaces, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])

@@ -27,6 +27,7 @@ struct Receiver {
     bool is_partner = false;
     Representation kind = Representation::Diffuse;
     const Bsdf* bsdf = nullptr;
+    const Texture* albedo = nullptr;  // the albedo texture of a diffuse part holding irradiance / pi
     int sides = 1;
     HemisphereMap map{1.0};
     std::vector<SurfacePoint> nodes;  // spatial Schoenberg nodes (u_i, v_j), i slowest
@@ -45,8 +46,9 @@ struct Receiver {
     double* coefficient(Splines which, int side, size_t node, size_t a) {
         return &(this->*which)[side].coeffs()[3 * (node * per_node + a)];
     }
-    // Radiance leaving (u, v) along `local`, from one of the spline sets (with the partner's).
-    Vec3 radiance(Splines which, double u, double v, const Vec3& local) const;
+    // Radiance leaving (u, v) along `local`, from one of the spline sets (with the partner's);
+    // `texel` multiplies this receiver's own part (the albedo texture as seen there).
+    Vec3 radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel = {1, 1, 1}) const;
     Vec3 own_radiance(Splines which, double u, double v, const Vec3& local) const;
 };
 
@@ -93,6 +95,7 @@ private:
     // radiance arriving along each integration direction given what its ray hit.
     template <typename Incoming>
     void hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out, size_t& rays) const;
+    Vec3 texel_seen(const Texture& texture, const SurfaceHit& hit, const Vec3& dir, double solid_angle) const;
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
                       double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit, size_t& rays) const;
@@ -117,6 +120,7 @@ private:
     std::vector<int> emitters_;
     std::vector<int> self_lit_;  // curved emitters, which light themselves too
     QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell
+    std::vector<double> cell_edges_;  // the cumulative weights of cell_rule_: node p covers [edge p, edge p+1]
 };
 
 }  // namespace bsgi

@@ -34,14 +34,21 @@ struct SurfaceRadiance {
     TensorSpline upper;                   // leaving the front side (the glossy S of (38) if decomposed)
     std::optional<TensorSpline> lower;    // leaving the back side (transmitting surfaces)
     std::optional<TensorSpline> diffuse;  // D(u, v) of (38), emission included, if decomposed
+    // Textured surfaces: the diffuse spline (upper if diffuse, else D) holds irradiance / pi, the
+    // smooth factor, and the albedo texture its detail; the emission is then the emission
+    // texture (constant emission as one texel), not part of the spline.
+    std::shared_ptr<const Texture> albedo, emission;
 
     // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
     Vec3 evaluate(double u, double v, const Vec3& local) const {
         if (local.z < 0) return lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
         Vec3 L = evaluate_side(kind, map, upper, u, v, local);
-        if (diffuse) L += evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local);
+        if (diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local), u, v);
+        else if (kind == Representation::Diffuse) L = textured(L, u, v);
+        if (emission) L += emission->at(u, v);
         return L;
     }
+    Vec3 textured(const Vec3& smooth, double u, double v) const { return albedo ? smooth * albedo->at(u, v) : smooth; }
 };
 
 // What the solver chose for a surface, and why.

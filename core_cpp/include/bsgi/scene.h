@@ -11,6 +11,7 @@
 #include "bsgi/bsdf.h"
 #include "bsgi/environment.h"
 #include "bsgi/surface.h"
+#include "bsgi/texture.h"
 
 namespace bsgi {
 
@@ -32,12 +33,19 @@ struct SpotCone {
 
 // How a surface scatters and emits. Without a BSDF the surface is Lambertian with `albedo`.
 // Emission is radiance leaving the front side, in every direction or within a spot cone.
+// Textures over the surface's (u, v) replace the constants (which then hold their means): the
+// albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission.
 struct Material {
     Vec3 albedo;
     Vec3 emission;
     std::shared_ptr<const Bsdf> bsdf;
     std::optional<SpotCone> cone;
+    std::shared_ptr<const Texture> albedo_texture, emission_texture;
     bool emits() const { return max_component(emission) > 0; }
+    // Mean emission over the parameter rectangle [u0, u1] x [v0, v1].
+    Vec3 emission_over(double u0, double u1, double v0, double v1) const {
+        return emission_texture ? emission_texture->mean(u0, u1, v0, v1) : emission;
+    }
 };
 
 // A light at infinity (Blender's sun): `irradiance` on a surface facing it, arriving from a disc of
@@ -128,12 +136,43 @@ public:
         surfaces_[i].material.cone = SpotCone{unit_axis, std::cos(0.5 * spot_size), blend};
     }
 
+    // Surface i's albedo (of its Lambertian base) varies over its (u, v) as `texture`; the solve
+    // keeps irradiance / pi in its spline and multiplies by the texture where it is seen.
+    void set_albedo_texture(size_t i, std::shared_ptr<const Texture> texture) {
+        SceneSurface& s = at(i, "set_albedo_texture");
+        const std::string what = "surface '" + s.surface->name() + "': albedo texture";
+        if (!texture) throw std::invalid_argument(what + ": no image");
+        if (s.material.bsdf && max_component(s.material.bsdf->diffuse_albedo()) <= 0)
+            throw std::invalid_argument(what + ": its " + s.material.bsdf->name() +
+                                        " BSDF has no diffuse base for the texture to colour");
+        if (s.options.representation == Representation::Glossy)
+            throw std::invalid_argument(what + ": needs a diffuse or decomposed representation, not 'glossy'");
+        s.material.albedo = texture->mean();
+        s.material.albedo_texture = std::move(texture);
+    }
+    // Surface i's emission varies over its (u, v) as `texture` (front side, every direction).
+    void set_emission_texture(size_t i, std::shared_ptr<const Texture> texture) {
+        SceneSurface& s = at(i, "set_emission_texture");
+        if (!texture) throw std::invalid_argument("surface '" + s.surface->name() + "': emission texture: no image");
+        s.material.emission = texture->mean();
+        s.material.emission_texture = std::move(texture);
+    }
+    bool has_albedo_textures() const {
+        for (const auto& s : surfaces_)
+            if (s.material.albedo_texture) return true;
+        return false;
+    }
+
     size_t size() const { return surfaces_.size(); }
     const SceneSurface& operator[](size_t i) const { return surfaces_[i]; }
     const std::vector<SceneSurface>& surfaces() const { return surfaces_; }
 
 private:
     static constexpr double kPi = 3.14159265358979323846;
+    SceneSurface& at(size_t i, const char* what) {
+        if (i >= surfaces_.size()) throw std::out_of_range(std::string(what) + ": no surface " + std::to_string(i));
+        return surfaces_[i];
+    }
     // The checks of the scene's inputs, `what` naming the object and the quantity.
     static void require_non_negative(const Vec3& v, const std::string& what) {
         for (int c = 0; c < 3; ++c)

@@ -61,7 +61,8 @@ struct SolverSettings {
     // near 1 converge in a few bounces.
     int max_bounces = 64;
     // Generalized form factors (36)-(37) for Lambertian receivers: their gathering rays are cast
-    // once and kept as rows of the transport operator; later bounces are sparse products.
+    // once and kept as rows of the transport operator; later bounces are sparse products. Not
+    // used in scenes with albedo textures (a row's scalar weights cannot carry a texel's colour).
     bool form_factors = false;
     double tolerance = 1e-3;
     bool extrapolate = true;

@@ -1,0 +1,362 @@
+"""Textured materials: node trees that drive a material's colour (a Principled BSDF's Base Color, a
+Diffuse BSDF's Color) or its emission are evaluated by Blender itself, not by the add-on: a Cycles
+bake of the diffuse-colour pass (and of the emission pass) onto a temporary copy of the object,
+whose temporary UV map lays each solver surface's parameter square on a tile of a float image.
+The tiles become the surfaces' albedo and emission textures over their own (u, v)
+(Scene.set_albedo_texture / set_emission_texture): the solve keeps irradiance / pi in the spline
+and the texture as its detail, the paper's decomposition (38) with the texture as the detail factor.
+
+Everything made here (object, mesh, material copies, images) is removed afterwards; the user's
+objects, meshes and materials are read only, and the render settings are put back."""
+from __future__ import annotations
+
+import math
+import time
+from contextlib import contextmanager
+
+import bpy
+import numpy as np
+
+from .errors import ExportError
+from .materials import (AVERAGED_INPUTS, active_output, describe_material, linked_node, socket_value, solver_material,
+                        user_slots)
+
+BAKE_UV = "BSGI Texture Bake"
+NURBS_UV = "UVMap"  # Blender's UV map of a NURBS surface's mesh: the normalized (u, v)
+BAKE_SAMPLES = 4  # jittered per texel: about the texel's mean colour (cost: 1.5 us per texel and sample here)
+PAD = 2  # texels between tiles, filled by the bake's margin
+DEFAULT_TEXELS = 32
+
+
+def texture_texels(scene) -> int:
+    settings = getattr(scene, "bsgi", None)
+    return settings.texture_texels if settings is not None else DEFAULT_TEXELS
+
+
+def has_textures(obj) -> bool:
+    """Whether any of the object's materials has node-driven colour or emission."""
+    return any(_slot_flags(obj))
+
+
+def _slot_flags(obj):
+    for m in user_slots(obj):
+        described = describe_material(m, [])
+        yield described.albedo_textured or described.emission_textured
+
+
+def apply_textures(depsgraph, scene, objects, warnings) -> dict:
+    """Bakes the node-driven colour and emission of each exported object's materials into its
+    surfaces' textures. Returns {"seconds", "texels"} of what was baked."""
+    texels = texture_texels(depsgraph.scene)
+    start, baked = time.perf_counter(), 0
+    for exported in objects:
+        obj = bpy.data.objects.get(exported.name)
+        if obj is None:
+            continue
+        materials = [solver_material(m, describe_material(m, []), []) for m in user_slots(obj)]
+        if not any(m.albedo_textured or m.emission_textured for m in materials):
+            continue
+        if exported.kind == "nurbs" and len(exported.patches) > 1:
+            warnings.append(f"object '{exported.name}': its materials' node-driven colour or emission is solved with "
+                            "the sockets' own values (textures are baked on NURBS objects of one spline; Blender "
+                            "gives every spline the whole UV square)")
+            continue
+        baked += _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings)
+    return {"seconds": time.perf_counter() - start, "texels": baked}
+
+
+def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -> int:
+    with _temporary_copy(depsgraph, obj) as (copy, mesh):
+        if exported.kind == "chart":
+            side = 4 * texels
+            uvs = exported.solve_uvs
+            if uvs is None or len(uvs) != len(mesh.loops):
+                raise ExportError(f"object '{exported.name}': its chart's UVs do not match its evaluated mesh")
+            layout = _ChartLayout(side, uvs)
+        elif exported.kind == "nurbs":
+            # The mesh Blender makes of a NURBS surface has UVs = its normalized (u, v) parameters.
+            uvs = np.empty(len(mesh.loops) * 2, np.float32)
+            mesh.uv_layers[NURBS_UV].data.foreach_get("uv", uvs)
+            layout = _ChartLayout(4 * texels, uvs.reshape(-1, 2))
+        else:
+            layout = _TileLayout(mesh, [kind for kind, _, _ in exported.patches], texels)
+        if any(m.albedo_textured for m in materials):
+            colour = _bake(copy, mesh, layout, "DIFFUSE")
+            _set_textures(scene, mesh, exported, layout, colour, materials, albedo=True, warnings=warnings)
+        if any(m.emission_textured for m in materials):
+            glow = _bake(copy, mesh, layout, "EMIT")
+            _set_textures(scene, mesh, exported, layout, glow, materials, albedo=False, warnings=warnings)
+        return layout.width * layout.height
+
+
+class _TileLayout:
+    """Per polygon a t x t tile on a grid of tiles with PAD texels between them. A quad's corners
+    (u, v) = (0, 0), (1, 0), (1, 1), (0, 1) sit on its tile's outer corners, so texel (i, j) of
+    the tile is the surface's texel over [i/t, (i+1)/t] x [j/t, (j+1)/t]; a triangle's corners
+    at (0, 0), (1, 0), (1, 1) of the tile, where the collapsed square (u, v) lies at (u, u v)."""
+
+    def __init__(self, mesh, kinds, t):
+        self.t = t
+        self.grid = max(1, math.ceil(math.sqrt(len(mesh.polygons))))
+        self.width = self.height = self.grid * (t + PAD) + PAD
+        uvs = np.zeros((len(mesh.loops), 2), np.float32)
+        for poly, kind in zip(mesh.polygons, kinds):
+            if kind == "ngon":
+                continue
+            ox, oy = self.origin(poly.index)
+            square = [(0, 0), (1, 0), (1, 1), (0, 1)] if kind == "quad" else [(0, 0), (1, 0), (1, 1)]
+            for loop, (sx, sy) in zip(poly.loop_indices, square):
+                uvs[loop] = ((ox + sx * t) / self.width, (oy + sy * t) / self.height)
+        self.uvs = uvs
+
+    def origin(self, index):
+        return (PAD + (index % self.grid) * (self.t + PAD), PAD + (index // self.grid) * (self.t + PAD))
+
+    def texture(self, pixels, index, kind):
+        """The (t, t, 3) texture over the surface's (u, v) cut from the baked image."""
+        ox, oy = self.origin(index)
+        tile = pixels[oy:oy + self.t, ox:ox + self.t]
+        if kind == "quad":
+            return tile.copy()
+        c = (np.arange(self.t) + 0.5) / self.t
+        u, v = np.meshgrid(c, c)
+        return _bilinear(tile, u, u * v)
+
+
+class _ChartLayout:
+    """A UV chart's image over its UV square: the chart's (u, v) are its UVs."""
+
+    def __init__(self, side, uvs):
+        self.width = self.height = side
+        self.uvs = np.asarray(uvs, np.float32)
+
+
+def _bilinear(image, x, y):
+    """image (h, w, 3) at (x, y) in [0, 1] (pixel centres at (i + 0.5) / w), clamped."""
+    h, w = image.shape[:2]
+    fx = np.clip(x * w - 0.5, 0, w - 1)
+    fy = np.clip(y * h - 0.5, 0, h - 1)
+    x0, y0 = np.minimum(fx.astype(int), w - 2).clip(0), np.minimum(fy.astype(int), h - 2).clip(0)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    a, b = (fx - x0)[..., None], (fy - y0)[..., None]
+    return ((image[y0, x0] * (1 - a) + image[y0, x1] * a) * (1 - b)
+            + (image[y1, x0] * (1 - a) + image[y1, x1] * a) * b).astype(np.float32)
+
+
+def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warnings):
+    slot_of = np.zeros(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("material_index", slot_of)
+    if exported.kind in {"chart", "nurbs"}:  # one surface over the image
+        surfaces = [(exported.patches[0][1], int(slot_of[0]), pixels)]
+    else:
+        surfaces = []
+        for poly_index, (kind, first, count) in enumerate(exported.patches):
+            slot = int(slot_of[poly_index])
+            if kind == "ngon":
+                material = materials[min(slot, len(materials) - 1)]
+                if material.albedo_textured if albedo else material.emission_textured:
+                    warnings.append(f"object '{exported.name}': face {poly_index} has more than four corners; its "
+                                    "node-driven colour and emission use the sockets' own values (triangulate it "
+                                    "to bake them)")
+                continue
+            surfaces.append((first, slot, layout.texture(pixels, poly_index, kind)))
+    for index, slot, image in surfaces:
+        material = materials[min(slot, len(materials) - 1)]
+        if albedo and material.albedo_textured:
+            # The diffuse colour Cycles evaluates, plus the weak specular the albedo absorbs.
+            scene.set_albedo_texture(index, np.clip(image + np.asarray(material.specular, np.float32), 0, 1))
+        elif not albedo and material.emission_textured:
+            scene.set_emission_texture(index, np.maximum(image, 0))
+
+
+@contextmanager
+def _temporary_copy(depsgraph, obj):
+    """A temporary object with the evaluated mesh of obj (faces in the order the export solved
+    them, the user's UV maps and attributes) and copies of its slot materials, at obj's matrix;
+    removed afterwards with everything it used."""
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = bpy.data.meshes.new_from_object(evaluated, preserve_all_data_layers=True, depsgraph=depsgraph)
+    copies = []
+    copy = None
+    try:
+        mesh.materials.clear()
+        for material in user_slots(obj):
+            copies.append(material.copy() if material is not None else None)
+            mesh.materials.append(copies[-1])
+        copy = bpy.data.objects.new(f"{BAKE_UV} {obj.name}", mesh)
+        copy.matrix_world = evaluated.matrix_world
+        depsgraph.scene.collection.objects.link(copy)
+        yield copy, mesh
+    finally:
+        if copy is not None:
+            bpy.data.objects.remove(copy)
+        bpy.data.meshes.remove(mesh)
+        for material in copies:
+            if material is not None:
+                bpy.data.materials.remove(material)
+
+
+def _bake(copy, mesh, layout, kind) -> np.ndarray:
+    """Cycles' diffuse colour ('DIFFUSE') or emission ('EMIT') of the copy's materials over the
+    layout's UVs: (height, width, 3)."""
+    uv = mesh.uv_layers.new(name=BAKE_UV, do_init=False)
+    if uv is None:
+        raise ExportError(f"object '{copy.name}': no room for a UV map to bake its textures (8 at most)")
+    mesh.uv_layers[BAKE_UV].data.foreach_set("uv", layout.uvs.ravel())
+    image = bpy.data.images.new(f"{BAKE_UV} image", layout.width, layout.height, alpha=False, float_buffer=True)
+    nodes = []
+    try:
+        image.colorspace_settings.name = "Non-Color"
+        for material in mesh.materials:
+            if material is None or material.node_tree is None:
+                continue
+            node = material.node_tree.nodes.new("ShaderNodeTexImage")
+            node.image = image
+            material.node_tree.nodes.active = node
+            nodes.append(node)
+        with _bake_settings(copy):
+            options = dict(type=kind, uv_layer=BAKE_UV, margin=PAD, use_clear=True, target="IMAGE_TEXTURES")
+            if kind == "DIFFUSE":
+                options["pass_filter"] = {"COLOR"}
+            bpy.ops.object.bake(**options)
+        pixels = np.empty(layout.width * layout.height * 4, np.float32)
+        image.pixels.foreach_get(pixels)
+        return pixels.reshape(layout.height, layout.width, 4)[..., :3].copy()
+    finally:
+        bpy.data.images.remove(image)
+        mesh.uv_layers.remove(mesh.uv_layers[BAKE_UV])
+
+
+@contextmanager
+def _bake_settings(copy):
+    """Cycles on the CPU with the bake's samples, only the copy selected and active; the scene's
+    engine, samples, bake settings and the user's selection put back afterwards."""
+    scene = bpy.context.scene
+    view_layer = bpy.context.view_layer
+    render, cycles, bake = scene.render, scene.cycles, scene.render.bake
+    saved = {
+        (render, "engine"): render.engine,
+        (cycles, "samples"): cycles.samples,
+        (cycles, "use_denoising"): cycles.use_denoising,
+        (cycles, "device"): cycles.device,
+        (bake, "margin"): bake.margin,
+        (bake, "use_clear"): bake.use_clear,
+        (bake, "target"): bake.target,
+    }
+    selected = [o for o in view_layer.objects if o.select_get()]
+    active = view_layer.objects.active
+    try:
+        render.engine = "CYCLES"
+        cycles.samples = BAKE_SAMPLES
+        cycles.use_denoising = False
+        cycles.device = "CPU"
+        for o in selected:
+            o.select_set(False)
+        copy.select_set(True)
+        view_layer.objects.active = copy
+        yield
+    finally:
+        for (owner, name), value in saved.items():
+            setattr(owner, name, value)
+        copy.select_set(False)
+        for o in selected:
+            if o.name in view_layer.objects:
+                o.select_set(True)
+        view_layer.objects.active = active
+
+
+def colour_source(material):
+    """How the bake can show a textured diffuse material's own colour nodes (sharp, at their own
+    resolution) instead of its baked texture: (node, colour input, diffuse weight, specular) when
+    the material's output takes a Principled BSDF or a Diffuse BSDF whose colour is driven by nodes
+    and the solve made it Lambertian with an albedo texture and no emission texture, so that its
+    albedo is colour x weight + specular; else None."""
+    if material is None or material.node_tree is None:
+        return None
+    output = active_output(material.node_tree, "OUTPUT_MATERIAL")
+    node = linked_node(output.inputs["Surface"]) if output is not None else None
+    colour = {"BSDF_PRINCIPLED": "Base Color", "BSDF_DIFFUSE": "Color"}.get(getattr(node, "type", None))
+    if colour is None or not node.inputs[colour].is_linked:
+        return None
+    solved = solver_material(material, describe_material(material, []), [])
+    if solved.kind != "lambert" or not solved.albedo_textured or solved.emission_textured:
+        return None
+    weight = 1.0
+    if node.type == "BSDF_PRINCIPLED":
+        # Cycles' diffuse colour under the dielectric specular layer is the base colour times
+        # 1 - f0 at normal incidence (measured: 0.960 for f0 0.04, 0.925 for 0.08); metals and
+        # transmission mix in otherwise, and show the baked texture instead.
+        if any(node.inputs[name].is_linked or socket_value(node, name) > 0 for name in ("Metallic", "Transmission Weight")):
+            return None
+        weight = 1 - max(solved.specular)
+    return node, colour, weight, tuple(solved.specular)
+
+
+MEAN_TEXELS = 8  # per face side, for the mean of a node-driven roughness or metallic
+
+
+def socket_means(depsgraph) -> dict:
+    """(material name, node name, input name) -> the mean of each node-driven roughness or metallic input
+    (materials.AVERAGED_INPUTS) over the mesh faces using its material, area-weighted, as
+    Blender evaluates it: the input's own nodes baked as emission on a temporary copy of each
+    mesh. The solve's BSDF has one roughness and metallic per material."""
+    users: dict = {}  # material -> [(object, slot)]
+    for obj in depsgraph.scene.objects:
+        if obj.type == "MESH" and obj.visible_get():
+            for slot, material in enumerate(user_slots(obj)):
+                if _averaged_sockets(material):
+                    users.setdefault(material, []).append((obj, slot))
+    means = {}
+    for material, where in users.items():
+        for node, name in _averaged_sockets(material):
+            total = area = 0.0
+            for obj, slot in where:
+                t, a = _socket_integral(depsgraph, obj, slot, node, name)
+                total, area = total + t, area + a
+            if area > 0:
+                means[(material.name, node.name, name)] = total / area
+    if users:
+        depsgraph.update()  # the temporary copies are gone: the depsgraph the export iterates must know
+    return means
+
+
+def _averaged_sockets(material) -> list:
+    if material is None or material.node_tree is None:
+        return []
+    return [(node, name) for node in material.node_tree.nodes for name in AVERAGED_INPUTS.get(node.type, ())
+            if node.inputs.get(name) is not None and node.inputs[name].is_linked]
+
+
+def _socket_integral(depsgraph, obj, slot, node, name):
+    """(integral, area) over obj's faces of the slot of the input's value, from an emission bake
+    of the nodes driving it on per-face tiles."""
+    with _temporary_copy(depsgraph, obj) as (copy, mesh):
+        slots = np.zeros(len(mesh.polygons), np.int32)
+        mesh.polygons.foreach_get("material_index", slots)
+        mine = np.flatnonzero(np.minimum(slots, len(mesh.materials) - 1) == slot)
+        if not len(mine):
+            return 0.0, 0.0
+        tree = mesh.materials[slot].node_tree
+        source = tree.nodes[node.name].inputs[name].links[0].from_socket
+        emission = tree.nodes.new("ShaderNodeEmission")
+        tree.links.new(source, emission.inputs["Color"])
+        output = active_output(tree, "OUTPUT_MATERIAL")
+        tree.links.new(emission.outputs[0], output.inputs["Surface"])
+        kinds = [{3: "triangle", 4: "quad"}.get(p.loop_total, "ngon") for p in mesh.polygons]
+        layout = _TileLayout(mesh, kinds, MEAN_TEXELS)
+        pixels = _bake(copy, mesh, layout, "EMIT")
+        c = (np.arange(MEAN_TEXELS) + 0.5) / MEAN_TEXELS
+        u = np.meshgrid(c, c)[0][..., None]
+        scale = abs(np.linalg.det(np.array(copy.matrix_world)[:3, :3])) ** (2 / 3)
+        total = area = 0.0
+        for index in mine:
+            kind = kinds[index]
+            if kind == "ngon":
+                continue
+            values = layout.texture(pixels, index, kind)[..., :1]
+            # The collapsed square of a triangle: area element proportional to u.
+            weights = np.ones_like(values) if kind == "quad" else u
+            a = mesh.polygons[index].area * scale
+            total += a * float((values * weights).sum() / weights.sum())
+            area += a
+        return total, area

@@ -1,0 +1,497 @@
+"""Textured materials (addon/textures.py): node trees driving a material's colour and emission
+are evaluated by Blender (a Cycles bake of the diffuse-colour and emission passes), solved as
+albedo and emission textures over each surface's (u, v), and shown by the bake; checked against
+Blender's own evaluation and a Cycles path-traced render."""
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from bsgi_addon import pipeline
+from bsgi_addon.export import export_scene
+from test_pipeline import lit_relative_difference, render_exr
+
+LIGHT, DARK = (0.8, 0.8, 0.8), (0.8, 0.1, 0.1)  # the checker's colours: white and red
+SQUARES = 4  # per side of the floor (Checker scale over its UVs)
+STRIPES = np.array([[0.15, 0.3, 0.7], [0.9, 0.75, 0.2]], np.float32)  # the wall image's two colours
+IMAGE_SIZE = 16
+
+
+def principled(name, colour_node_builder):
+    """A Principled BSDF without a specular lobe (Specular IOR Level 0: a diffuse surface for
+    Cycles and for the solve) whose Base Color the builder drives."""
+    m = bpy.data.materials.new(name)
+    tree = m.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    bsdf.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1)  # what the solve used to take
+    tree.links.new(colour_node_builder(tree).outputs["Color"], bsdf.inputs["Base Color"])
+    return m
+
+
+def checker(tree):
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    node = tree.nodes.new("ShaderNodeTexChecker")
+    node.inputs["Color1"].default_value = (*LIGHT, 1)
+    node.inputs["Color2"].default_value = (*DARK, 1)
+    node.inputs["Scale"].default_value = SQUARES
+    tree.links.new(coords.outputs["UV"], node.inputs["Vector"])
+    return node
+
+
+def stripes_image():
+    """A packed float image the test makes: vertical stripes, two texels wide, of two colours."""
+    image = bpy.data.images.new("Wall stripes", IMAGE_SIZE, IMAGE_SIZE, alpha=False, float_buffer=True)
+    pixels = np.ones((IMAGE_SIZE, IMAGE_SIZE, 4), np.float32)
+    pixels[..., :3] = STRIPES[(np.arange(IMAGE_SIZE) // 2) % 2][None, :, :]
+    image.pixels.foreach_set(pixels.ravel())
+    image.pack()
+    return image, pixels[..., :3]
+
+
+def image_texture(tree):
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.image = bpy.data.images["Wall stripes"]
+    return node
+
+
+def add_uv_quad(name, corners, material):
+    obj = scenes.add_quad(name, corners, material)
+    uv = obj.data.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", np.array([0, 0, 1, 0, 1, 1, 0, 1], np.float32))
+    return obj
+
+
+def floor_and_wall(context):
+    """A checker floor (2 x 2 at z = 0, facing up) and a striped wall (at y = 1, facing the
+    floor) under a square area light tilted towards the wall; every surface lit and seen on its
+    front."""
+    stripes_image()
+    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], principled("Checker", checker))
+    wall = add_uv_quad("Wall", [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], principled("Stripes", image_texture))
+    lamp = scenes.add_area_light(location=(0, -0.2, 1.6), size=1.0, energy=120.0)
+    lamp.rotation_euler = (math.radians(30), 0, 0)  # its -Z towards the wall and down
+    return floor, wall
+
+
+def exported_object(export, name):
+    return next(o for o in export.objects if o.name == name)
+
+
+def solved_textures(context):
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    return job, solution
+
+
+def test_baked_albedo_is_blenders_evaluation(context):
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 32
+    job, solution = solved_textures(context)
+    export = job.export
+    assert not any("driven by nodes" in w for w in export.warnings), export.warnings
+    floor_index = exported_object(export, "Floor").patches[0][1]
+    wall_index = exported_object(export, "Wall").patches[0][1]
+    albedo = solution.surfaces[floor_index].albedo
+    assert albedo.shape == (32, 32, 3)
+    # Texels inside a square hold its colour, as Cycles evaluates the Checker node there.
+    c = (np.arange(32) + 0.5) / 32
+    u, v = np.meshgrid(c, c)
+    inside = (np.abs(u * SQUARES - np.round(u * SQUARES)) > 0.1) & (np.abs(v * SQUARES - np.round(v * SQUARES)) > 0.1)
+    light = ((np.floor(u * SQUARES) + np.floor(v * SQUARES)) % 2 == 1)
+    print(f"\nchecker texels: light {albedo[inside & light].mean(axis=0)}, dark {albedo[inside & ~light].mean(axis=0)}")
+    np.testing.assert_allclose(albedo[inside & light], np.broadcast_to(LIGHT, albedo[inside & light].shape), atol=1e-3)
+    np.testing.assert_allclose(albedo[inside & ~light], np.broadcast_to(DARK, albedo[inside & ~light].shape), atol=1e-3)
+    np.testing.assert_allclose(albedo.reshape(-1, 3).mean(axis=0), np.add(LIGHT, DARK) / 2, atol=2e-3)
+    # The wall: the packed image over its UVs (the face's (u, v)); its mean is the image's.
+    wall_albedo = solution.surfaces[wall_index].albedo
+    np.testing.assert_allclose(wall_albedo.reshape(-1, 3).mean(axis=0), STRIPES.mean(axis=0), atol=5e-3)
+    # Per column the stripes' colours (each stripe four texels wide at 32 texels).
+    column = wall_albedo[16]
+    assert np.abs(column[1] - STRIPES[0]).max() < 0.02 and np.abs(column[5] - STRIPES[1]).max() < 0.02
+    print(f"texture bake: {export.textures['seconds']:.2f} s for {export.textures['texels']} texels")
+
+
+def test_texture_bake_leaves_the_users_data_as_it_was(context):
+    floor, wall = floor_and_wall(context)
+    scene = context.scene
+    scene.render.engine = "BLENDER_EEVEE"
+    scene.cycles.samples = 7
+    floor.select_set(True)
+    context.view_layer.objects.active = wall
+
+    def state():
+        return {
+            "ids": {kind: sorted(x.name for x in getattr(bpy.data, kind))
+                    for kind in ("objects", "meshes", "materials", "images", "node_groups")},
+            "nodes": {m.name: sorted(n.name for n in m.node_tree.nodes) for m in bpy.data.materials},
+            "active_nodes": {m.name: getattr(m.node_tree.nodes.active, "name", None) for m in bpy.data.materials},
+            "uv_maps": {o.name: [u.name for u in o.data.uv_layers] for o in scene.objects if o.type == "MESH"},
+            "selected": sorted(o.name for o in scene.objects if o.select_get()),
+            "active": context.view_layer.objects.active.name,
+            "render": (scene.render.engine, scene.cycles.samples, scene.render.bake.margin),
+        }
+
+    before = state()
+    export = export_scene(context.evaluated_depsgraph_get())
+    assert export.textures["texels"] > 0
+    assert state() == before
+
+
+def test_textured_emission_lights_with_its_pattern(context):
+    # A screen whose emission is a Checker: half its squares black. The floor under it gets the
+    # light of the mean emission (its squares are small seen from the floor), and the screen
+    # itself shows its squares.
+    m = bpy.data.materials.new("Screen")
+    tree = m.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 4.0
+    node = checker(tree)
+    node.inputs["Color1"].default_value = (1, 1, 1, 1)
+    node.inputs["Color2"].default_value = (0, 0, 0, 1)
+    tree.links.new(node.outputs["Color"], emission.inputs["Color"])
+    tree.links.new(emission.outputs[0], out.inputs["Surface"])
+    add_uv_quad("Screen", [(-0.5, -0.5, 1), (-0.5, 0.5, 1), (0.5, 0.5, 1), (0.5, -0.5, 1)], m)  # facing down
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], scenes.diffuse_material("Grey", (0.5,) * 3))
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    job, solution = solved_textures(context)
+    screen = solution.surfaces[exported_object(job.export, "Screen").patches[0][1]]
+    shown = screen.evaluate(np.array([[0.125, 0.125], [0.375, 0.125]]), np.array([[0, 0, 1.0]] * 2))
+    np.testing.assert_allclose(sorted(shown[:, 0]), [0, 4], atol=0.05)
+    # The floor's centre against the same screen emitting its mean (2) everywhere, by Lambert:
+    # E = 2 * (form factor of a 1 x 1 square at height 1 seen from below its centre) * pi.
+    floor = solution.surfaces[exported_object(job.export, "Floor").patches[0][1]]
+    got = floor.evaluate(np.array([[0.5, 0.5]]), np.array([[0, 0, 1.0]]))[0, 0]
+    a = 0.5  # half side over height
+    form_factor = 4 * (a / math.sqrt(1 + a * a) * math.atan(a / math.sqrt(1 + a * a))) / (2 * math.pi) * 2
+    want = 0.5 / math.pi * 2.0 * math.pi * form_factor
+    print(f"\nfloor under a checker screen: {got:.4f}, mean-emission closed form {want:.4f}")
+    assert abs(got / want - 1) <= 0.02
+
+
+def floor_pixels(scene, n):
+    """Per pixel of an n x n render of the scene camera: the floor's (u, v) where the pixel centre's
+    ray meets the floor before the wall, NaN elsewhere."""
+    camera = scene.camera
+    frame = [camera.matrix_world @ p for p in camera.data.view_frame(scene=scene)]  # tr, br, bl, tl
+    tr, br, bl, tl = (np.array(p) for p in frame)
+    origin = np.array(camera.matrix_world.translation)
+    uv = np.full((n, n, 2), np.nan)
+    for row in range(n):
+        for col in range(n):
+            a, b = (col + 0.5) / n, (row + 0.5) / n  # b from the top
+            top = tl + a * (tr - tl)
+            bottom = bl + a * (br - bl)
+            d = top + b * (bottom - top) - origin
+            if d[2] >= 0:
+                continue
+            t = -origin[2] / d[2]
+            p = origin + t * d
+            if -1 < p[0] < 1 and -1 < p[1] < 1:
+                uv[row, col] = ((p[0] + 1) / 2, (p[1] + 1) / 2)
+    return uv
+
+
+@pytest.mark.slow
+def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
+    floor_and_wall(context)
+    scene = context.scene
+    scenes.add_camera(location=(0.0, -3.2, 1.4), tilt_degrees=75.0)
+    bounces = 4
+    scene.bsgi.preset = "CUSTOM"
+    scene.bsgi.max_bounces = bounces
+    scene.bsgi.tolerance = 0
+    reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=bounces)
+    report = pipeline.solve_and_bake(context)
+    baked = render_exr(scene, tmp_path / "baked.exr", samples=16, bounces=0)
+    rel, lit = lit_relative_difference(baked, reference, 0.02)
+    median = float(np.median(rel))
+    # The checker's contrast: mean over the light squares over the mean over the dark ones, on
+    # floor pixels away from the squares' edges (where the pixel filter blends them).
+    uv = floor_pixels(scene, reference.shape[0])
+    s = uv * SQUARES
+    away = np.all(np.abs(s - np.round(s)) > 0.15, axis=2)
+    light = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 1) & away
+    dark = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 0) & away
+
+    def contrast(image):
+        lum = image.sum(axis=2)
+        return lum[light].mean() / lum[dark].mean()
+
+    ratio = contrast(baked) / contrast(reference)
+    print(f"\nchecker floor and image wall, baked vs Cycles ({bounces} bounces, 1024 spp): median relative "
+          f"difference {median:.4f} over {lit.sum()} lit pixels (mean {rel.mean():.4f}); checker contrast "
+          f"Cycles {contrast(reference):.3f}, bake {contrast(baked):.3f} (ratio {ratio:.4f}, {light.sum()} light and "
+          f"{dark.sum()} dark pixels); solve {report['solve_seconds']:.2f} s, bake {report['bake_seconds']:.2f} s")
+    assert lit.sum() > 0.5 * lit.size
+    assert light.sum() > 50 and dark.sum() > 50
+    assert median <= 0.03
+    assert abs(ratio - 1) <= 0.03
+
+
+def test_bake_shows_the_users_colour_nodes_times_the_irradiance_spline(context, tmp_path):
+    # Four texels per face side: the solve's texture holds one texel per checker square, and a
+    # bake showing it would blur the squares into each other. The baked material shows the
+    # Checker node itself times the smooth factor: Cycles' render of the bake from above is the
+    # checker colour times irradiance / pi, as the core evaluates it, up to the pixel filter.
+    from test_pipeline import render_floor_from_above
+
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 4
+    pipeline.solve_and_bake(context)
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=4)
+    n = image.shape[0]
+    u, v = (points[:, 0] + 1) / 2, (points[:, 1] + 1) / 2
+    job_floor = bpy.data.objects["Floor"]
+    from bsgi_addon import bake
+
+    radiance = bake.stored_faces(job_floor)[0][1][0]
+    smooth = radiance.upper.evaluate(np.column_stack([u, v]))
+    light = ((np.floor(u * SQUARES) + np.floor(v * SQUARES)) % 2 == 1)[:, None]
+    want = smooth * np.where(light, LIGHT, DARK)
+    s = np.column_stack([u, v]) * SQUARES
+    away = np.all(np.abs(s - np.round(s)) > 2.5 * SQUARES / n, axis=1)  # the pixel filter's reach from an edge
+    got = image.reshape(-1, 3)
+    err = np.abs(got[away] - want[away]).sum(axis=1) / want[away].sum(axis=1)
+    # What the solve's 4 x 4 texture itself would show there (bilinear between its texels).
+    texels = smooth * bake.texture_at(radiance.albedo, np.column_stack([u, v]))
+    blurred = np.abs(texels[away] - want[away]).sum(axis=1) / want[away].sum(axis=1)
+    print(f"\nbaked checker floor from above, 4 texels per face: max relative difference {err.max():.4f} "
+          f"(mean {err.mean():.4f}) over {away.sum()} pixels away from the squares' edges; the 4 x 4 texture "
+          f"would be {blurred.max():.3f} off")
+    assert away.sum() > 0.3 * len(away)
+    assert err.max() <= 0.02 < blurred.max()
+
+
+def test_clearing_the_bake_leaves_the_users_materials_and_images(context):
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    nodes = {m.name: sorted(n.name for n in m.node_tree.nodes) for m in bpy.data.materials}
+    images = sorted(i.name for i in bpy.data.images)
+    pipeline.solve_and_bake(context)
+    assert "BSGI Wall slot 0" in bpy.data.materials
+    from bsgi_addon import bake
+
+    for obj in (floor, wall):
+        bake.clear_bake(obj)
+    assert {m.name: sorted(n.name for n in m.node_tree.nodes) for m in bpy.data.materials} == nodes
+    assert sorted(i.name for i in bpy.data.images) == images
+    assert floor.material_slots[0].material.name == "Checker" and wall.material_slots[0].material.name == "Stripes"
+
+
+def checker_colour(uv):
+    """The Checker node's colour (Scale SQUARES) at UV coordinates (N, 2), and whether each is
+    far enough from a square's edge to hold one colour in a texel."""
+    s = uv * SQUARES
+    light = (np.floor(s[:, 0]) + np.floor(s[:, 1])) % 2 == 1
+    away = np.all(np.abs(s - np.round(s)) > 0.15, axis=1)
+    return np.where(light[:, None], LIGHT, DARK), away
+
+
+def test_triangle_and_chart_textures_follow_their_parameters(context):
+    # A triangle face: its (u, v) (the collapsed square) lies at UV (u, u v) of corners at UV
+    # (0, 0), (1, 0), (1, 1). A grid of 8 x 8 faces solved as one UV chart: (u, v) are its UVs.
+    material = principled("Checker", checker)
+    mesh = bpy.data.meshes.new("Triangle")
+    mesh.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0)], [], [(0, 1, 2)])
+    mesh.uv_layers.new(name="UVMap").data.foreach_set("uv", np.array([0, 0, 1, 0, 1, 1], np.float32))
+    mesh.materials.append(material)
+    context.scene.collection.objects.link(bpy.data.objects.new("Triangle", mesh))
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=9, y_subdivisions=9, size=2, location=(3, 0, 0))
+    grid = context.active_object
+    grid.name = "Grid"
+    grid.data.materials.append(material)
+    scenes.add_area_light(location=(1.5, 0, 2), size=4)
+    context.scene.bsgi.chart_min_faces = 16
+    context.scene.bsgi.texture_texels = 16
+    export = export_scene(context.evaluated_depsgraph_get())
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    c = (np.arange(16) + 0.5) / 16
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    triangle = solution.surfaces[next(o for o in export.objects if o.name == "Triangle").patches[0][1]]
+    want, away = checker_colour(np.column_stack([u, u * v]))
+    got = triangle.albedo.reshape(-1, 3)
+    print(f"\ntriangle texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    chart = next(o for o in export.objects if o.name == "Grid")
+    assert chart.kind == "chart"
+    albedo = solution.surfaces[chart.patches[0][1]].albedo
+    assert albedo.shape == (64, 64, 3)
+    c = (np.arange(64) + 0.5) / 64
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    want, away = checker_colour(np.column_stack([u, v]))
+    got = albedo.reshape(-1, 3)
+    print(f"chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+
+
+def test_node_driven_roughness_is_its_mean_named_in_a_warning(context):
+    # A metal whose Roughness is a checker of 0.3 and 0.7 (Blender's evaluation: mean 0.5 over
+    # the floor's 4 x 4 squares) is solved as GGX with alpha = 0.5^2.
+    m = scenes.metal_material("Worn metal", 0.9)
+    tree = m.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    node = checker(tree)
+    node.inputs["Color1"].default_value = (0.3, 0.3, 0.3, 1)
+    node.inputs["Color2"].default_value = (0.7, 0.7, 0.7, 1)
+    tree.links.new(node.outputs["Fac"], bsdf.inputs["Roughness"])  # Fac: 1 on Color1's squares
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
+    scenes.add_area_light()
+    from bsgi_addon import materials, textures
+
+    with materials.averaged_inputs(textures.socket_means(context.evaluated_depsgraph_get())):
+        warnings = []
+        solved = materials.solver_material(m, materials.describe_material(m, warnings), warnings)
+    # Fac is 0 or 1: its mean over the floor is a half.
+    print(f"\nchecker-driven roughness solved as alpha {solved.alpha:.4f}")
+    assert solved.kind == "ggx"
+    assert solved.alpha == pytest.approx(0.5 ** 2, abs=0.01)
+    assert any("Worn metal" in w and "Roughness is driven by nodes and solved as its mean 0.50" in w for w in warnings)
+    export = export_scene(context.evaluated_depsgraph_get())
+    assert any("Roughness is driven by nodes and solved as its mean" in w for w in export.warnings), export.warnings
+    assert not any("driven by nodes; their own values" in w for w in export.warnings)
+
+
+def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
+    # Principled with its default specular layer (f0 0.04): Cycles' diffuse colour is the base
+    # colour times 1 - f0, the solve adds f0 (the highlight's energy) to it, and the bake's
+    # copy of the colour nodes shows colour x weight + specular: the same albedo.
+    m = principled("Checker", checker)
+    bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
+    scenes.add_area_light()
+    from bsgi_addon import textures
+
+    _, weight, specular = textures.colour_source(m)[1:]
+    export = export_scene(context.evaluated_depsgraph_get())
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    albedo = solution.surfaces[0].albedo
+    c = (np.arange(albedo.shape[0]) + 0.5) / albedo.shape[0]
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    albedo = albedo.reshape(-1, 3)
+    colour, away = checker_colour(np.column_stack([u, v]))
+    shown = colour * weight + np.asarray(specular)
+    err = np.abs(albedo[away] / shown[away] - 1).max()
+    print(f"\nf0 {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + f0, max relative difference {err:.4f}")
+    assert err <= 0.005
+
+
+def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path):
+    floor, wall = floor_and_wall(context)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 8
+    pipeline.solve_and_bake(context)
+    from bsgi_addon import bake, solution_file
+
+    solved = bake.stored_faces(floor)[0][1][0]
+    uv = np.random.default_rng(4).uniform(0, 1, (20, 2))
+    up = np.tile([0.0, 0.0, 1.0], (20, 1))
+    bake.rebake(floor)
+    np.testing.assert_array_equal(bake.stored_faces(floor)[0][1][0].evaluate(uv, up), solved.evaluate(uv, up))
+    path = tmp_path / "textured.npz"
+    solution_file.export_solution(context.scene, path)
+    for obj in (floor, wall):
+        bake.clear_bake(obj)
+    solution_file.import_solution(context.scene, path)
+    loaded = bake.stored_faces(floor)[0][1][0]
+    np.testing.assert_allclose(loaded.evaluate(uv, up), solved.evaluate(uv, up), rtol=1e-6)
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+
+
+def test_nurbs_surface_texture_is_over_its_parameters(context, tmp_path):
+    # A NURBS patch's mesh has UVs = its normalized (u, v): the Checker over them is the texture
+    # over the solver surface's parameters, and the bake shows the Checker node itself.
+    bpy.ops.surface.primitive_nurbs_surface_surface_add(radius=1.0)
+    patch = context.active_object
+    patch.data.materials.append(principled("Checker", checker))
+    scenes.add_area_light(location=(0, 0, 2))
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 8
+    export = export_scene(context.evaluated_depsgraph_get())
+    assert not any("node-driven" in w for w in export.warnings), export.warnings
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    albedo = solution.surfaces[export.objects[0].patches[0][1]].albedo
+    assert albedo.shape == (32, 32, 3)
+    c = (np.arange(32) + 0.5) / 32
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    want, away = checker_colour(np.column_stack([u, v]))
+    got = albedo.reshape(-1, 3)
+    print(f"\nNURBS texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    pipeline.solve_and_bake(context)
+    assert patch.material_slots[0].material.name == f"BSGI {patch.name} slot 0"
+
+
+@pytest.mark.slow
+def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
+    # A screen beside the floor (at x = -1.3, facing +x) emitting a 2 x 2 checker of white and
+    # black: the floor near it is brighter in front of the white squares. Cycles' render of the
+    # floor from above (direct light) against the render of the bake.
+    from test_pipeline import render_floor_from_above
+
+    m = bpy.data.materials.new("Screen")
+    tree = m.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 3.0
+    node = checker(tree)
+    node.inputs["Scale"].default_value = 2
+    node.inputs["Color1"].default_value = (1, 1, 1, 1)
+    node.inputs["Color2"].default_value = (0, 0, 0, 1)
+    tree.links.new(node.outputs["Color"], emission.inputs["Color"])
+    tree.links.new(emission.outputs[0], out.inputs["Surface"])
+    add_uv_quad("Screen", [(-1.3, -0.5, 0.1), (-1.3, 0.5, 0.1), (-1.3, 0.5, 1.1), (-1.3, -0.5, 1.1)], m)
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], scenes.diffuse_material("Grey", (0.5,) * 3))
+    scene = context.scene
+    scene.bsgi.preset = "CUSTOM"
+    scene.bsgi.max_bounces = 0
+    reference, points = render_floor_from_above(context, tmp_path / "reference.exr", samples=512)
+    report = pipeline.solve_and_bake(context)
+    baked, _ = render_floor_from_above(context, tmp_path / "baked.exr", samples=4)
+    rel, lit = lit_relative_difference(baked, reference, 0.02)
+    median = float(np.median(rel))
+    # In front of the screen's lower squares: white at y > 0 (u > 1/2: Checker's Color1 where
+    # the sum of the square indices is odd, (1, 0)), black at y < 0.
+    x, y = points[:, 0].reshape(reference.shape[:2]), points[:, 1].reshape(reference.shape[:2])
+    near = (x < -0.6)
+    def ratio(image):
+        lum = image.sum(axis=2)
+        return lum[near & (y > 0.15) & (y < 0.45)].mean() / lum[near & (y < -0.15) & (y > -0.45)].mean()
+    print(f"\nfloor beside a checker screen, baked vs Cycles (direct, 512 spp): median relative difference "
+          f"{median:.4f} over {lit.sum()} lit pixels (mean {rel.mean():.4f}); near the screen, white side over "
+          f"black side: Cycles {ratio(reference):.3f}, bake {ratio(baked):.3f}; solve {report['solve_seconds']:.2f} s")
+    assert ratio(reference) > 1.3  # the pattern shows (the screen's mean would give 1)
+    assert median <= 0.025
+    assert abs(ratio(baked) / ratio(reference) - 1) <= 0.01
+
+
+def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):
+    # A grid under a Subdivision Surface modifier is solved as one chart over its UV map as the
+    # modifier carries it: the Checker over those UVs is the chart's texture.
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=5, y_subdivisions=5, size=2)
+    grid = context.active_object
+    grid.data.materials.append(principled("Checker", checker))
+    grid.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    scenes.add_area_light(location=(0, 0, 2))
+    context.scene.bsgi.texture_texels = 16
+    export = export_scene(context.evaluated_depsgraph_get())
+    chart = export.objects[0]
+    assert chart.kind == "chart"
+    solution = pipeline.bsgi.solve(export.scene, pipeline.bsgi.SolverSettings.preset("draft"))
+    albedo = solution.surfaces[chart.patches[0][1]].albedo
+    c = (np.arange(albedo.shape[0]) + 0.5) / albedo.shape[0]
+    u, v = (x.ravel() for x in np.meshgrid(c, c))
+    want, away = checker_colour(np.column_stack([u, v]))
+    got = albedo.reshape(-1, 3)
+    print(f"\nsubdivided grid chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=0.02)
