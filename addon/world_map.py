@@ -10,6 +10,8 @@ import tempfile
 import bpy
 import numpy as np
 
+from .errors import ExportError
+
 # An equirectangular camera turned so that its image is the Environment Texture's layout: the
 # image's top towards +Z (the camera's local +Y turned up by X 90 degrees) and its centre towards
 # +X (turned by Z -90 degrees); checked against Cycles' own directions in tests/blender/test_world_map.py.
@@ -59,6 +61,9 @@ def render_world(world, width: int, samples: int = SAMPLES) -> np.ndarray:
         world.cycles_visibility.camera = True  # the map is what diffuse and glossy rays see
         world.cycles.sampling_method = "NONE"  # no importance map: camera rays alone see the world
         r = scene.render
+        if not hasattr(scene, "cycles"):  # Cycles' settings are there when its add-on is enabled
+            raise ExportError(f"world '{world.name}': a textured world is evaluated by a Cycles render, and Cycles "
+                              "is not enabled (Preferences > Add-ons > Cycles)")
         r.engine = "CYCLES"
         r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
         r.film_transparent = False
