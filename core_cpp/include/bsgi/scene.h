@@ -10,6 +10,7 @@
 
 #include "bsgi/bsdf.h"
 #include "bsgi/surface.h"
+#include "bsgi/thin_glass.h"
 
 namespace bsgi {
 
@@ -31,11 +32,13 @@ struct SpotCone {
 
 // How a surface scatters and emits. Without a BSDF the surface is Lambertian with `albedo`.
 // Emission is radiance leaving the front side, in every direction or within a spot cone.
+// With thin_glass the surface is a window pane instead: rays cross it (see thin_glass.h).
 struct Material {
     Vec3 albedo;
     Vec3 emission;
     std::shared_ptr<const Bsdf> bsdf;
     std::optional<SpotCone> cone;
+    std::optional<ThinGlass> thin_glass;
     bool emits() const { return max_component(emission) > 0; }
 };
 
@@ -86,6 +89,15 @@ public:
             throw std::invalid_argument("surface '" + name + "': zero area (its points lie on a line or a point)");
         if (options.spatial_coeffs < 0 || options.angular_coeffs < 0)
             throw std::invalid_argument("surface '" + name + "': coefficient counts must be >= 0 (0: automatic)");
+        if (material.thin_glass) {
+            // A pane's light is the light crossing it: it gets no spline of its own.
+            if (!(std::isfinite(material.thin_glass->eta) && material.thin_glass->eta >= 1))
+                throw std::invalid_argument("surface '" + name + "': thin glass needs a finite index of refraction >= 1");
+            if (material.emits()) throw std::invalid_argument("surface '" + name + "': thin glass cannot emit");
+            if (!(material.thin_glass->shadow <= 1))
+                throw std::invalid_argument("surface '" + name + "': thin glass shadow transmittance must be <= 1");
+            receiver = false;
+        }
         surfaces_.push_back({std::move(surface), material, receiver, occluder, options});
         return static_cast<int>(surfaces_.size()) - 1;
     }
