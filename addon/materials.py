@@ -4,7 +4,7 @@ Also the node-tree helpers the world's export shares. No solve state here."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mathutils import Matrix
@@ -32,10 +32,13 @@ class SurfaceMaterial:
     transmission: float = 0.0
     ior: float = 1.5
     emission: tuple = (0.0, 0.0, 0.0)  # radiance
+    # Cycles' "Light Path" trick for windows (a Mix Shader whose Fac is Is Shadow Ray): what
+    # shadow rays get through the material (the Transparent BSDF's colour, as a mean), or None.
+    shadow: float | None = None
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
-                               self.rotation, self.transmission * k, self.ior, _scale(self.emission, k))
+                               self.rotation, self.transmission * k, self.ior, _scale(self.emission, k), self.shadow)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -43,7 +46,7 @@ class SurfaceMaterial:
         dominant = self if glossy else other
         return SurfaceMaterial(_add(self.albedo, other.albedo), _add(self.specular, other.specular), dominant.roughness,
                                dominant.stretch, dominant.rotation, self.transmission + other.transmission, dominant.ior,
-                               _add(self.emission, other.emission))
+                               _add(self.emission, other.emission), self.shadow if self.shadow is not None else other.shadow)
 
 
 def _scale(c, k):
@@ -71,6 +74,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     """The material description of a shader node (recursing through Mix and Add shaders)."""
     if node is None or depth > 16:
         return SurfaceMaterial()
+    if _is_shadow_ray_mix(node):
+        return _shadow_ray_mix(node, material, warnings, depth)
     linked = [s.name for s in node.inputs
               if s.is_linked and s.type != "SHADER" and s.name not in {"Normal", "Tangent", "Alpha"}]
     _warn_ignored_inputs(node, material, warnings)
@@ -136,6 +141,28 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     warnings.append(f"material '{material.name}': shader '{node.bl_idname}' is approximated by the material's "
                     "viewport colour")
     return SurfaceMaterial(albedo=tuple(material.diffuse_color[:3]))
+
+
+def _is_shadow_ray_mix(node) -> bool:
+    """A Mix Shader whose Fac comes from Light Path's Is Shadow Ray: the window trick."""
+    if node.type != "MIX_SHADER" or not node.inputs["Fac"].is_linked:
+        return False
+    link = node.inputs["Fac"].links[0]
+    return link.from_node.type == "LIGHT_PATH" and link.from_socket.name == "Is Shadow Ray"
+
+
+def _shadow_ray_mix(node, material, warnings, depth) -> SurfaceMaterial:
+    """Cycles' Light Path trick: camera and bounce rays see the first shader, shadow rays the
+    second; a Transparent BSDF there lets shadow rays through with its colour (Cycles defines what
+    the scene means, so the solve does the same for the visibility of lights)."""
+    seen = _shader(linked_node(node.inputs[1]), material, warnings, depth + 1)
+    shadow_node = linked_node(node.inputs[2])
+    if shadow_node is not None and shadow_node.type == "BSDF_TRANSPARENT":
+        seen.shadow = sum(socket_color(shadow_node, "Color", (1.0, 1.0, 1.0))) / 3
+    else:
+        warnings.append(f"material '{material.name}': {node.name} shows shadow rays another shader than a "
+                        "Transparent BSDF; lights are seen through it as through the first shader")
+    return seen
 
 
 def _warn_ignored_inputs(node, material, warnings):
@@ -206,6 +233,11 @@ class SolverMaterial:
     f0: tuple = (0.0, 0.0, 0.0)
     eta: float = 1.0
     bsdf: object = None  # bsgi.Bsdf, None for Lambert (the scene then uses albedo)
+    # Glass ("rough_dielectric"): the user's roughness, what shadow rays get (the Light Path
+    # trick, or None), and the warnings that hold only if it is solved as a rough dielectric.
+    roughness: float = 0.0
+    shadow: float | None = None
+    solid_notes: list = field(default_factory=list)
 
 
 def _alpha(name: str, roughness: float, warnings) -> float:
@@ -244,9 +276,11 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
         if diffuse + glossy > 0.05:
             warnings.append(f"material '{name}': solved as rough glass; its diffuse and metallic parts are dropped")
         eta = max(described.ior, 1.0 + 1e-3)
-        alpha = _alpha(name, described.roughness, warnings)
+        notes: list = []  # given once the object's shape says it is solid glass (geometry.py)
+        alpha = _alpha(name, described.roughness, notes)
         return SolverMaterial((0, 0, 0), described.emission, "rough_dielectric", alpha=alpha, eta=eta,
-                              bsdf=bsgi.RoughDielectric(eta, alpha, alpha))
+                              bsdf=bsgi.RoughDielectric(eta, alpha, alpha), roughness=described.roughness,
+                              shadow=described.shadow, solid_notes=notes)
     if transmission > 0:
         warnings.append(f"material '{name}': its transmission is weaker than its reflection; solved as opaque")
     if glossy > diffuse:
@@ -301,6 +335,7 @@ class ObjectMaterials:
     radial: tangents.RadialTangent
     label: str
     spread: float = 0.0  # the largest turn of Blender's tangent against ds/du on one surface, radians
+    material_names: list = field(default_factory=list)  # per slot, for the report
 
     def for_surface(self, slot: int, surface) -> dict:
         """The keywords of the slot's material; an anisotropic GGX turned so that its tangent
@@ -314,6 +349,39 @@ class ObjectMaterials:
         bsdf = bsgi.GgxReflection(material.alpha_x, material.alpha_y, material.f0, rotation=material.rotation + angle)
         return {**keywords, "bsdf": bsdf}
 
+    def use_glass(self, shape: GlassShape, choice: str, warnings) -> set:
+        """Decides, per glass slot, thin pane or solid glass (glass_model), says which and why,
+        and makes the panes' keywords thin glass; returns the thin slots."""
+        thin = set()
+        for slot, material in enumerate(self.solver):
+            if material.kind != "rough_dielectric":
+                continue
+            model, why = glass_model(material, shape, choice)
+            name = self.material_names[slot]
+            if model == "solid":
+                warnings.append(f"object '{self.label}': its glass (material '{name}') is solved as a rough "
+                                f"dielectric, with radiance splines for both hemispheres ({why})")
+                warnings.extend(material.solid_notes)
+                if material.shadow is not None:
+                    warnings.append(f"material '{name}': the Light Path trick (shadow rays through a Transparent "
+                                    "BSDF) is not solved on solid glass")
+                continue
+            thin.add(slot)
+            slab = shape.kind == "slab"
+            light = ("shadow rays (direct light) pass with the Transparent BSDF's colour as Cycles' Light Path "
+                     "trick sets it, other rays" if material.shadow is not None else "light")
+            warnings.append(
+                f"object '{self.label}': its glass (material '{name}') is solved as a thin pane ({why}): {light} "
+                f"{'crosses each face' if slab else 'passes straight through it'} with the Fresnel factor of "
+                f"{'one face' if slab else 'a thin sheet'} of index {material.eta:.2f}, and it reflects specularly "
+                "(Cycles bends the rays at each face; a pane offsets them by about its thickness)")
+            if max(material.emission) > 0:
+                warnings.append(f"object '{self.label}': a thin pane does not emit; its glass's emission is dropped")
+            self.keywords[slot] = {**self.keywords[slot], "albedo": (0, 0, 0), "emission": (0, 0, 0), "bsdf": None,
+                                   "thin_glass": material.eta, "one_interface": slab,
+                                   "shadow_transmittance": material.shadow}
+        return thin
+
     def warn(self, warnings) -> None:
         if math.degrees(self.spread) > tangents.MAX_SPREAD_DEGREES:
             warnings.append(f"object '{self.label}': Blender's tangent for its anisotropic material turns by up to "
@@ -322,7 +390,40 @@ class ObjectMaterials:
                             "follow a smooth tangent better than single faces)")
 
 
+# Glass smoother than this on a single plane or a thin closed slab is a window pane (thin glass):
+# its transmitted lobe is too narrow for the angular splines, and light crosses it nearly unbent.
+THIN_GLASS_MAX_ROUGHNESS = 0.1
+# A closed glass solid thinner than this fraction of its width is a slab (a solidified pane).
+THIN_SLAB_MAX_RATIO = 0.1
+
+
+@dataclass
+class GlassShape:
+    """What an object's shape says about its glass: "plane" (all faces in one plane), "slab" (a
+    closed solid, thin against its width), "thick" (a thicker closed solid) or "open" (an open
+    surface not in one plane); `why` in words."""
+
+    kind: str
+    why: str
+
+
+def glass_model(material: SolverMaterial, shape: GlassShape, choice: str) -> tuple:
+    """("thin" | "solid", why) for glass on an object of that shape; choice is the object's Glass
+    setting (AUTO, THIN, SOLID)."""
+    if choice == "THIN":
+        return "thin", "set to Thin Pane in its object properties"
+    if choice == "SOLID":
+        return "solid", "set to Solid in its object properties"
+    if material.roughness >= THIN_GLASS_MAX_ROUGHNESS:
+        return "solid", f"roughness {material.roughness:.2f}, not below {THIN_GLASS_MAX_ROUGHNESS}"
+    if shape.kind in {"plane", "slab"}:
+        return "thin", f"smooth (roughness {material.roughness:.2f}) on {shape.why}"
+    return "solid", f"smooth, but on {shape.why}"
+
+
 def object_materials(obj, matrix: Matrix, warnings, label: str, options: dict) -> ObjectMaterials:
     solver = _slot_materials(obj, warnings)
     radial = tangents.RadialTangent(np.array(matrix, float), [tuple(c) for c in obj.bound_box])
-    return ObjectMaterials(solver, [_material_keywords(m, options) for m in solver], radial, label)
+    names = [m.name if m is not None else "(none)" for m in user_slots(obj)]
+    return ObjectMaterials(solver, [_material_keywords(m, options) for m in solver], radial, label,
+                           material_names=names)
