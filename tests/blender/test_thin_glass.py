@@ -197,3 +197,14 @@ def test_room_with_a_window_pane_against_cycles(context, tmp_path):
           f"sun patch {patch_rel:+.4f}")
     assert abs(rel) < 0.05
     assert abs(patch_rel) < 0.05
+
+
+def test_a_solve_and_bake_leaves_the_pane_its_glass(context):
+    room(context, glass())
+    context.scene.bsgi.preset = "DRAFT"
+    rep = pipeline.solve_and_bake(context)
+    window = bpy.data.objects["Pane"]
+    assert [s.material.name for s in window.material_slots] == ["Glass"]
+    assert "BSGI Floor" in bpy.data.images and "BSGI Pane" not in bpy.data.images
+    notes = [a for a in rep["approximations"] if a["owner"] == "object 'Pane'"]
+    assert notes and any("not baked" in n for n in notes[0]["notes"])
