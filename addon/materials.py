@@ -100,6 +100,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=socket_value(node, "Roughness", 0.5),
                                stretch=stretch, rotation=2 * math.pi * rotation)
     if kind == "BSDF_GLASS":
+        _warn_tint(socket_color(node, "Color", (1.0, 1.0, 1.0)), node, material, warnings)
         return SurfaceMaterial(transmission=1.0, roughness=socket_value(node, "Roughness", 0.0),
                                ior=socket_value(node, "IOR", 1.5))
     if kind == "BSDF_PRINCIPLED":
@@ -107,6 +108,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         metallic = socket_value(node, "Metallic")
         # Metals do not transmit: Blender's metallic part covers the transmission.
         transmission = socket_value(node, "Transmission Weight", socket_value(node, "Transmission")) * (1 - metallic)
+        if transmission > 0.5:
+            _warn_tint(base, node, material, warnings)
         specular_level = socket_value(node, "Specular IOR Level", 0.5)
         ior = socket_value(node, "IOR", 1.5)
         # Dielectric specular reflectance at normal incidence, ((ior-1)/(ior+1))^2, scaled by
@@ -158,11 +161,22 @@ def _shadow_ray_mix(node, material, warnings, depth) -> SurfaceMaterial:
     seen = _shader(linked_node(node.inputs[1]), material, warnings, depth + 1)
     shadow_node = linked_node(node.inputs[2])
     if shadow_node is not None and shadow_node.type == "BSDF_TRANSPARENT":
-        seen.shadow = sum(socket_color(shadow_node, "Color", (1.0, 1.0, 1.0))) / 3
+        colour = socket_color(shadow_node, "Color", (1.0, 1.0, 1.0))
+        seen.shadow = sum(colour) / 3
+        if max(colour) - min(colour) > 1e-3:
+            warnings.append(f"material '{material.name}': {shadow_node.name}'s colour is solved as its mean grey "
+                            f"{seen.shadow:.3f} for the light passing")
     else:
         warnings.append(f"material '{material.name}': {node.name} shows shadow rays another shader than a "
                         "Transparent BSDF; lights are seen through it as through the first shader")
     return seen
+
+
+def _warn_tint(colour, node, material, warnings):
+    """Glass is solved clear: a tint of its transmission is not."""
+    if min(colour) < 1 - 1e-3:
+        warnings.append(f"material '{material.name}': {node.name}'s glass colour "
+                        f"({', '.join(f'{c:.2f}' for c in colour)}) is not solved; the glass is solved clear")
 
 
 def _warn_ignored_inputs(node, material, warnings):
