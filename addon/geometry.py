@@ -13,7 +13,7 @@ import bsgi
 
 from . import charts
 from .errors import ExportError
-from .materials import ObjectMaterials, object_materials, surface_options, user_slots
+from .materials import THIN_SLAB_MAX_RATIO, GlassShape, ObjectMaterials, object_materials, surface_options, user_slots
 from .user_materials import UV_NAME, user_spline_material_index
 
 GEOMETRY_TYPES = {"MESH", "SURFACE", "CURVE", "FONT", "META"}
@@ -50,7 +50,16 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
     label = label or obj.name
     materials = object_materials(obj, matrix, warnings, label, surface_options(obj))
     exported = ExportedObject(obj.name, len(mesh.polygons))
-    if modified:
+    if any(m.kind == "rough_dielectric" for m in materials.solver):
+        thin = materials.use_glass(glass_shape(world, mesh), glass_choice(obj), warnings)
+        if thin and thin >= _used_slots(mesh, len(materials.solver)):
+            exported.not_baked = PANE_NOTE
+        elif thin:
+            warnings.append(f"object '{label}': its thin glass faces show no light in the bake; separate the glass "
+                            "into an object of its own (Edit Mode: P > By Material) to see it through its glass "
+                            "material")
+    pane = exported.not_baked == PANE_NOTE  # per face: a pane needs no chart, it is not baked
+    if modified and not pane:
         # The user's mesh shows the evaluated faces only through a UV map the modifiers carry
         # to them: one chart, or no bake.
         problem = _chart_refusal(obj, mesh, user_slots(obj))
@@ -58,7 +67,7 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
             pending_charts.append(_chart_job(exported, mesh, world, materials, label, base=obj.original))
             return exported
         exported.not_baked = f"its modifiers ({modifier_names(obj)}) change its faces and {problem}; {APPLY_ADVICE}"
-    elif pending_charts is not None and _wants_chart(obj, mesh, user_slots(obj), label, warnings):
+    elif not pane and pending_charts is not None and _wants_chart(obj, mesh, user_slots(obj), label, warnings):
         pending_charts.append(_chart_job(exported, mesh, world, materials, label))
         return exported
     ngon_tris = {}
@@ -83,6 +92,45 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
         exported.patches.append((kind, first, len(pieces)))
     materials.warn(warnings)
     return exported
+
+
+# A window pane has no spline: the renderer shows it with the user's own glass material.
+PANE_NOTE = ("it is a thin glass pane, which has no radiance spline; its own glass material shows it as Material "
+             "Preview and Cycles show glass (the outside through it, the room reflected in it, from the baked "
+             "surfaces around)")
+
+
+def glass_choice(obj) -> str:
+    """The object's Glass setting (Object properties): AUTO, THIN or SOLID."""
+    return getattr(getattr(obj.original, "bsgi", None), "glass", "AUTO")
+
+
+def _used_slots(mesh, slots: int) -> set:
+    indices = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("material_index", indices)
+    return {min(int(i), slots - 1) for i in np.unique(indices)}
+
+
+def glass_shape(world: np.ndarray, mesh) -> GlassShape:
+    """Whether a mesh (world vertex positions) is a pane: all faces in one plane, or a closed
+    solid whose extent along its thinnest principal axis is small against the next one."""
+    used = np.unique(np.fromiter((v for p in mesh.polygons for v in p.vertices), np.int64))
+    points = world[used] - world[used].mean(axis=0)
+    axes = np.linalg.svd(points, full_matrices=False)[2]
+    extent = np.ptp(points @ axes.T, axis=0)  # along the principal axes, widest first
+    if extent[2] <= 1e-6 * max(extent[0], 1e-12):
+        return GlassShape("plane", "a single plane")
+    edges: dict = {}
+    for poly in mesh.polygons:
+        for key in poly.edge_keys:
+            edges[key] = edges.get(key, 0) + 1
+    closed = all(count == 2 for count in edges.values())
+    size = f"{extent[2]:.3g} thick, {extent[1]:.3g} wide"
+    if not closed:
+        return GlassShape("open", "an open surface not in one plane")
+    if extent[2] < THIN_SLAB_MAX_RATIO * extent[1]:
+        return GlassShape("slab", f"a thin closed slab ({size})")
+    return GlassShape("thick", f"a closed solid ({size}: thicker than {THIN_SLAB_MAX_RATIO:g} of its width)")
 
 
 def chart_min_faces(scene) -> int:
@@ -270,6 +318,9 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = 
         warnings.append(f"object '{obj.name}': modifiers of NURBS surfaces are ignored (the splines are solved exactly)")
     materials = object_materials(original, matrix, warnings, label, surface_options(obj))
     exported = ExportedObject(obj.name, 0, kind="nurbs")
+    if any(m.kind == "rough_dielectric" for m in materials.solver):
+        if materials.use_glass(GlassShape("open", "a NURBS surface"), glass_choice(obj), warnings):
+            exported.not_baked = PANE_NOTE
     drawn = baked_splines(original)
     for k, spline in enumerate(original.data.splines):
         if spline.type != "NURBS":

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mathutils import Matrix
@@ -37,11 +37,14 @@ class SurfaceMaterial:
     # values above are the sockets' own.
     albedo_textured: bool = False
     emission_textured: bool = False
+    # Cycles' "Light Path" trick for windows (a Mix Shader whose Fac is Is Shadow Ray): what
+    # shadow rays get through the material (the Transparent BSDF's colour, as a mean), or None.
+    shadow: float | None = None
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
                                self.rotation, self.transmission * k, self.ior, _scale(self.emission, k),
-                               self.albedo_textured, self.emission_textured)
+                               self.albedo_textured, self.emission_textured, self.shadow)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -50,7 +53,8 @@ class SurfaceMaterial:
         return SurfaceMaterial(_add(self.albedo, other.albedo), _add(self.specular, other.specular), dominant.roughness,
                                dominant.stretch, dominant.rotation, self.transmission + other.transmission, dominant.ior,
                                _add(self.emission, other.emission), self.albedo_textured or other.albedo_textured,
-                               self.emission_textured or other.emission_textured)
+                               self.emission_textured or other.emission_textured,
+                               self.shadow if self.shadow is not None else other.shadow)
 
 
 def _scale(c, k):
@@ -106,6 +110,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     """The material description of a shader node (recursing through Mix and Add shaders)."""
     if node is None or depth > 16:
         return SurfaceMaterial()
+    if _is_shadow_ray_mix(node):
+        return _shadow_ray_mix(node, material, warnings, depth)
     colour, glow = TEXTURED_INPUTS.get(node.type, ((), ()))
     averaged = [name for name in AVERAGED_INPUTS.get(node.type, ()) if (material.name, node.name, name) in _averaged]
     linked = [s.name for s in node.inputs if s.is_linked and s.type != "SHADER"
@@ -138,6 +144,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=_scalar(material, node, "Roughness", 0.5),
                                stretch=stretch, rotation=2 * math.pi * rotation)
     if kind == "BSDF_GLASS":
+        _warn_tint(socket_color(node, "Color", (1.0, 1.0, 1.0)), node, material, warnings)
         return SurfaceMaterial(transmission=1.0, roughness=_scalar(material, node, "Roughness", 0.0),
                                ior=socket_value(node, "IOR", 1.5))
     if kind == "BSDF_PRINCIPLED":
@@ -145,6 +152,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         metallic = _scalar(material, node, "Metallic")
         # Metals do not transmit: Blender's metallic part covers the transmission.
         transmission = socket_value(node, "Transmission Weight", socket_value(node, "Transmission")) * (1 - metallic)
+        if transmission > 0.5:
+            _warn_tint(base, node, material, warnings)
         specular_level = socket_value(node, "Specular IOR Level", 0.5)
         ior = socket_value(node, "IOR", 1.5)
         # Dielectric specular reflectance at normal incidence, ((ior-1)/(ior+1))^2, scaled by
@@ -195,6 +204,39 @@ TEXTURED_INPUTS = {
 def _is_linked(node, name) -> bool:
     socket = node.inputs.get(name)
     return socket is not None and socket.is_linked
+
+
+def _is_shadow_ray_mix(node) -> bool:
+    """A Mix Shader whose Fac comes from Light Path's Is Shadow Ray: the window trick."""
+    if node.type != "MIX_SHADER" or not node.inputs["Fac"].is_linked:
+        return False
+    link = node.inputs["Fac"].links[0]
+    return link.from_node.type == "LIGHT_PATH" and link.from_socket.name == "Is Shadow Ray"
+
+
+def _shadow_ray_mix(node, material, warnings, depth) -> SurfaceMaterial:
+    """Cycles' Light Path trick: camera and bounce rays see the first shader, shadow rays the
+    second; a Transparent BSDF there lets shadow rays through with its colour (Cycles defines what
+    the scene means, so the solve does the same for the visibility of lights)."""
+    seen = _shader(linked_node(node.inputs[1]), material, warnings, depth + 1)
+    shadow_node = linked_node(node.inputs[2])
+    if shadow_node is not None and shadow_node.type == "BSDF_TRANSPARENT":
+        colour = socket_color(shadow_node, "Color", (1.0, 1.0, 1.0))
+        seen.shadow = sum(colour) / 3
+        if max(colour) - min(colour) > 1e-3:
+            warnings.append(f"material '{material.name}': {shadow_node.name}'s colour is solved as its mean grey "
+                            f"{seen.shadow:.3f} for the light passing")
+    else:
+        warnings.append(f"material '{material.name}': {node.name} shows shadow rays another shader than a "
+                        "Transparent BSDF; lights are seen through it as through the first shader")
+    return seen
+
+
+def _warn_tint(colour, node, material, warnings):
+    """Glass is solved clear: a tint of its transmission is not."""
+    if min(colour) < 1 - 1e-3:
+        warnings.append(f"material '{material.name}': {node.name}'s glass colour "
+                        f"({', '.join(f'{c:.2f}' for c in colour)}) is not solved; the glass is solved clear")
 
 
 def _warn_ignored_inputs(node, material, warnings):
@@ -271,6 +313,11 @@ class SolverMaterial:
     albedo_textured: bool = False
     emission_textured: bool = False
     specular: tuple = (0.0, 0.0, 0.0)
+    # Glass ("rough_dielectric"): the user's roughness, what shadow rays get (the Light Path
+    # trick, or None), and the warnings that hold only if it is solved as a rough dielectric.
+    roughness: float = 0.0
+    shadow: float | None = None
+    solid_notes: list = field(default_factory=list)
 
 
 def _alpha(name: str, roughness: float, warnings) -> float:
@@ -322,9 +369,11 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         if diffuse + glossy > 0.05:
             warnings.append(f"material '{name}': solved as rough glass; its diffuse and metallic parts are dropped")
         eta = max(described.ior, 1.0 + 1e-3)
-        alpha = _alpha(name, described.roughness, warnings)
+        notes: list = []  # given once the object's shape says it is solid glass (geometry.py)
+        alpha = _alpha(name, described.roughness, notes)
         return SolverMaterial((0, 0, 0), described.emission, "rough_dielectric", alpha=alpha, eta=eta,
-                              bsdf=bsgi.RoughDielectric(eta, alpha, alpha))
+                              bsdf=bsgi.RoughDielectric(eta, alpha, alpha), roughness=described.roughness,
+                              shadow=described.shadow, solid_notes=notes)
     if transmission > 0:
         warnings.append(f"material '{name}': its transmission is weaker than its reflection; solved as opaque")
     if glossy > diffuse:
@@ -379,6 +428,7 @@ class ObjectMaterials:
     radial: tangents.RadialTangent
     label: str
     spread: float = 0.0  # the largest turn of Blender's tangent against ds/du on one surface, radians
+    material_names: list = field(default_factory=list)  # per slot, for the report
 
     def for_surface(self, slot: int, surface) -> dict:
         """The keywords of the slot's material; an anisotropic GGX turned so that its tangent
@@ -392,6 +442,39 @@ class ObjectMaterials:
         bsdf = bsgi.GgxReflection(material.alpha_x, material.alpha_y, material.f0, rotation=material.rotation + angle)
         return {**keywords, "bsdf": bsdf}
 
+    def use_glass(self, shape: GlassShape, choice: str, warnings) -> set:
+        """Decides, per glass slot, thin pane or solid glass (glass_model), says which and why,
+        and makes the panes' keywords thin glass; returns the thin slots."""
+        thin = set()
+        for slot, material in enumerate(self.solver):
+            if material.kind != "rough_dielectric":
+                continue
+            model, why = glass_model(material, shape, choice)
+            name = self.material_names[slot]
+            if model == "solid":
+                warnings.append(f"object '{self.label}': its glass (material '{name}') is solved as a rough "
+                                f"dielectric, with radiance splines for both hemispheres ({why})")
+                warnings.extend(material.solid_notes)
+                if material.shadow is not None:
+                    warnings.append(f"material '{name}': the Light Path trick (shadow rays through a Transparent "
+                                    "BSDF) is not solved on solid glass")
+                continue
+            thin.add(slot)
+            slab = shape.kind == "slab"
+            light = ("shadow rays (direct light) pass with the Transparent BSDF's colour as Cycles' Light Path "
+                     "trick sets it, other rays" if material.shadow is not None else "light")
+            warnings.append(
+                f"object '{self.label}': its glass (material '{name}') is solved as a thin pane ({why}): {light} "
+                f"{'crosses each face' if slab else 'passes straight through it'} with the Fresnel factor of "
+                f"{'one face' if slab else 'a thin sheet'} of index {material.eta:.2f}, and it reflects specularly "
+                "(Cycles bends the rays at each face; a pane offsets them by about its thickness)")
+            if max(material.emission) > 0:
+                warnings.append(f"object '{self.label}': a thin pane does not emit; its glass's emission is dropped")
+            self.keywords[slot] = {**self.keywords[slot], "albedo": (0, 0, 0), "emission": (0, 0, 0), "bsdf": None,
+                                   "thin_glass": material.eta, "one_interface": slab,
+                                   "shadow_transmittance": material.shadow}
+        return thin
+
     def warn(self, warnings) -> None:
         if math.degrees(self.spread) > tangents.MAX_SPREAD_DEGREES:
             warnings.append(f"object '{self.label}': Blender's tangent for its anisotropic material turns by up to "
@@ -400,7 +483,40 @@ class ObjectMaterials:
                             "follow a smooth tangent better than single faces)")
 
 
+# Glass smoother than this on a single plane or a thin closed slab is a window pane (thin glass):
+# its transmitted lobe is too narrow for the angular splines, and light crosses it nearly unbent.
+THIN_GLASS_MAX_ROUGHNESS = 0.1
+# A closed glass solid thinner than this fraction of its width is a slab (a solidified pane).
+THIN_SLAB_MAX_RATIO = 0.1
+
+
+@dataclass
+class GlassShape:
+    """What an object's shape says about its glass: "plane" (all faces in one plane), "slab" (a
+    closed solid, thin against its width), "thick" (a thicker closed solid) or "open" (an open
+    surface not in one plane); `why` in words."""
+
+    kind: str
+    why: str
+
+
+def glass_model(material: SolverMaterial, shape: GlassShape, choice: str) -> tuple:
+    """("thin" | "solid", why) for glass on an object of that shape; choice is the object's Glass
+    setting (AUTO, THIN, SOLID)."""
+    if choice == "THIN":
+        return "thin", "set to Thin Pane in its object properties"
+    if choice == "SOLID":
+        return "solid", "set to Solid in its object properties"
+    if material.roughness >= THIN_GLASS_MAX_ROUGHNESS:
+        return "solid", f"roughness {material.roughness:.2f}, not below {THIN_GLASS_MAX_ROUGHNESS}"
+    if shape.kind in {"plane", "slab"}:
+        return "thin", f"smooth (roughness {material.roughness:.2f}) on {shape.why}"
+    return "solid", f"smooth, but on {shape.why}"
+
+
 def object_materials(obj, matrix: Matrix, warnings, label: str, options: dict) -> ObjectMaterials:
     solver = _slot_materials(obj, warnings)
     radial = tangents.RadialTangent(np.array(matrix, float), [tuple(c) for c in obj.bound_box])
-    return ObjectMaterials(solver, [_material_keywords(m, options) for m in solver], radial, label)
+    names = [m.name if m is not None else "(none)" for m in user_slots(obj)]
+    return ObjectMaterials(solver, [_material_keywords(m, options) for m in solver], radial, label,
+                           material_names=names)

@@ -87,7 +87,8 @@ def representation_summary(reports) -> dict:
     counts: dict = {}
     largest = None
     for r in reports:
-        kind = r["representation"].split()[0]  # "diffuse 2D", "glossy 4D + transmission", "emitter"
+        # "diffuse 2D", "glossy 4D + transmission", "emitter", "thin glass" (a window pane)
+        kind = "pane" if r["representation"] == "thin glass" else r["representation"].split()[0]
         counts[kind] = counts.get(kind, 0) + 1
         if r["shape"]:
             coefficients = math.prod(r["shape"]) * (2 if "transmission" in r["representation"] else 1)

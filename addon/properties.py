@@ -107,6 +107,15 @@ class BSGIObjectSettings(bpy.types.PropertyGroup):
         name="Angular Coefficients", default=0, min=0, max=64,
         description="Coefficients per direction of the hemisphere disc of glossy surfaces (0: from the "
         "material's lobe width)")
+    glass: EnumProperty(
+        name="Glass", default="AUTO",
+        items=[("AUTO", "Automatic", "Smooth glass (roughness below 0.1) on a single plane or a thin closed slab is a "
+                "thin pane; other glass is solid"),
+               ("THIN", "Thin Pane", "A window pane: light passes straight through it, attenuated by Fresnel "
+                "reflection at its faces, and it reflects a little; no spline, not baked (cheap, sharp)"),
+               ("SOLID", "Solid", "A rough dielectric with radiance splines for both hemispheres (costly; blurs "
+                "light through smooth glass)")],
+        description="How the object's glass (a transmitting material) is solved")
 
 
 classes = (BSGISceneSettings, BSGIObjectSettings)

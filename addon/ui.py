@@ -71,6 +71,7 @@ class BSGI_PT_object(bpy.types.Panel):
         row.prop(settings, "angular_coeffs")
         if context.object.type != "SURFACE":  # curves, texts and metaballs are solved as meshes
             layout.prop(settings, "mesh_surfaces")
+            layout.prop(settings, "glass")
 
 
 classes = (BSGI_PT_render, BSGI_PT_sidebar, BSGI_PT_object)

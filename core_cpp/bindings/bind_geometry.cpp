@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <type_traits>
@@ -212,18 +213,25 @@ void bind_geometry(py::module_& m) {
 
     py::class_<PyRayCaster>(m, "RayCaster",
                             "Embree ray queries answering with surface id, (u, v), point and local frame; surface i is surfaces[i].")
-        .def(py::init([](std::vector<std::shared_ptr<Surface>> surfaces) {
+        .def(py::init([](std::vector<std::shared_ptr<Surface>> surfaces, std::map<int, double> panes) {
                  auto rc = std::make_unique<PyRayCaster>();
                  std::vector<const Surface*> raw;
                  for (auto& s : surfaces) {
                      rc->surfaces.push_back(s);
                      raw.push_back(s.get());
                  }
+                 std::vector<std::optional<ThinGlass>> glass(raw.size());
+                 for (const auto& [i, eta] : panes) {
+                     if (i < 0 || size_t(i) >= raw.size()) throw std::invalid_argument("panes: no surface " + std::to_string(i));
+                     if (!(std::isfinite(eta) && eta >= 1)) throw std::invalid_argument("panes: index of refraction must be >= 1");
+                     glass[i] = ThinGlass{eta, false};
+                 }
                  py::gil_scoped_release release;
-                 rc->caster = std::make_unique<RayCaster>(raw);
+                 rc->caster = std::make_unique<RayCaster>(raw, glass);
                  return rc;
              }),
-             py::arg("surfaces"))
+             py::arg("surfaces"), py::arg("panes") = std::map<int, double>{},
+             "panes: {surface index: index of refraction} of window panes (thin glass), which transmittance() sees through.")
         .def_property_readonly("offset", [](const PyRayCaster& r) { return r.caster->offset(); },
                                "Self-intersection offset: scales with the scene's magnitude.")
         .def_property_readonly("triangle_count", [](const PyRayCaster& r) { return r.caster->triangle_count(); })
@@ -296,6 +304,23 @@ void bind_geometry(py::module_& m) {
             },
             py::arg("origins"), py::arg("directions"), py::arg("tnear") = py::none(), py::arg("tfar") = py::none(),
             py::arg("threads") = 0, "Whether anything blocks each ray within (tnear, tfar).")
+        .def(
+            "transmittance",
+            [](const PyRayCaster& r, const Array& origins, const Array& directions, std::optional<Array> tnear,
+               std::optional<Array> tfar, int threads) {
+                const RayBatch b = batch(origins, directions, tnear, tfar);
+                py::array_t<double> out(py::ssize_t(b.count));
+                double* o = out.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    r.caster->transmittance_batch(b, o, threads);
+                }
+                return out;
+            },
+            py::arg("origins"), py::arg("directions"), py::arg("tnear") = py::none(), py::arg("tfar") = py::none(),
+            py::arg("threads") = 0,
+            "Fraction of light passing along each ray within (tnear, tfar): the product of the panes' thin-sheet "
+            "transmittance, 0 if an opaque surface is in the way.")
         .def(
             "raw_closest_hit",
             [](const PyRayCaster& r, const Array& origins, const Array& directions, int threads) {

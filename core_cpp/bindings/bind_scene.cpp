@@ -118,14 +118,32 @@ void bind_scene(py::module_& m) {
             "add_surface",
             [](Scene& s, std::shared_ptr<Surface> surface, const Array& albedo, const Array& emission, bool receiver,
                bool occluder, std::shared_ptr<const Bsdf> bsdf, const std::string& representation, int spatial_coeffs,
-               int angular_coeffs) {
+               int angular_coeffs, std::optional<double> thin_glass, bool one_interface, std::optional<double> shadow) {
                 const std::string name = surface ? surface->name() : "";
-                return s.add(std::move(surface), material(albedo, emission, std::move(bsdf)), receiver, occluder,
-                             options(name, representation, spatial_coeffs, angular_coeffs));
+                Material m = material(albedo, emission, std::move(bsdf));
+                if (thin_glass) {
+                    if (shadow && !(*shadow >= 0)) throw std::invalid_argument("surface '" + name + "': shadow_transmittance must be >= 0");
+                    m.thin_glass = ThinGlass{*thin_glass, one_interface, shadow ? *shadow : -1.0};
+                } else if (one_interface || shadow) {
+                    throw std::invalid_argument("surface '" + name + "': one_interface and shadow_transmittance are for thin glass (give thin_glass)");
+                }
+                return s.add(std::move(surface), m, receiver, occluder, options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("surface"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true, py::arg("occluder") = true,
             py::arg("bsdf") = nullptr, py::arg("representation") = "auto", py::arg("spatial_coeffs") = 0,
-            py::arg("angular_coeffs") = 0, "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it.")
+            py::arg("angular_coeffs") = 0, py::arg("thin_glass") = py::none(), py::arg("one_interface") = false,
+            py::arg("shadow_transmittance") = py::none(),
+            "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it. thin_glass=eta makes it a "
+            "window pane of smooth glass of that index: rays pass straight through it with the thin sheet's Fresnel "
+            "transmittance (one_interface: one face of a thin closed slab, 1 - R per crossing), it reflects "
+            "specularly and gets no spline (not a receiver). shadow_transmittance: what visibility rays get "
+            "instead of the Fresnel factor (Cycles' Light Path trick: the Transparent BSDF's colour).")
+        .def(
+            "is_thin_glass", [](const Scene& s, size_t i) {
+                if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+                return bool(s[i].material.thin_glass);
+            },
+            py::arg("index"))
         .def_property(
             "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },

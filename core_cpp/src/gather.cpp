@@ -171,10 +171,12 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             const Vec3 segment = ep.p + ep.frame.z * offset - origin;
             const double stop = 1.0 - 2 * offset / length(segment);
             ++rays;
-            if (stop <= 0 || caster_.occluded(origin, segment, 0.0, stop)) continue;
+            if (stop <= 0) continue;
+            const double pass = caster_.transmittance(origin, segment, 0.0, stop);  // 0: shadowed; < 1: through panes
+            if (pass <= 0) continue;
             const double w = cell_rule_.weights[p] * cell_rule_.weights[k] * ds * dt;
             const Vec3 Le = light.emission_over(s0 + ds * edge[p], s0 + ds * edge[p + 1], t0 + dt * edge[k], t0 + dt * edge[k + 1]);
-            visit(d / len, Le * (cone * w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
+            visit(d / len, Le * (pass * cone * w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
         }
 }
 
@@ -190,8 +192,9 @@ void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, doub
         const double cos_r = dot(d.direction, r.frame.z);
         if (cos_r == 0 || (cos_r < 0 && !both_sides)) continue;
         ++rays;
-        if (caster_.occluded(caster_.spawn(r.p, r.frame.z, d.direction), d.direction)) continue;
-        visit(d.direction, d.irradiance * std::abs(cos_r));
+        const double pass = caster_.transmittance(caster_.spawn(r.p, r.frame.z, d.direction), d.direction);
+        if (pass <= 0) continue;
+        visit(d.direction, d.irradiance * (pass * std::abs(cos_r)));
     }
 }
 
@@ -245,6 +248,28 @@ void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const
                out, rays);
 }
 
+template <typename Visit>
+void Gatherer::through_panes(const Vec3& o, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const {
+    ++rays;
+    const SurfaceHit hit = caster_.closest_hit(o, dir);
+    const ThinGlass* glass = caster_.pane(hit.surface);
+    if (!glass) {
+        visit(hit, dir, weight);
+        return;
+    }
+    if (depth >= RayCaster::kMaxPanes) return;
+    // The pane passes 1 - R straight on and reflects R (the thin sheet's factors): one ray each,
+    // the reflected one only while it carries a noticeable share (a pane's second reflection
+    // carries under 1% at normal incidence).
+    const Vec3 n = hit.frame.z;
+    const double c = dot(dir, n), R = glass->reflectance(c);
+    through_panes(caster_.spawn(hit.p, n, dir), dir, weight * (1 - R), depth + 1, visit, rays);
+    if (weight * R > kMinPaneReflection) {
+        const Vec3 mirrored = dir - n * (2 * c);
+        through_panes(caster_.spawn(hit.p, n, mirrored), mirrored, weight * R, depth + 1, visit, rays);
+    }
+}
+
 template <typename Incoming>
 void Gatherer::hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out,
                           size_t& rays) const {
@@ -255,8 +280,10 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, int density, Incoming&& r
     // Incoming radiance along a local direction (pointing away from the surface).
     auto incoming = [&](const Vec3& wi) -> Vec3 {
         const Vec3 dir = p.frame.to_world(wi);
-        ++rays;
-        return radiance_along(caster_.closest_hit(caster_.spawn(p.p, p.frame.z, dir), dir), dir);
+        Vec3 L{0, 0, 0};
+        through_panes(caster_.spawn(p.p, p.frame.z, dir), dir, 1.0, 0,
+                      [&](const SurfaceHit& hit, const Vec3& d, double w) { L += radiance_along(hit, d) * w; }, rays);
+        return L;
     };
     // Cosine-weighted nodes on each side light arrives from (both where the surface transmits).
     const int in_sides = r.bsdf->transmits() ? 2 : 1;
@@ -356,19 +383,20 @@ void Gatherer::transport_row(const Receiver& r, size_t j, const std::vector<cons
     for (int i = 0; i < nt; ++i)
         for (int k = 0; k < np; ++k) {
             const Vec3 dir = p.frame.to_world(cosine_node(i, k, nt, np));
-            ++rays;
-            const SurfaceHit hit = caster_.closest_hit(caster_.spawn(p.p, p.frame.z, dir), dir);
-            if (hit.surface < 0 || !receiver_of[hit.surface]) continue;
-            const Vec3 local = hit.frame.to_local(-dir);
-            const int side = local.z >= 0 ? 0 : 1;
-            for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
-                if (side >= h->sides) continue;
-                double x[4] = {hit.u, hit.v, 0, 0};
-                if (h->kind != Representation::Diffuse) h->map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
-                basis_terms(h->L[side], x, terms);
-                for (const auto& [index, w] : terms)
-                    raw.push_back({uint32_t(h->index), uint32_t(index), uint8_t(side), float(w * scale)});
-            }
+            // Through window panes too: the terms of each surface seen, weighted by what the panes pass.
+            through_panes(caster_.spawn(p.p, p.frame.z, dir), dir, 1.0, 0, [&](const SurfaceHit& hit, const Vec3& d, double pass) {
+                if (hit.surface < 0 || !receiver_of[hit.surface]) return;
+                const Vec3 local = hit.frame.to_local(-d);
+                const int side = local.z >= 0 ? 0 : 1;
+                for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
+                    if (side >= h->sides) continue;
+                    double x[4] = {hit.u, hit.v, 0, 0};
+                    if (h->kind != Representation::Diffuse) h->map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
+                    basis_terms(h->L[side], x, terms);
+                    for (const auto& [index, w] : terms)
+                        raw.push_back({uint32_t(h->index), uint32_t(index), uint8_t(side), float(w * pass * scale)});
+                }
+            }, rays);
         }
     // Merge the terms of rays that land on the same coefficients.
     std::sort(raw.begin(), raw.end(), [](const TransportTerm& a, const TransportTerm& b) {

@@ -48,7 +48,9 @@ void write(const HitArrays& out, size_t i, const SurfaceHit& h) {
 
 }  // namespace
 
-RayCaster::RayCaster(std::vector<const Surface*> surfaces) : surfaces_(std::move(surfaces)) {
+RayCaster::RayCaster(std::vector<const Surface*> surfaces, std::vector<std::optional<ThinGlass>> panes)
+    : surfaces_(std::move(surfaces)), panes_(std::move(panes)) {
+    for (size_t i = 0; i < panes_.size() && i < surfaces_.size(); ++i) has_panes_ = has_panes_ || (panes_[i] && surfaces_[i]);
     for (size_t i = 0; i < surfaces_.size(); ++i) {
         if (!surfaces_[i]) continue;
         rays_.add(int(i), surfaces_[i]->tessellate_for_rays());
@@ -107,6 +109,24 @@ bool RayCaster::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar
     return closest_hit(o, d, tnear, tfar).surface >= 0;
 }
 
+double RayCaster::transmittance(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
+    if (!has_panes_) return occluded(o, d, tnear, tfar) ? 0.0 : 1.0;
+    if (!rays_.occluded(o, d, tnear, tfar)) return 1.0;
+    // Walk the hits in order: a pane multiplies, anything else stops the light.
+    const double len = length(d), step = offset_ / len;
+    double T = 1;
+    for (int crossed = 0; crossed <= kMaxPanes; ++crossed) {
+        const SurfaceHit h = closest_hit(o, d, tnear, tfar);
+        if (h.surface < 0) return T;
+        const ThinGlass* glass = pane(h.surface);
+        if (!glass || crossed == kMaxPanes) return 0.0;
+        T *= glass->shadow_transmittance(dot(d, h.frame.z) / len);
+        tnear = h.t + step;  // past the pane, as spawn() lifts an origin
+        if (!(tnear < tfar)) return T;
+    }
+    return 0.0;
+}
+
 void RayCaster::closest_hit_batch(const RayBatch& rays, const HitArrays& out, int threads) const {
     parallel_for(rays.count, 1024, threads, [&](size_t begin, size_t end) {
         constexpr size_t kBlock = 32;  // the hits stay in L1
@@ -137,6 +157,18 @@ void RayCaster::occluded_batch(const RayBatch& rays, uint8_t* result, int thread
             const double tnear = rays.tnear ? std::max(0.0, rays.tnear[i]) : 0.0;
             const double tfar = rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity();
             result[i] = occluded({o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar) ? 1 : 0;
+        }
+    });
+}
+
+void RayCaster::transmittance_batch(const RayBatch& rays, double* result, int threads) const {
+    parallel_for(rays.count, 1024, threads, [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            const double* o = rays.origins + 3 * i;
+            const double* d = rays.directions + 3 * i;
+            const double tnear = rays.tnear ? std::max(0.0, rays.tnear[i]) : 0.0;
+            const double tfar = rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity();
+            result[i] = transmittance({o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar);
         }
     });
 }

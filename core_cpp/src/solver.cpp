@@ -497,9 +497,12 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? 1 : 0);
     progress.begin_stage("building ray scene", 0, stages, 1);
     std::vector<const Surface*> occluders(scene.size(), nullptr);
-    for (size_t i = 0; i < scene.size(); ++i)
+    std::vector<std::optional<ThinGlass>> panes(scene.size());
+    for (size_t i = 0; i < scene.size(); ++i) {
         if (scene[i].occluder) occluders[i] = scene[i].surface.get();
-    const RayCaster caster(occluders);
+        panes[i] = scene[i].material.thin_glass;
+    }
+    const RayCaster caster(occluders, panes);
     const Gatherer gather(scene, settings, caster);
 
     Solution solution;
@@ -661,9 +664,16 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason});
         solution.radiance[r.surface] = std::move(out);
     }
-    for (size_t i = 0; i < scene.size(); ++i)
-        if (!scene[i].receiver)
+    for (size_t i = 0; i < scene.size(); ++i) {
+        if (const auto& glass = scene[i].material.thin_glass) {
+            std::ostringstream why;
+            why << "window pane (thin glass, index " << glass->eta << (glass->one_interface ? ", one face of a slab" : "")
+                << "): light passes straight through it with the Fresnel transmittance, no spline";
+            solution.reports.push_back({scene[i].surface->name(), "thin glass", {}, why.str()});
+        } else if (!scene[i].receiver) {
             solution.reports.push_back({scene[i].surface->name(), "emitter", {}, "light object: emits only, no spline"});
+        }
+    }
     for (const DistantLight& l : scene.distant_lights())
         solution.reports.push_back({l.name, "distant light", {}, "a light at infinity (sun): emits only, no spline"});
     if (const EnvironmentMap* map = scene.world_map())

@@ -145,7 +145,7 @@ def test_diffuse_dominated_principled_stays_lambertian(context):
 
 
 def test_transmission_becomes_rough_dielectric(context):
-    m = principled("Frosted", **{"Transmission Weight": 1.0, "Roughness": 0.5, "IOR": 1.45})
+    m = principled("Frosted", **{"Transmission Weight": 1.0, "Roughness": 0.5, "IOR": 1.45, "Base Color": (1, 1, 1, 1)})
     got, warnings = solver_material(m)
     assert got.kind == "rough_dielectric" and got.bsdf.name == "rough_dielectric"
     assert got.eta == pytest.approx(1.45) and got.alpha == pytest.approx(0.25)
@@ -154,6 +154,9 @@ def test_transmission_becomes_rough_dielectric(context):
     m, _ = shader_material("Glass", "ShaderNodeBsdfGlass", Roughness=0.5, IOR=1.3)
     got, _ = solver_material(m)
     assert got.kind == "rough_dielectric" and got.eta == pytest.approx(1.3)
+    # Solved clear: a tint (the Principled base colour, 0.8 by default) is named.
+    _, warnings = solver_material(principled("Tinted", **{"Transmission Weight": 1.0, "Roughness": 0.5}))
+    assert any("'Tinted'" in w and "glass colour (0.80, 0.80, 0.80) is not solved" in w for w in warnings)
 
 
 @pytest.mark.parametrize("inputs", [{"Metallic": 1.0, "Roughness": 0.0}, {"Transmission Weight": 1.0, "Roughness": 0.05}])
@@ -161,7 +164,9 @@ def test_mirrors_and_clear_glass_are_clamped_to_the_minimum_roughness(context, i
     got, warnings = solver_material(principled("Smooth", **inputs))
     assert got.kind in {"ggx", "rough_dielectric"}
     assert got.alpha == pytest.approx(materials.MIN_ROUGHNESS**2)
-    assert any("material 'Smooth'" in w and "roughness" in w for w in warnings)
+    # Glass's clamp is named once its object's shape makes it solid glass, not a thin pane.
+    notes = warnings + (got.solid_notes if got.kind == "rough_dielectric" else [])
+    assert any("material 'Smooth'" in w and "roughness" in w for w in notes)
 
 
 def test_glossy_materials_reach_the_scene_with_the_objects_options(context):

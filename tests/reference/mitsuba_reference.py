@@ -55,6 +55,8 @@ def to_mitsuba(spec: SceneSpec, max_depth: int = -1):
         if p.dielectric:
             bsdf = {"type": "roughdielectric", "distribution": "ggx", "alpha": p.dielectric[1],
                     "int_ior": p.dielectric[0], "ext_ior": 1.0}
+        if p.thin_glass:
+            bsdf = {"type": "thindielectric", "int_ior": p.thin_glass, "ext_ior": 1.0}
         shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": bsdf}
         if max(p.emission) > 0:
             shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(p.emission)}}

@@ -19,6 +19,7 @@ class Patch:
     # (alpha_x, alpha_y, rotation): anisotropic GGX (Fresnel 1), alpha_x along the first edge
     # (corner 0 -> 1, the solver's ds/du) turned by `rotation` radians about the front normal.
     ggx_anisotropic: tuple = ()
+    thin_glass: float = 0.0  # > 0: a window pane of smooth glass of this index (Mitsuba's thindielectric)
 
 
 @dataclass
@@ -26,9 +27,9 @@ class SceneSpec:
     patches: list = field(default_factory=list)
 
     def add(self, name, corners, albedo=(0, 0, 0), emission=(0, 0, 0), receiver=True, ggx_alpha=0.0, dielectric=(),
-            ggx_anisotropic=()):
+            ggx_anisotropic=(), thin_glass=0.0):
         self.patches.append(Patch(name, np.asarray(corners, float), tuple(albedo), tuple(emission), receiver, ggx_alpha,
-                                  tuple(dielectric), tuple(ggx_anisotropic)))
+                                  tuple(dielectric), tuple(ggx_anisotropic), thin_glass))
         return self
 
 
@@ -112,6 +113,10 @@ def to_bsgi(spec: SceneSpec, options=None):
 
     scene = bsgi.Scene()
     for p in spec.patches:
+        if p.thin_glass:
+            surface = (bsgi.BilinearPatch if len(p.corners) == 4 else bsgi.TrianglePatch)(p.name, p.corners)
+            scene.add_surface(surface, albedo=(0, 0, 0), emission=(0, 0, 0), thin_glass=p.thin_glass)
+            continue
         add = scene.add_bilinear_patch if len(p.corners) == 4 else scene.add_triangle
         bsdf = bsgi.GgxReflection(p.ggx_alpha, p.ggx_alpha, [1.0, 1.0, 1.0]) if p.ggx_alpha > 0 else None
         if p.dielectric:

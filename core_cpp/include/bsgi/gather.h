@@ -96,6 +96,11 @@ private:
     template <typename Incoming>
     void hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out, size_t& rays) const;
     Vec3 texel_seen(const Texture& texture, const SurfaceHit& hit, const Vec3& dir, double solid_angle) const;
+    // Follows a gathering ray through window panes (thin glass): visit(hit, direction, weight)
+    // for each end of the ray tree, the ray straight on and the reflected one at each pane hit.
+    template <typename Visit>
+    void through_panes(const Vec3& o, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const;
+    static constexpr double kMinPaneReflection = 0.01;
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
                       double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit, size_t& rays) const;

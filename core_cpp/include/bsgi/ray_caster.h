@@ -12,10 +12,12 @@
 #pragma once
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "bsgi/ray_scene.h"
 #include "bsgi/surface.h"
+#include "bsgi/thin_glass.h"
 
 namespace bsgi {
 
@@ -40,8 +42,10 @@ struct HitArrays {
 class RayCaster {
 public:
     // Surface id i is surfaces[i]; null entries take no part. The surfaces must outlive the
-    // caster. Tessellates and builds the BVH.
-    explicit RayCaster(std::vector<const Surface*> surfaces);
+    // caster. Tessellates and builds the BVH. panes[i], where given, makes surface i a window
+    // pane (thin glass): it blocks closest_hit() like any surface, but transmittance() lets
+    // light through it.
+    explicit RayCaster(std::vector<const Surface*> surfaces, std::vector<std::optional<ThinGlass>> panes = {});
 
     // Distance by which spawn() lifts ray origins off a surface: it scales with the scene's
     // extent (Embree works in float, relative to the scene's centre).
@@ -56,10 +60,22 @@ public:
     SurfaceHit closest_hit(const Vec3& o, const Vec3& d, double tnear = 0,
                            double tfar = std::numeric_limits<double>::infinity()) const;
     bool occluded(const Vec3& o, const Vec3& d, double tnear = 0, double tfar = std::numeric_limits<double>::infinity()) const;
+    // The fraction of light passing along the segment (tnear, tfar): the product of the panes'
+    // shadow transmittance over the panes crossed, 0 if anything opaque (or more than kMaxPanes
+    // panes) lies on it. Without panes in the way, as fast as occluded().
+    double transmittance(const Vec3& o, const Vec3& d, double tnear = 0,
+                         double tfar = std::numeric_limits<double>::infinity()) const;
+    static constexpr int kMaxPanes = 8;
+    // The pane surface i is, or null if it is opaque (or takes no part).
+    const ThinGlass* pane(int surface) const {
+        return surface >= 0 && size_t(surface) < panes_.size() && panes_[surface] ? &*panes_[surface] : nullptr;
+    }
+    bool has_panes() const { return has_panes_; }
 
     // Batches on `threads` threads (0: all).
     void closest_hit_batch(const RayBatch& rays, const HitArrays& out, int threads = 0) const;
     void occluded_batch(const RayBatch& rays, uint8_t* occluded, int threads = 0) const;
+    void transmittance_batch(const RayBatch& rays, double* transmittance, int threads = 0) const;
 
     const RayScene& ray_scene() const { return rays_; }
     size_t triangle_count() const { return rays_.triangle_count(); }
@@ -68,6 +84,8 @@ private:
     SurfaceHit resolve(RayHit h, const Vec3& o, const Vec3& d, double tnear, double tfar) const;
 
     std::vector<const Surface*> surfaces_;
+    std::vector<std::optional<ThinGlass>> panes_;
+    bool has_panes_ = false;
     RayScene rays_;
     bool all_exact_ = true;
     double magnitude_ = 1, offset_ = 1e-5;

@@ -12,6 +12,7 @@
 #include "bsgi/environment.h"
 #include "bsgi/surface.h"
 #include "bsgi/texture.h"
+#include "bsgi/thin_glass.h"
 
 namespace bsgi {
 
@@ -35,12 +36,14 @@ struct SpotCone {
 // Emission is radiance leaving the front side, in every direction or within a spot cone.
 // Textures over the surface's (u, v) replace the constants (which then hold their means): the
 // albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission.
+// With thin_glass the surface is a window pane instead: rays cross it (see thin_glass.h).
 struct Material {
     Vec3 albedo;
     Vec3 emission;
     std::shared_ptr<const Bsdf> bsdf;
     std::optional<SpotCone> cone;
     std::shared_ptr<const Texture> albedo_texture, emission_texture;
+    std::optional<ThinGlass> thin_glass;
     bool emits() const { return max_component(emission) > 0; }
     // Mean emission over the parameter rectangle [u0, u1] x [v0, v1].
     Vec3 emission_over(double u0, double u1, double v0, double v1) const {
@@ -95,6 +98,15 @@ public:
             throw std::invalid_argument("surface '" + name + "': zero area (its points lie on a line or a point)");
         if (options.spatial_coeffs < 0 || options.angular_coeffs < 0)
             throw std::invalid_argument("surface '" + name + "': coefficient counts must be >= 0 (0: automatic)");
+        if (material.thin_glass) {
+            // A pane's light is the light crossing it: it gets no spline of its own.
+            if (!(std::isfinite(material.thin_glass->eta) && material.thin_glass->eta >= 1))
+                throw std::invalid_argument("surface '" + name + "': thin glass needs a finite index of refraction >= 1");
+            if (material.emits()) throw std::invalid_argument("surface '" + name + "': thin glass cannot emit");
+            if (!(material.thin_glass->shadow <= 1))
+                throw std::invalid_argument("surface '" + name + "': thin glass shadow transmittance must be <= 1");
+            receiver = false;
+        }
         surfaces_.push_back({std::move(surface), material, receiver, occluder, options});
         return static_cast<int>(surfaces_.size()) - 1;
     }
