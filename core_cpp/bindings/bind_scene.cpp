@@ -193,6 +193,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("final_gather", &SolverSettings::final_gather)
         .def_readwrite("final_spatial_factor", &SolverSettings::final_spatial_factor)
         .def_readwrite("final_integration_factor", &SolverSettings::final_integration_factor)
+        .def_readwrite("two_sided", &SolverSettings::two_sided)
         .def_readwrite("threads", &SolverSettings::threads)
         .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb)
         .def("__repr__", [](const SolverSettings& s) {
@@ -209,9 +210,12 @@ void bind_scene(py::module_& m) {
 
     py::class_<SurfaceRadiance>(m, "SurfaceRadiance",
                                 "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "
-                                "(glossy), a second spline for the lower hemisphere where it transmits.")
+                                "(glossy), a second spline for the back side (lower hemisphere) where it transmits or "
+                                "where light reaches an opaque surface's back; decomposed surfaces have their 2D parts "
+                                "apart (diffuse, lower_diffuse).")
         .def(py::init([](const std::string& kind, double disc_radius, const TensorSpline& upper,
-                         std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse) {
+                         std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse,
+                         std::optional<TensorSpline> lower_diffuse) {
                  const Representation r = kind == "glossy" ? Representation::Glossy
                                           : kind == "decomposed" ? Representation::Decomposed
                                           : kind == "diffuse" ? Representation::Diffuse
@@ -221,20 +225,26 @@ void bind_scene(py::module_& m) {
                                                  kind + "'");
                  const int dims = r == Representation::Diffuse ? 2 : 4;
                  auto rgb_of = [](const std::optional<TensorSpline>& s, int d) { return !s || (s->dims() == d && s->channels() == 3); };
-                 if (!rgb_of(upper, dims) || !rgb_of(lower, dims) || !rgb_of(diffuse, 2) ||
-                     (r == Representation::Decomposed) != bool(diffuse))
+                 if (!rgb_of(upper, dims) || !rgb_of(lower, dims) || !rgb_of(diffuse, 2) || !rgb_of(lower_diffuse, 2) ||
+                     (r == Representation::Decomposed) != bool(diffuse) ||
+                     (r == Representation::Decomposed && bool(lower) != bool(lower_diffuse)) ||
+                     (r != Representation::Decomposed && lower_diffuse))
                      throw std::invalid_argument("SurfaceRadiance: a " + kind + " surface needs RGB splines of " +
                                                  std::to_string(dims) + " dimensions" +
-                                                 (r == Representation::Decomposed ? " and a 2D diffuse part" : ""));
-                 return SurfaceRadiance{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse)};
+                                                 (r == Representation::Decomposed
+                                                      ? " and a 2D diffuse part (and one for the back side with lower)"
+                                                      : ""));
+                 return SurfaceRadiance{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse),
+                                        std::move(lower_diffuse)};
              }),
              py::arg("kind"), py::arg("disc_radius"), py::arg("upper"), py::arg("lower") = std::nullopt,
-             py::arg("diffuse") = std::nullopt,
+             py::arg("diffuse") = std::nullopt, py::arg("lower_diffuse") = std::nullopt,
              "Rebuilds a solved surface's radiance (as a solution file stores it).")
         .def_property_readonly("kind", [](const SurfaceRadiance& r) { return kind_name(r.kind); })
         .def_readonly("upper", &SurfaceRadiance::upper)
         .def_readonly("lower", &SurfaceRadiance::lower)
         .def_readonly("diffuse", &SurfaceRadiance::diffuse)
+        .def_readonly("lower_diffuse", &SurfaceRadiance::lower_diffuse)
         .def_property_readonly("disc_radius", [](const SurfaceRadiance& r) { return r.map.radius(); })
         .def(
             "evaluate",

@@ -47,7 +47,8 @@ def settings_from_dict(values: dict) -> _core.SolverSettings:
 class StoredSolution:
     """What a solution file holds: per surface its radiance (None for pure emitters), as the
     upper-hemisphere spline (`radiance`) and as the whole SurfaceRadiance (`surfaces`: kind,
-    disc radius, the lower-hemisphere spline of transmitting surfaces)."""
+    disc radius, the back side's splines where it was solved: transmitting surfaces and opaque ones
+    lit from behind; files from before two-sided surfaces load with the back sides they had)."""
 
     radiance: list
     surfaces: list
@@ -73,7 +74,8 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
         kinds.append(surface.kind if surface else ("glossy" if upper.dims == 4 else "diffuse"))
         radii.append(surface.disc_radius if surface else None)
         sides = {"upper": upper, "lower": surface.lower if surface else None,
-                 "diffuse": surface.diffuse if surface else None}
+                 "diffuse": surface.diffuse if surface else None,
+                 "lower_diffuse": surface.lower_diffuse if surface else None}
         for side, spline in sides.items():
             if spline is not None:
                 for key, value in spline_to_arrays(spline).items():
@@ -97,12 +99,13 @@ def load_solution(path) -> StoredSolution:
                 surfaces.append(None)
                 continue
             sides = {}
-            for side in ("upper", "lower", "diffuse"):
+            for side in ("upper", "lower", "diffuse", "lower_diffuse"):
                 prefix = f"surface{i}/{side}/"
                 found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
                 sides[side] = spline_from_arrays(found) if found else None
             radiance.append(sides["upper"])
             radius = meta["disc_radii"][i]
             surfaces.append(_core.SurfaceRadiance(meta["kinds"][i], radius if radius is not None else 1.0,
-                                                  sides["upper"], sides["lower"], sides["diffuse"]))
+                                                  sides["upper"], sides["lower"], sides["diffuse"],
+                                                  sides["lower_diffuse"]))
     return StoredSolution(radiance, surfaces, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])

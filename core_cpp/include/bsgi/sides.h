@@ -1,0 +1,29 @@
+// Which sides of each surface the scene lights ("model only what the scene requires"): Cycles
+// shades every opaque surface on both sides with the same BSDF, but a side no light reaches (the
+// inside of a closed mesh with nothing in it, the outside of a room in a black world) needs no
+// spline. A cheap probe decides it before anything is allocated.
+#pragma once
+#include <array>
+#include <string>
+#include <vector>
+
+#include "bsgi/ray_caster.h"
+#include "bsgi/scene.h"
+#include "bsgi/solver.h"
+
+namespace bsgi {
+
+// Per surface: whether its front (0) and back (1) side gets a spline, and why.
+struct SurfaceSides {
+    std::array<bool, 2> live{true, false};
+    std::array<std::string, 2> why;
+};
+
+// Probes, from a coarse grid of points on each side of every receiving surface, what that side
+// sees: an emitter's emitting side (shadow rays to a few points of it), a distant light, the
+// world (if it has light), or another surface's side; then marks live every side that sees light
+// directly or sees a live side (a fixed point over that graph). Transmitting surfaces get both
+// sides. With settings.two_sided off every opaque surface gets its front side only.
+std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings);
+
+}  // namespace bsgi
