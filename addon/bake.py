@@ -17,14 +17,12 @@ import numpy as np
 
 import bsgi
 
-from . import charts, export, view_radiance
+from . import charts, geometry, view_radiance
+from .user_materials import PROP_SLOTS, PROP_SPLINE_INDICES, UV_NAME, is_baked, user_spline_material_index
 
-UV_NAME = "BSGI Radiance"
-PROP_SLOTS = "bsgi_slot_links"  # the slots' links before the bake, to restore them
 PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
 PROP_SPLINE_MATERIALS = "bsgi_spline_materials"  # SURFACE objects of several splines: a material per spline
-PROP_SPLINE_INDICES = "bsgi_spline_material_indices"  # their splines' material indices before the bake
 PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and solution export
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
@@ -222,7 +220,7 @@ def _nurbs_layout(obj, spline, radiance):
     centre's parameters, so the image interpolates the spline there."""
     w, h = nurbs_image_size(radiance)
     u, v = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
-    surface = export.nurbs_surface(f"{obj.name}: spline", spline, obj.matrix_world)
+    surface = geometry.nurbs_surface(f"{obj.name}: spline", spline, obj.matrix_world)
     return Layout(np.zeros((h, w), int), np.stack([u, v], axis=2), [surface], NURBS_UV_NAME)
 
 
@@ -320,7 +318,7 @@ def _bake_nurbs(obj, faces) -> list:
     UV map Blender gives the surface's mesh."""
     if len(faces) != 1:
         return _bake_nurbs_splines(obj, faces)
-    spline = export.baked_splines(obj)[0]
+    spline = geometry.baked_splines(obj)[0]
     material, warnings = _bake_layout(obj, f"BSGI {obj.name}", _nurbs_layout(obj, spline, faces[0][1][0]), faces)
     _link_baked_material(obj, material)
     _store_splines(obj, faces)
@@ -359,7 +357,7 @@ def _bake_nurbs_splines(obj, faces) -> list:
     image and material, in a slot of its own: while the bake is shown, spline k uses slot k (slots
     are added if there are fewer than splines). The user's material indices are recorded and put
     back when the originals are shown or the bake is cleared."""
-    splines = export.baked_splines(obj)
+    splines = geometry.baked_splines(obj)
     if len(splines) != len(faces):
         raise ValueError(f"object '{obj.name}': it has {len(splines)} drawable splines, the solution {len(faces)}")
     names, warnings = [], []
@@ -383,10 +381,6 @@ def _bake_nurbs_splines(obj, faces) -> list:
     return warnings
 
 
-def user_spline_material_index(obj, k: int) -> int:
-    """Spline k's material index as the user set it (the bake of several splines changes it)."""
-    indices = obj.get(PROP_SPLINE_INDICES)
-    return int(indices[k]) if indices is not None and k < len(indices) else int(obj.data.splines[k].material_index)
 
 
 def _show_spline_materials(obj, baked: bool) -> None:
@@ -394,7 +388,7 @@ def _show_spline_materials(obj, baked: bool) -> None:
     names = obj.get(PROP_SPLINE_MATERIALS)
     if names is None:
         return
-    drawn = export.baked_splines(obj)
+    drawn = geometry.baked_splines(obj)
     for k, spline in enumerate(obj.data.splines):
         spline.material_index = (drawn.index(spline) if baked and spline in drawn
                                  else user_spline_material_index(obj, k))
@@ -505,18 +499,8 @@ def _link_baked_material(obj, material) -> None:
     show_baked(obj, True)
 
 
-def is_baked(obj) -> bool:
-    return PROP_SLOTS in obj
 
 
-def user_materials(obj) -> list:
-    """The user's material in each slot, whether or not the bake is shown: a solve must read
-    these, never the baked emission materials."""
-    if not is_baked(obj):
-        return [slot.material for slot in obj.material_slots]
-    data = obj.data.materials
-    return [(data[i] if link == "DATA" else bpy.data.materials.get(object_material))
-            for i, (link, object_material) in enumerate(obj[PROP_SLOTS])]
 
 
 def show_baked(obj, baked: bool) -> None:

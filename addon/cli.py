@@ -69,7 +69,7 @@ def main(argv=None) -> int:
     except ValueError:
         pass  # already registered in this session
     pipeline = importlib.import_module(f"{addon.__name__}.pipeline")
-    ExportError = importlib.import_module(f"{addon.__name__}.export").ExportError
+    ExportError = importlib.import_module(f"{addon.__name__}.errors").ExportError
 
     if args.blend:
         try:

@@ -11,7 +11,7 @@ import bsgi
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from . import bake, pipeline, solution_file
-from .export import ExportError
+from .errors import ExportError
 
 
 class BSGI_OT_solve(bpy.types.Operator):

@@ -17,7 +17,7 @@ import pytest
 
 import bsgi
 import scenes
-from bsgi_addon import bake, charts, export, pipeline
+from bsgi_addon import bake, charts, geometry, pipeline
 from subprocess_render import run_bpy
 
 SIZE = 64
@@ -101,7 +101,7 @@ def core_reference(scene, cam, job, solution) -> Reference:
             assert count == 1
             if kind == "nurbs":
                 spline = next(s for s in obj.data.splines if s.type == "NURBS")
-                surfaces.append(export.nurbs_surface(f"{obj.name}", spline, obj.matrix_world))
+                surfaces.append(geometry.nurbs_surface(f"{obj.name}", spline, obj.matrix_world))
             elif kind == "chart":
                 triangles, loops = charts.loop_triangles(obj.data)
                 world = np.array([obj.matrix_world @ v.co for v in obj.data.vertices])

@@ -1,4 +1,4 @@
-"""Meshes of many faces solved as one UV chart (addon/charts.py, export.py, bake.py `_bake_chart`):
+"""Meshes of many faces solved as one UV chart (addon/charts.py, geometry.py, bake.py `_bake_chart`):
 the user's UV map when it is a chart, else one generated on a copy; the result against Lambert's
 closed form and against the per-face export of the same mesh."""
 import math

@@ -1,4 +1,4 @@
-"""Curve, text and metaball objects (addon/export.py EVALUATED_ONLY): solved through their
+"""Curve, text and metaball objects (addon/geometry.py EVALUATED_ONLY): solved through their
 evaluated mesh, so they cast shadows and reflect light, but not baked (their mesh exists only
 while Blender evaluates them), with a warning naming the object and what to do."""
 import bpy

@@ -7,7 +7,7 @@ import pytest
 
 import bsgi
 import scenes
-from bsgi_addon import export
+from bsgi_addon import export, materials
 
 
 def principled(name, **inputs):
@@ -36,7 +36,7 @@ def shader_material(name, kind, **inputs):
 
 def describe(material):
     warnings = []
-    return export.describe_material(material, warnings), warnings
+    return materials.describe_material(material, warnings), warnings
 
 
 def test_diffuse_and_emission_shaders(context):
@@ -95,8 +95,8 @@ def test_glossy_and_textures_are_named_in_warnings(context):
 
 def solver_material(material):
     warnings = []
-    described = export.describe_material(material, warnings)
-    return export.solver_material(material, described, warnings), warnings
+    described = materials.describe_material(material, warnings)
+    return materials.solver_material(material, described, warnings), warnings
 
 
 def assert_same_bsdf(bsdf, expected):
@@ -160,7 +160,7 @@ def test_transmission_becomes_rough_dielectric(context):
 def test_mirrors_and_clear_glass_are_clamped_to_the_minimum_roughness(context, inputs):
     got, warnings = solver_material(principled("Smooth", **inputs))
     assert got.kind in {"ggx", "rough_dielectric"}
-    assert got.alpha == pytest.approx(export.MIN_ROUGHNESS**2)
+    assert got.alpha == pytest.approx(materials.MIN_ROUGHNESS**2)
     assert any("material 'Smooth'" in w and "roughness" in w for w in warnings)
 
 
@@ -368,6 +368,6 @@ def test_connected_tangent_is_named_with_the_direction_used(context):
 def test_narrow_axis_of_an_anisotropic_lobe_is_clamped_with_a_warning(context):
     m = principled("Hairline", **{"Metallic": 1.0, "Roughness": 0.25, "Anisotropic": 1.0})
     got, warnings = solver_material(m)
-    assert got.alpha_y == pytest.approx(export.MIN_ROUGHNESS**2)
+    assert got.alpha_y == pytest.approx(materials.MIN_ROUGHNESS**2)
     assert got.alpha_x == pytest.approx(0.25**2 / math.sqrt(0.1), rel=1e-6)
     assert any("material 'Hairline'" in w and "narrow axis" in w for w in warnings)

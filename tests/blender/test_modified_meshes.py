@@ -1,4 +1,4 @@
-"""Meshes whose modifiers change their faces (addon/export.py `_modifiers_change_faces`): the
+"""Meshes whose modifiers change their faces (addon/geometry.py `_modifiers_change_faces`): the
 evaluated mesh solved as one UV chart over a UV map the modifiers carry to it (the user's, or one
 generated on a copy of the user's mesh before the modifiers), baked into the bake's own UV map on
 the user's mesh, which the modifiers carry to the evaluated faces; solved but not baked when no

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import scenes
-from bsgi_addon import bake, export, pipeline
+from bsgi_addon import bake, export, geometry, pipeline
 
 
 def add_sphere(location=(0.3, -0.2, 0.0), scale=(1.0, 1.2, 0.8)):
@@ -64,7 +64,7 @@ def test_surface_is_exported_exactly_in_world_space(context):
     (exported,) = result.objects
     assert exported.kind == "nurbs" and exported.patches == [("nurbs", 0, 1)]
     uv, world = mesh_corners(sphere)
-    surface = export.nurbs_surface("check", sphere.data.splines[0], sphere.matrix_world)
+    surface = geometry.nurbs_surface("check", sphere.data.splines[0], sphere.matrix_world)
     got = surface.evaluate(uv)["position"]
     assert np.abs(got - world).max() < 1e-5 * np.ptp(world, axis=0).max()
     # The scene's surface 0 is that surface: the same point at a parameter.

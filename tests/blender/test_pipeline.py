@@ -9,7 +9,7 @@ import pytest
 import bsgi
 import scenes
 from bsgi_addon import bake, pipeline
-from bsgi_addon.export import ExportError
+from bsgi_addon.errors import ExportError
 
 
 def render_exr(scene, path, samples, bounces):

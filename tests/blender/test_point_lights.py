@@ -1,4 +1,4 @@
-"""Point lights (addon/export.py _point_light): a sphere of the light's radius with Cycles' radiance
+"""Point lights (addon/lights.py point_light): a sphere of the light's radius with Cycles' radiance
 P / (4 pi^2 r^2); the floor under it against the closed form and against a Cycles render."""
 import math
 

@@ -11,7 +11,7 @@ import pytest
 
 import scenes
 from bsgi_addon import bake, pipeline
-from bsgi_addon.export import ExportError
+from bsgi_addon.errors import ExportError
 from core.closed_forms import polygon_irradiance  # tests/core, on the path as a namespace package
 
 GREY = 0.5

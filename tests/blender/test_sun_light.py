@@ -1,4 +1,4 @@
-"""Sun lights (addon/export.py _sun_light): a distant light of irradiance strength x colour along
+"""Sun lights (addon/lights.py sun_light): a distant light of irradiance strength x colour along
 the object's +Z axis; a floor beside a wall under it against the closed form and a Cycles render."""
 import math
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import bsgi
-from bsgi_addon import export, tangents
+from bsgi_addon import geometry, materials, tangents
 
 SIZE = 16
 
@@ -121,17 +121,17 @@ def test_anisotropic_sphere_of_revolution_follows_blenders_parallels(context):
     obj.data.materials.append(m)
     bpy.context.view_layer.update()
     warnings = []
-    materials = export._materials(obj, obj.matrix_world, warnings, obj.name, {})
-    surface = export.nurbs_surface("sphere", obj.data.splines[0], obj.matrix_world)
+    slots = materials.object_materials(obj, obj.matrix_world, warnings, obj.name, {})
+    surface = geometry.nurbs_surface("sphere", obj.data.splines[0], obj.matrix_world)
     frames = surface.evaluate(np.array([[0.3, 0.2], [0.5, 0.7]]))
     parallel = np.cross([0.0, 0.0, 1.0], frames["position"] - np.array(obj.location))
     across = np.abs(np.einsum("ij,ij->i", frames["x"], parallel)) / np.linalg.norm(parallel, axis=1)
     assert across.max() < 0.1, "the test assumes ds/du along the meridians"
-    bsdf = materials.for_surface(0, surface)["bsdf"]
+    bsdf = slots.for_surface(0, surface)["bsdf"]
     along_x, along_y = _lobe_width(bsdf, (1, 0)), _lobe_width(bsdf, (0, 1))
     print(f"\nGGX at a tilt along ds/du {along_x:.4f}, along the parallels {along_y:.4f}")
     assert along_y > 1.5 * along_x
     # Without the turn the lobe would be wider along ds/du: the test can tell the two apart.
-    plain = materials.keywords[0]["bsdf"]
+    plain = slots.keywords[0]["bsdf"]
     assert _lobe_width(plain, (1, 0)) > 1.5 * _lobe_width(plain, (0, 1))
     assert not any("turns by up to" in w for w in warnings)

@@ -1,4 +1,4 @@
-"""World light (addon/export.py _world_light): a one-colour world background as the solver's world
+"""World light (addon/lights.py world_light): a one-colour world background as the solver's world
 radiance, colour x strength; a floor beside a wall under it against Lambert's formula and against
 a Cycles render."""
 import math
