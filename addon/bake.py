@@ -24,6 +24,9 @@ PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
 PROP_SPLINE_MATERIALS = "bsgi_spline_materials"  # SURFACE objects of several splines: a material per spline
 PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and solution export
+# The splines of a SurfaceRadiance, in its constructor's order (bakes before two-sided surfaces
+# stored the first three).
+SIDES = ("upper", "lower", "diffuse", "lower_diffuse")
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
 # Largest radiance atlas per object, in texels (256 MiB of float RGBA): past it the angular
@@ -41,7 +44,7 @@ def _upper(radiance):
 
 
 def _splines(radiance):
-    return [s for s in (radiance.upper, radiance.lower, radiance.diffuse) if s is not None]
+    return [s for s in (radiance.upper, radiance.lower, radiance.diffuse, radiance.lower_diffuse) if s is not None]
 
 
 def angular_samples(faces) -> int:
@@ -68,18 +71,21 @@ def _disc_radius(obj, faces) -> float:
 
 
 def _sides(faces) -> int:
-    """2 if a face transmits (a lower-hemisphere spline, paper 4.3), else 1."""
+    """2 if a face has a back side (a lower-hemisphere spline: it transmits, paper 4.3, or it is
+    opaque and lit from behind, which Cycles shades with the same BSDF), else 1."""
     return 2 if any(r is not None and r.lower is not None for _, radiances in faces for r in radiances) else 1
 
 
 def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool) -> np.ndarray:
     """(len(disc), len(uv), 3): the radiance leaving the (u, v) rows of uv at each disc point
     (alpha, beta), on the upper or the lower side, as SurfaceRadiance::evaluate gives it along
-    the direction that the map (20)-(22) sends (alpha, beta) to. No lower spline: black."""
+    the direction that the map (20)-(22) sends (alpha, beta) to, mirrored below the surface
+    (the lower spline's directions are those of the upper one with z turned over). No lower
+    spline: black."""
     out = np.zeros((len(disc), len(uv), 3))
     if radiance is None:
         return out
-    for spline in ([radiance.lower] if lower else [radiance.upper, radiance.diffuse]):
+    for spline in ([radiance.lower, radiance.lower_diffuse] if lower else [radiance.upper, radiance.diffuse]):
         if spline is None:
             continue
         if spline.dims == 2:
@@ -405,7 +411,7 @@ def _store_splines(obj, faces) -> None:
             entry = {"kind": "emitter"}
             if r is not None:
                 entry = {"kind": r.kind, "disc_radius": r.disc_radius}
-                for side in ("upper", "lower", "diffuse"):
+                for side in SIDES:
                     spline = getattr(r, side)
                     if spline is not None:
                         arrays = bsgi.spline_to_arrays(spline)
@@ -440,7 +446,7 @@ def _stored_radiance(entry):
     if entry["kind"] == "emitter":
         return None
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
-                                *(_spline(entry[side]) if side in entry else None for side in ("upper", "lower", "diffuse")))
+                                *(_spline(entry[side]) if side in entry else None for side in SIDES))
 
 
 def _spline(stored):

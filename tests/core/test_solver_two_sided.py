@@ -43,14 +43,16 @@ def plane_points(uv):
 def test_plane_lit_from_below_reflects_lambert_on_its_back():
     lamp = list(quad([0.2, 0.1, -0.5], [0.5, 0, 0], [0, 0.5, 0]))
     want = np.array([ALBEDO / np.pi * LAMP * polygon_irradiance(p, [0, 0, -1], lamp) for p in plane_points(UV)])
-    sol = bsgi.solve(plane_lit_from_below(), settings(spatial_coeffs=16))
+    sol = bsgi.solve(plane_lit_from_below(), settings(spatial_coeffs=32))
     surface = sol.surfaces[0]
     assert surface.kind == "diffuse" and surface.lower is not None
     below = surface.evaluate(UV, np.tile([0.3, 0.2, -1.0], (len(UV), 1)))[:, 0]
     above = surface.evaluate(UV, np.tile([0.3, 0.2, 1.0], (len(UV), 1)))
     err = np.abs(below / want - 1)
     print(f"\nplane lit from below, back side against Lambert: max {err.max():.4f}, mean {err.mean():.4f}")
-    assert err.max() < 0.02  # Schoenberg's approximation of the smooth irradiance: measured 0.8%
+    # Schoenberg's approximation of the peaked irradiance, second order: 2.4% with 16
+    # coefficients, 0.59% with 32 (the same as the front of the turned-over plane).
+    assert err.max() < 0.012
     assert np.all(above == 0)  # seen from above: black, as in Cycles (no light reaches the top)
     report = sol.reports[0]
     assert report["representation"] == "diffuse 2D, back side"
@@ -131,13 +133,16 @@ def test_closed_room_of_outward_faces_conserves_energy(form_factors):
     # the lamp emits lands on the walls, which reflect rho of it, all of which lands on the
     # walls again. So the light leaving the walls sums to rho / (1 - rho) of the lamp's power,
     # and their mean radiance is that over pi times their area.
-    sol = bsgi.solve(room_scene(), settings(spatial_coeffs=8, form_factors=form_factors, tolerance=1e-4))
+    sol = bsgi.solve(room_scene(), settings(spatial_coeffs=16, form_factors=form_factors, tolerance=1e-4))
     lamp_power = np.pi * 0.4 * 0.4 * LAMP
     want = ALBEDO / (1 - ALBEDO) * lamp_power / (np.pi * 6 * 4.0)
     got = np.mean([mean_radiance(sol.surfaces[i], 1) for i in range(6)])
     print(f"\nclosed room (form factors {form_factors}): mean wall radiance {got:.5f}, closed form {want:.5f}, "
           f"{got / want - 1:+.4f}")
-    assert abs(got / want - 1) < 0.01
+    # Schoenberg's approximation is biased low under the peak beneath the lamp, at second order:
+    # -5.1% with 8 coefficients, -0.75% with 16, -0.13% with 32 (-2.9%, -0.31%, -0.11% for the
+    # direct light alone).
+    assert abs(got / want - 1) < 0.015
     for i in range(6):
         assert sol.surfaces[i].lower is not None
         assert np.all(sol.surfaces[i].upper.coefficients == 0)  # the outside sees no light
