@@ -10,16 +10,41 @@ namespace bsgi {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// The probe: a 4 x 4 grid of points per surface, 6 x 12 cosine-weighted directions from each,
-// and 3 x 3 points of each emitter; enough to tell which sides face which, not to integrate.
-constexpr int kPoints = 4, kTheta = 6, kPhi = 12, kEmitterPoints = 3;
+// The probe: a 6 x 6 grid of cells per side of a surface, a point at each cell's centre casting
+// 6 x 12 cosine-weighted directions, and 3 x 3 points of each emitter; enough to tell which
+// parts of which sides face which, not to integrate.
+constexpr int kPoints = 6, kCells = kPoints * kPoints, kTheta = 6, kPhi = 12, kEmitterPoints = 3;
 
-// What one side of a surface sees directly: light (an emitter, a distant light, the world), and
-// the sides of other receivers (surface * 2 + side).
-struct SideView {
-    std::string light;  // what lights it directly, empty if nothing
-    std::vector<int> sides_seen;
+// A probe ray's end on a receiver: the cell it lands in, numbered (surface * 2 + side) * kCells
+// + cell, and where.
+struct Hit {
+    int cell;
+    double u, v;
+    // Checked when needed: whether the point itself sees light directly (0 not checked yet, 1
+    // yes, 2 no), and the cells its own probe rays reach.
+    char direct = 0;
+    std::vector<int> sees;
 };
+
+// What the centre of one cell of one side sees: light (an emitter, a distant light, the world)
+// and the receivers its rays reach.
+struct CellView {
+    std::string light;  // what lights it directly, empty if nothing
+    std::vector<Hit> hits;
+    bool escaped = false;  // some rays reach no surface
+};
+
+int cell_of(double u, double v) {
+    const int a = std::clamp(int(u * kPoints), 0, kPoints - 1), b = std::clamp(int(v * kPoints), 0, kPoints - 1);
+    return a * kPoints + b;
+}
+
+// Direction k of the probe's cosine-weighted set on the side of normal n = +-frame.z.
+Vec3 probe_direction(const SurfacePoint& p, int side, int k) {
+    const double w = (k / kPhi + 0.5) / kTheta, phi = 2 * kPi * (k % kPhi + 0.5) / kPhi;
+    const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
+    return p.frame.to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), side ? -cos_t : cos_t});
+}
 
 // True if point p (normal n of the side probed) sees a point of the emitter's emitting side.
 bool sees_emitter(const RayCaster& caster, const SurfacePoint& p, const Vec3& n, const SceneSurface& e) {
@@ -40,41 +65,48 @@ bool sees_emitter(const RayCaster& caster, const SurfacePoint& p, const Vec3& n,
     return false;
 }
 
-SideView probe_side(const Scene& scene, const RayCaster& caster, int i, int side) {
-    SideView view;
+// What lights point p of surface i on a side directly (emitters and distant lights; the world
+// only if `world`, which the caller may find with its own rays): a description, empty if none.
+std::string direct_light(const Scene& scene, const RayCaster& caster, int i, const SurfacePoint& p, int side, bool world) {
+    const Vec3 n = side ? -p.frame.z : p.frame.z;
+    for (size_t e = 0; e < scene.size(); ++e)
+        if (int(e) != i && scene[e].material.emits() && sees_emitter(caster, p, n, scene[e]))
+            return "light from '" + scene[e].surface->name() + "'";
+    for (const DistantLight& l : scene.distant_lights())
+        if (dot(l.direction, n) > 0 && !caster.occluded(caster.spawn(p.p, p.frame.z, l.direction), l.direction))
+            return "light from '" + l.name + "'";
+    if (world && scene.has_world())
+        for (int k = 0; k < kTheta * kPhi; ++k) {
+            const Vec3 dir = probe_direction(p, side, k);
+            if (caster.closest_hit(caster.spawn(p.p, p.frame.z, dir), dir).surface < 0) return "world light";
+        }
+    return "";
+}
+
+std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, int i, int side) {
+    std::vector<CellView> cells(kCells);
     const Surface& surface = *scene[i].surface;
-    std::vector<int> seen;
     for (int a = 0; a < kPoints; ++a)
         for (int b = 0; b < kPoints; ++b) {
+            CellView& view = cells[a * kPoints + b];
             const double u = (a + 0.5) / kPoints, v = (b + 0.5) / kPoints;
             if (!surface.in_domain(u, v)) continue;
             const SurfacePoint p = surface.evaluate(u, v);
-            const Vec3 n = side ? -p.frame.z : p.frame.z;
-            for (size_t e = 0; e < scene.size() && view.light.empty(); ++e)
-                if (int(e) != i && scene[e].material.emits() && sees_emitter(caster, p, n, scene[e]))
-                    view.light = "light from '" + scene[e].surface->name() + "'";
-            for (const DistantLight& l : scene.distant_lights())
-                if (view.light.empty() && dot(l.direction, n) > 0 &&
-                    !caster.occluded(caster.spawn(p.p, p.frame.z, l.direction), l.direction))
-                    view.light = "light from '" + l.name + "'";
-            for (int k = 0; k < kTheta; ++k)
-                for (int m = 0; m < kPhi; ++m) {
-                    const double w = (k + 0.5) / kTheta, phi = 2 * kPi * (m + 0.5) / kPhi;
-                    const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
-                    const Vec3 local{sin_t * std::cos(phi), sin_t * std::sin(phi), side ? -cos_t : cos_t};
-                    const Vec3 dir = p.frame.to_world(local);
-                    const SurfaceHit hit = caster.closest_hit(caster.spawn(p.p, p.frame.z, dir), dir);
-                    if (hit.surface < 0) {
-                        if (scene.has_world() && view.light.empty()) view.light = "world light";
-                        continue;
-                    }
-                    if (scene[hit.surface].receiver) seen.push_back(2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1));
+            view.light = direct_light(scene, caster, i, p, side, false);
+            for (int k = 0; k < kTheta * kPhi; ++k) {
+                const Vec3 dir = probe_direction(p, side, k);
+                const SurfaceHit hit = caster.closest_hit(caster.spawn(p.p, p.frame.z, dir), dir);
+                if (hit.surface < 0) {
+                    view.escaped = true;
+                    if (scene.has_world() && view.light.empty()) view.light = "world light";
+                    continue;
                 }
+                if (!scene[hit.surface].receiver) continue;
+                const int hit_side = dot(dir, hit.frame.z) < 0 ? 0 : 1;
+                view.hits.push_back({(2 * hit.surface + hit_side) * kCells + cell_of(hit.u, hit.v), hit.u, hit.v});
+            }
         }
-    std::sort(seen.begin(), seen.end());
-    seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
-    view.sides_seen = std::move(seen);
-    return view;
+    return cells;
 }
 
 }  // namespace
@@ -82,51 +114,91 @@ SideView probe_side(const Scene& scene, const RayCaster& caster, int i, int side
 std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings) {
     const size_t n = scene.size();
     std::vector<SurfaceSides> out(n);
+    std::vector<int> probed;  // both sides of every opaque receiver
     for (size_t i = 0; i < n; ++i) {
         const SceneSurface& s = scene[i];
-        const bool transmits = s.material.bsdf && s.material.bsdf->transmits();
-        if (transmits) {
+        if (s.material.bsdf && s.material.bsdf->transmits()) {
             out[i].live = {true, true};
             out[i].why = {"transmits", "transmits"};
         } else if (!settings.two_sided) {
             out[i].why = {"one-sided solve", "one-sided solve (two_sided off)"};
+        } else if (s.receiver) {
+            probed.push_back(int(i));
         }
     }
-    if (!settings.two_sided) return out;
-    // Which sides to probe: both sides of every opaque receiver.
-    std::vector<int> probed;
-    for (size_t i = 0; i < n; ++i)
-        if (scene[i].receiver && out[i].why[0].empty()) probed.push_back(int(i));
-    std::vector<std::array<SideView, 2>> views(n);
+    if (probed.empty()) return out;
+    std::vector<std::array<std::vector<CellView>, 2>> views(n);
     parallel_for(probed.size(), 1, settings.threads, [&](size_t begin, size_t end) {
         for (size_t k = begin; k < end; ++k)
             for (int side = 0; side < 2; ++side) views[probed[k]][side] = probe_side(scene, caster, probed[k], side);
     });
-    for (int i : probed) {
-        for (int side = 0; side < 2; ++side) {
-            const SideView& v = views[i][side];
-            const bool emits = side == 0 && scene[i].material.emits();
-            out[i].live[side] = emits || !v.light.empty();
-            out[i].why[side] = emits ? "emits" : v.light.empty() ? "" : "receives " + v.light;
+    // Cells lit directly (or emitting), then cells that see a lit cell, to a fixed point; `why`
+    // keeps what lit each first. Light is carried per cell rather than per side, so that only
+    // where a side is lit lights others: the floor under a box standing on it (its rays end on
+    // the box's inside) lights no one. A ray landing in a lit cell counts only if its own end
+    // sees light or a lit cell too: the box's inside, whose rays meet the floor where the box's
+    // bottom lies on it, stays dark although the floor cell at the box's edge is lit.
+    std::vector<char> lit(2 * n * kCells, 0);
+    std::vector<std::string> why(2 * n * kCells);
+    for (int i : probed)
+        for (int side = 0; side < 2; ++side)
+            for (int c = 0; c < kCells; ++c) {
+                const size_t id = (2 * size_t(i) + side) * kCells + c;
+                const CellView& v = views[i][side][c];
+                const bool emits = side == 0 && scene[i].material.emits();
+                lit[id] = emits || !v.light.empty();
+                why[id] = emits ? "emits" : v.light.empty() ? "" : "receives " + v.light;
+            }
+    // A ray's end carries light if its cell is lit and the point itself sees light directly or
+    // sees a lit cell (a cell lit at its centre may be dark where the ray ends).
+    auto carries_light = [&](Hit& h) {
+        if (!lit[h.cell]) return false;
+        const int surface = h.cell / (2 * kCells), side = (h.cell / kCells) % 2;
+        if (!h.direct) {
+            const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
+            h.direct = direct_light(scene, caster, surface, p, side, true).empty() ? 2 : 1;
+            if (h.direct == 2)
+                for (int k = 0; k < kTheta * kPhi; ++k) {
+                    const Vec3 dir = probe_direction(p, side, k);
+                    const SurfaceHit hit = caster.closest_hit(caster.spawn(p.p, p.frame.z, dir), dir);
+                    if (hit.surface >= 0 && scene[hit.surface].receiver)
+                        h.sees.push_back((2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1)) * kCells +
+                                         cell_of(hit.u, hit.v));
+                }
         }
-    }
-    // Light reflected on: a side that sees a live side of a receiver is live, to a fixed point.
+        if (h.direct == 1) return true;
+        for (int c : h.sees)
+            if (lit[c]) return true;
+        return false;
+    };
     for (bool changed = true; changed;) {
         changed = false;
         for (int i : probed)
-            for (int side = 0; side < 2; ++side) {
-                if (out[i].live[side]) continue;
-                for (int seen : views[i][side].sides_seen)
-                    if (out[seen / 2].live[seen % 2]) {
-                        out[i].live[side] = changed = true;
-                        out[i].why[side] = "receives light reflected by '" + scene[seen / 2].surface->name() + "'";
-                        break;
-                    }
-            }
+            for (int side = 0; side < 2; ++side)
+                for (int c = 0; c < kCells; ++c) {
+                    const size_t id = (2 * size_t(i) + side) * kCells + c;
+                    if (lit[id]) continue;
+                    for (Hit& h : views[i][side][c].hits)
+                        if (carries_light(h)) {
+                            lit[id] = changed = true;
+                            why[id] = "receives light reflected by '" + scene[h.cell / (2 * kCells)].surface->name() + "'";
+                            break;
+                        }
+                }
     }
     for (int i : probed)
-        for (int side = 0; side < 2; ++side)
-            if (!out[i].live[side]) out[i].why[side] = "sees no light (the inside of a closed mesh?)";
+        for (int side = 0; side < 2; ++side) {
+            bool escaped = false;
+            out[i].live[side] = false;
+            for (int c = 0; c < kCells && !out[i].live[side]; ++c) {
+                const size_t id = (2 * size_t(i) + side) * kCells + c;
+                out[i].live[side] = lit[id];
+                out[i].why[side] = why[id];
+                escaped |= views[i][side][c].escaped;
+            }
+            if (!out[i].live[side])
+                out[i].why[side] = escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
+        }
     return out;
 }
 
