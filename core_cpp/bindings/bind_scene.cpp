@@ -110,6 +110,9 @@ void bind_scene(py::module_& m) {
             py::arg("surface"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true, py::arg("occluder") = true,
             py::arg("bsdf") = nullptr, py::arg("representation") = "auto", py::arg("spatial_coeffs") = 0,
             py::arg("angular_coeffs") = 0, "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it.")
+        .def("set_two_sided_emission", &Scene::set_two_sided_emission, py::arg("index"), py::arg("two_sided") = true,
+             "Makes emitter `index` emit from its back side too (Cycles' Emission shader on a mesh; its area "
+             "lights emit from the front only).")
         .def_property(
             "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },

@@ -141,15 +141,17 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             if (!emitter.in_domain(s, t)) continue;  // the mask chi of (8)
             const SurfacePoint ep = emitter.evaluate(s, t);
             const Vec3 d = ep.p - r.p;
-            const double cos_r = dot(d, r.frame.z), cos_e = -dot(d, ep.frame.z);
-            if (cos_e <= 0 || cos_r == 0 || !sides[cos_r < 0]) continue;  // emitters radiate from their front
+            const double cos_r = dot(d, r.frame.z), facing = -dot(d, ep.frame.z);
+            // Emitters radiate from their front (and their back if two-sided).
+            const double cos_e = light.two_sided_emission ? std::abs(facing) : facing;
+            if (cos_e <= 0 || cos_r == 0 || !sides[cos_r < 0]) continue;
             const double d2 = dot(d, d), len = std::sqrt(d2);
             const double cone = light.cone ? light.cone->factor(-d / len) : 1.0;  // a spot light's
             if (cone <= 0) continue;
             // Both ends lifted off their surfaces, and the segment stopped short of the emitter,
             // so neither surface, nor one meeting the emitter along its edge, shadows it.
             const Vec3 origin = caster_.spawn(r.p, r.frame.z, d);
-            const Vec3 segment = ep.p + ep.frame.z * offset - origin;
+            const Vec3 segment = ep.p + ep.frame.z * (facing > 0 ? offset : -offset) - origin;
             const double stop = 1.0 - 2 * offset / length(segment);
             ++rays;
             if (stop <= 0 || caster_.occluded(origin, segment, 0.0, stop)) continue;

@@ -55,10 +55,12 @@ bool sees_emitter(const RayCaster& caster, const SurfacePoint& p, const Vec3& n,
             const SurfacePoint ep = e.surface->evaluate(s, t);
             const Vec3 d = ep.p - p.p;
             const double len = length(d);
-            if (!(len > 0) || dot(d, n) <= 0 || dot(d, ep.frame.z) >= 0) continue;  // emitters radiate from their front
+            // Emitters radiate from their front (and their back if two-sided).
+            const double facing = -dot(d, ep.frame.z);
+            if (!(len > 0) || dot(d, n) <= 0 || facing == 0 || (facing < 0 && !e.material.two_sided_emission)) continue;
             if (e.material.cone && e.material.cone->factor(-d / len) <= 0) continue;
             const Vec3 origin = caster.spawn(p.p, p.frame.z, d);
-            const Vec3 segment = ep.p + ep.frame.z * caster.offset() - origin;
+            const Vec3 segment = ep.p + ep.frame.z * (facing > 0 ? caster.offset() : -caster.offset()) - origin;
             const double stop = 1.0 - 2 * caster.offset() / length(segment);
             if (stop > 0 && !caster.occluded(origin, segment, 0.0, stop)) return true;
         }
@@ -145,7 +147,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             for (int c = 0; c < kCells; ++c) {
                 const size_t id = (2 * size_t(i) + side) * kCells + c;
                 const CellView& v = views[i][side][c];
-                const bool emits = side == 0 && scene[i].material.emits();
+                const bool emits = (side == 0 || scene[i].material.two_sided_emission) && scene[i].material.emits();
                 lit[id] = emits || !v.light.empty();
                 why[id] = emits ? "emits" : v.light.empty() ? "" : "receives " + v.light;
             }

@@ -649,8 +649,9 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     std::vector<Receiver>& result = settings.final_gather ? finals : receivers;
     solution.stats.rays = rays;
 
-    // Outgoing radiance = emission (front side, the same in every direction: constants are
-    // reproduced exactly by the partition of unity) + the cumulative reflected radiance.
+    // Outgoing radiance = emission (front side, and back side where two-sided; the same in every
+    // direction: constants are reproduced exactly by the partition of unity) + the cumulative
+    // reflected radiance.
     solution.radiance.resize(scene.size());
     for (size_t k = 0; k < result.size(); ++k) {
         Receiver& r = result[k];
@@ -658,9 +659,12 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         for (const Receiver* part = &r; part; part = part->is_partner ? nullptr : part->partner)
             for (int side = 0; side < part->sides; ++side)
                 if (part->solves(side)) solution.stats.coefficients += part->Le[side].coeffs().size() / 3;
-        const Vec3 e = scene[r.surface].material.emission;
-        auto& c = r.Le[0].coeffs();
-        for (size_t i = 0; i < c.size(); i += 3) c[i] += e.x, c[i + 1] += e.y, c[i + 2] += e.z;
+        const Material& m = scene[r.surface].material;
+        for (int side = 0; side < r.sides; ++side) {
+            if (!r.solves(side) || (side == 1 && !m.two_sided_emission)) continue;
+            auto& c = r.Le[side].coeffs();
+            for (size_t i = 0; i < c.size(); i += 3) c[i] += m.emission.x, c[i + 1] += m.emission.y, c[i + 2] += m.emission.z;
+        }
         // The front spline of a surface lit only from behind is zero (the output always has one);
         // the back spline exists only where the back side was solved.
         auto front = [](Receiver& part) { return part.live[0] ? std::move(part.Le[0]) : TensorSpline(part.axes, 3); };

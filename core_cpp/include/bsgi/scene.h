@@ -30,12 +30,14 @@ struct SpotCone {
 };
 
 // How a surface scatters and emits. Without a BSDF the surface is Lambertian with `albedo`.
-// Emission is radiance leaving the front side, in every direction or within a spot cone.
+// Emission is radiance leaving the front side, in every direction or within a spot cone, and
+// the back side too where it is two-sided (Cycles' emissive meshes; its area lights are not).
 struct Material {
     Vec3 albedo;
     Vec3 emission;
     std::shared_ptr<const Bsdf> bsdf;
     std::optional<SpotCone> cone;
+    bool two_sided_emission = false;
     bool emits() const { return max_component(emission) > 0; }
 };
 
@@ -117,6 +119,15 @@ public:
         if (!(spot_size > 0 && spot_size <= kPi)) throw std::invalid_argument(what + "spot size must be in (0, pi] radians");
         if (!(blend >= 0 && blend <= 1)) throw std::invalid_argument(what + "blend must be in [0, 1]");
         surfaces_[i].material.cone = SpotCone{unit_axis, std::cos(0.5 * spot_size), blend};
+    }
+
+    // Makes emitter i emit its radiance from its back side too, as Cycles' Emission shader does
+    // on a mesh.
+    void set_two_sided_emission(size_t i, bool two_sided = true) {
+        if (i >= surfaces_.size()) throw std::out_of_range("set_two_sided_emission: no surface " + std::to_string(i));
+        if (!surfaces_[i].material.emits())
+            throw std::invalid_argument("surface '" + surfaces_[i].surface->name() + "': emits no light");
+        surfaces_[i].material.two_sided_emission = two_sided;
     }
 
     size_t size() const { return surfaces_.size(); }
