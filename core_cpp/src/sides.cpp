@@ -190,13 +190,18 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     }
     for (int i : probed)
         for (int side = 0; side < 2; ++side) {
+            // The reason of a cell lit directly if there is one, else of the first lit cell.
             bool escaped = false;
             out[i].live[side] = false;
-            for (int c = 0; c < kCells && !out[i].live[side]; ++c) {
+            out[i].why[side].clear();
+            for (int c = 0; c < kCells; ++c) {
                 const size_t id = (2 * size_t(i) + side) * kCells + c;
-                out[i].live[side] = lit[id];
-                out[i].why[side] = why[id];
                 escaped |= views[i][side][c].escaped;
+                if (!lit[id]) continue;
+                const bool direct = why[id].rfind("receives light reflected", 0) != 0;
+                if (!out[i].live[side] || (direct && out[i].why[side].rfind("receives light reflected", 0) == 0))
+                    out[i].why[side] = why[id];
+                out[i].live[side] = true;
             }
             if (!out[i].live[side])
                 out[i].why[side] = escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
