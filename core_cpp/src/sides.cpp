@@ -14,6 +14,9 @@ constexpr double kPi = 3.14159265358979323846;
 // 6 x 12 cosine-weighted directions, and 3 x 3 points of each emitter; enough to tell which
 // parts of which sides face which, not to integrate.
 constexpr int kPoints = 6, kCells = kPoints * kPoints, kTheta = 6, kPhi = 12, kEmitterPoints = 3;
+// Rays of one point that must reach lit cells for the point to count as lit by them: one ray
+// alone may have slipped through a crack between two patches (a box's edge).
+constexpr int kRaysToCarry = 2;
 
 // A probe ray's end on a receiver: the cell it lands in, numbered (surface * 2 + side) * kCells
 // + cell, and where.
@@ -39,9 +42,12 @@ int cell_of(double u, double v) {
     return a * kPoints + b;
 }
 
-// Direction k of the probe's cosine-weighted set on the side of normal n = +-frame.z.
-Vec3 probe_direction(const SurfacePoint& p, int side, int k) {
-    const double w = (k / kPhi + 0.5) / kTheta, phi = 2 * kPi * (k % kPhi + 0.5) / kPhi;
+// Direction k of the probe's cosine-weighted set on the side of normal n = +-frame.z, turned
+// about the normal by `turn` (a fraction of the azimuth step): each cell turns its set by its
+// own amount, so that the cells' rays do not line up with the edges of boxes made of patches,
+// where a ray may slip between two patches that meet.
+Vec3 probe_direction(const SurfacePoint& p, int side, int k, double turn) {
+    const double w = (k / kPhi + 0.5) / kTheta, phi = 2 * kPi * (k % kPhi + turn) / kPhi;
     const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
     return p.frame.to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), side ? -cos_t : cos_t});
 }
@@ -79,7 +85,7 @@ std::string direct_light(const Scene& scene, const RayCaster& caster, int i, con
             return "light from '" + l.name + "'";
     if (world && scene.has_world())
         for (int k = 0; k < kTheta * kPhi; ++k) {
-            const Vec3 dir = probe_direction(p, side, k);
+            const Vec3 dir = probe_direction(p, side, k, 0.5);
             if (caster.closest_hit(caster.spawn(p.p, p.frame.z, dir), dir).surface < 0) return "world light";
         }
     return "";
@@ -95,8 +101,9 @@ std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, in
             if (!surface.in_domain(u, v)) continue;
             const SurfacePoint p = surface.evaluate(u, v);
             view.light = direct_light(scene, caster, i, p, side, false);
+            const double turn = std::fmod((2 * (i * kCells + a * kPoints + b) + side + 1) * 0.6180339887498949, 1.0);
             for (int k = 0; k < kTheta * kPhi; ++k) {
-                const Vec3 dir = probe_direction(p, side, k);
+                const Vec3 dir = probe_direction(p, side, k, turn);
                 const SurfaceHit hit = caster.closest_hit(caster.spawn(p.p, p.frame.z, dir), dir);
                 if (hit.surface < 0) {
                     view.escaped = true;
@@ -161,7 +168,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             h.direct = direct_light(scene, caster, surface, p, side, true).empty() ? 2 : 1;
             if (h.direct == 2)
                 for (int k = 0; k < kTheta * kPhi; ++k) {
-                    const Vec3 dir = probe_direction(p, side, k);
+                    const Vec3 dir = probe_direction(p, side, k, 0.5);
                     const SurfaceHit hit = caster.closest_hit(caster.spawn(p.p, p.frame.z, dir), dir);
                     if (hit.surface >= 0 && scene[hit.surface].receiver)
                         h.sees.push_back((2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1)) * kCells +
@@ -169,9 +176,9 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                 }
         }
         if (h.direct == 1) return true;
-        for (int c : h.sees)
-            if (lit[c]) return true;
-        return false;
+        int seen = 0;
+        for (int c : h.sees) seen += lit[c];
+        return seen >= kRaysToCarry;
     };
     for (bool changed = true; changed;) {
         changed = false;
@@ -180,8 +187,9 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                 for (int c = 0; c < kCells; ++c) {
                     const size_t id = (2 * size_t(i) + side) * kCells + c;
                     if (lit[id]) continue;
+                    int carrying = 0;
                     for (Hit& h : views[i][side][c].hits)
-                        if (carries_light(h)) {
+                        if (carries_light(h) && ++carrying == kRaysToCarry) {
                             lit[id] = changed = true;
                             why[id] = "receives light reflected by '" + scene[h.cell / (2 * kCells)].surface->name() + "'";
                             break;
