@@ -19,11 +19,12 @@ struct SurfaceSides {
     std::array<std::string, 2> why;
 };
 
-// Probes, from a coarse grid of points on each side of every receiving surface, what that side
-// sees: an emitter's emitting side (shadow rays to a few points of it), a distant light, the
-// world (if it has light), or another surface's side; then marks live every side that sees light
-// directly or sees a live side (a fixed point over that graph). Transmitting surfaces get both
-// sides. With settings.two_sided off every opaque surface gets its front side only.
+// Probes, from the centres of a coarse grid of cells on each side of every receiving surface,
+// what each cell sees: an emitter's emitting side (shadow rays to a few points of it), a distant
+// light, the world (if it has light), or cells of other sides; marks lit every cell that sees
+// light directly or sees lit cells (a fixed point over that graph, each ray's end checked on its
+// own), and solves every side with a lit cell. Transmitting surfaces get both sides; emitters the
+// sides they emit from. With settings.two_sided off every opaque surface gets its front side only.
 std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings);
 
 }  // namespace bsgi
