@@ -196,3 +196,19 @@ def test_two_sided_emission_lights_what_its_back_faces():
     assert "back side: emits" in sol.reports[index]["reason"]
     with pytest.raises(ValueError, match="'floor': emits no light"):
         scene.set_two_sided_emission(0)
+
+
+def test_cornell_box_solves_only_the_sides_that_see_light():
+    # Closed boxes standing on the floor, turned about z: their insides see no light, even
+    # where probe rays graze the edges between their patches or meet the floor under them; the
+    # room's outsides face a black world. Every lit side is a front, as one-sided solves had.
+    from reference import scene_spec
+
+    sol = bsgi.solve(scene_spec.to_bsgi(scene_spec.cornell_box()), settings(spatial_coeffs=4, max_bounces=0))
+    reports = {r["name"]: r for r in sol.reports}
+    for name, r in reports.items():
+        if name == "lamp":
+            continue
+        bottom = name in ("tall box 4", "short box 4")  # the faces lying on the floor (-z)
+        assert r["representation"] == ("diffuse 2D, no side lit" if bottom else "diffuse 2D"), (name, r)
+        assert "back side: no spline, sees no light" in r["reason"], (name, r)
