@@ -177,9 +177,9 @@ void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, doub
     }
 }
 
-Vec3 Gatherer::irradiance(int surface, const SurfacePoint& p, size_t& rays) const {
+Vec3 Gatherer::irradiance(int surface, const SurfacePoint& p, size_t& rays, std::array<bool, 2> sides) const {
     Vec3 e{0, 0, 0};
-    for_each_emitter_sample(surface, p, settings_.emitter_cell_ratio, {true, false},
+    for_each_emitter_sample(surface, p, settings_.emitter_cell_ratio, sides,
                             [&](const Vec3&, const Vec3& value) { e += value; }, rays);
     return e;
 }

@@ -198,7 +198,9 @@ std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const S
     const Surface& surface = *scene[p.surface].surface;
     for (int i = 0; i < pu; ++i)
         for (int j = 0; j < pv; ++j) {
-            const Vec3 e = gather.irradiance(p.surface, surface.evaluate(a + (b - a) * i / (pu - 1), a + (b - a) * j / (pv - 1)), rays);
+            // The sides solved: a room's walls are lit from behind.
+            const Vec3 e = gather.irradiance(p.surface, surface.evaluate(a + (b - a) * i / (pu - 1), a + (b - a) * j / (pv - 1)),
+                                             rays, p.live);
             fmax = std::max(fmax, f[size_t(i) * pv + j] = e.x + e.y + e.z);
         }
     if (!(fmax > 0)) return {uniform_u, uniform_v};

@@ -98,8 +98,8 @@ public:
     // not every bounce.
     void transport_row(const Receiver& r, int side, size_t j, const std::vector<const Receiver*>& receiver_of,
                        std::vector<TransportTerm>& row, size_t& rays) const;
-    // Direct irradiance at a point (for probing where the light has detail).
-    Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays) const;
+    // Direct irradiance at a point on the given sides (for probing where the light has detail).
+    Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays, std::array<bool, 2> sides = {true, false}) const;
 
 private:
     // The hemispherical integral at node j of r of radiance_along(hit, world direction), the
