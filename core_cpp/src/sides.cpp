@@ -35,6 +35,7 @@ struct CellView {
     std::string light;  // what lights it directly, empty if nothing
     std::vector<Hit> hits;
     bool escaped = false;  // some rays reach no surface
+    bool others = false;   // some rays reach another surface than the one probed
 };
 
 int cell_of(double u, double v) {
@@ -110,6 +111,7 @@ std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, in
                     if (scene.has_world() && view.light.empty()) view.light = "world light";
                     continue;
                 }
+                view.others |= hit.surface != i;
                 if (!scene[hit.surface].receiver) continue;
                 const int hit_side = dot(dir, hit.frame.z) < 0 ? 0 : 1;
                 view.hits.push_back({(2 * hit.surface + hit_side) * kCells + cell_of(hit.u, hit.v), hit.u, hit.v});
@@ -147,6 +149,13 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     // the box's inside) lights no one. A ray landing in a lit cell counts only if its own end
     // sees light or a lit cell too: the box's inside, whose rays meet the floor where the box's
     // bottom lies on it, stays dark although the floor cell at the box's edge is lit.
+    // Two-sided emitters whose back sees only themselves keep their light inside.
+    for (int i : probed) {
+        if (!scene[i].material.two_sided_emission) continue;
+        bool inside = true;
+        for (const CellView& v : views[i][1]) inside &= !v.escaped && !v.others;
+        out[i].encloses_emission = inside;
+    }
     std::vector<char> lit(2 * n * kCells, 0);
     std::vector<std::string> why(2 * n * kCells);
     for (int i : probed)
@@ -154,7 +163,8 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             for (int c = 0; c < kCells; ++c) {
                 const size_t id = (2 * size_t(i) + side) * kCells + c;
                 const CellView& v = views[i][side][c];
-                const bool emits = (side == 0 || scene[i].material.two_sided_emission) && scene[i].material.emits();
+                const bool emits = (side == 0 || (scene[i].material.two_sided_emission && !out[i].encloses_emission)) &&
+                                   scene[i].material.emits();
                 lit[id] = emits || !v.light.empty();
                 why[id] = emits ? "emits" : v.light.empty() ? "" : "receives " + v.light;
             }
@@ -212,7 +222,9 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                 out[i].live[side] = true;
             }
             if (!out[i].live[side])
-                out[i].why[side] = escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
+                out[i].why[side] = side == 1 && out[i].encloses_emission
+                                       ? "emits, but only into itself (the inside of a closed mesh)"
+                                       : escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
         }
     return out;
 }

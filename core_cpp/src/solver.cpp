@@ -522,7 +522,12 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
                                         "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
                                         "give it a roughness");
 
-    const Gatherer gather(scene, settings, caster);
+    // The scene as the gathering sees it: emitters whose back side encloses its light emit
+    // from their front only.
+    Scene lit_scene = scene;
+    for (size_t i = 0; i < scene.size(); ++i)
+        if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
+    const Gatherer gather(lit_scene, settings, caster);
 
     Solution solution;
     solution.stats.bytes = bytes;

@@ -212,3 +212,28 @@ def test_cornell_box_solves_only_the_sides_that_see_light():
         bottom = name in ("tall box 4", "short box 4")  # the faces lying on the floor (-z)
         assert r["representation"] == ("diffuse 2D, no side lit" if bottom else "diffuse 2D"), (name, r)
         assert "back side: no spline, sees no light" in r["reason"], (name, r)
+
+
+def test_closed_two_sided_emitter_keeps_its_back_light_inside():
+    # An emissive sphere (a closed surface) emitting from both sides: its inside sees only
+    # itself, so it gets no spline and lights no one; the floor gets exactly what the sphere's
+    # outside sends, as with one-sided emission.
+    from nurbs_reference import SPHERE_FLAGS, blender_sphere_points
+
+    def scene_with(two_sided):
+        points = blender_sphere_points(0.3)
+        points[:, :3] += [0.1, 0.2, 0.8]
+        scene = bsgi.Scene()
+        scene.add_bilinear_patch("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[ALBEDO] * 3, emission=[0] * 3)
+        k = scene.add_surface(bsgi.NurbsSurface("bulb", points, **SPHERE_FLAGS), albedo=[0.2] * 3, emission=[LAMP] * 3)
+        if two_sided:
+            scene.set_two_sided_emission(k)
+        return scene, k
+
+    s = settings(spatial_coeffs=6, max_bounces=1)
+    one, _ = scene_with(False)
+    scene, k = scene_with(True)
+    want, got = bsgi.solve(one, s), bsgi.solve(scene, s)
+    np.testing.assert_array_equal(got.radiance[0].coefficients, want.radiance[0].coefficients)
+    assert got.surfaces[k].lower is None
+    assert "back side: no spline, emits, but only into itself" in got.reports[k]["reason"]

@@ -17,6 +17,9 @@ namespace bsgi {
 struct SurfaceSides {
     std::array<bool, 2> live{true, false};
     std::array<std::string, 2> why;
+    // A two-sided emitter whose back side sees only itself (a closed bulb): its back's light
+    // reaches no other surface, so it is neither gathered by others nor solved.
+    bool encloses_emission = false;
 };
 
 // Probes, from the centres of a coarse grid of cells on each side of every receiving surface,
