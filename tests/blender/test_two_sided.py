@@ -10,6 +10,7 @@ import pytest
 
 import scenes
 from bsgi_addon import bake, pipeline
+from figures import record
 from test_pipeline import render_exr
 
 ALBEDO = 0.5
@@ -86,17 +87,18 @@ def test_plane_lit_from_below_bakes_its_back_side(context):
 
 def render_pair(context, tmp_path, samples, bounces):
     reference = render_exr(context.scene, tmp_path / "reference.exr", samples=samples, bounces=bounces)
-    solve(context)
+    report = solve(context)
     baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
-    return reference, baked
+    return reference, baked, report["solve_seconds"] + report["bake_seconds"]
 
 
 @pytest.mark.slow
 def test_room_of_a_scaled_cube_matches_cycles(context, tmp_path):
     room_of_a_scaled_cube(context)
-    reference, baked = render_pair(context, tmp_path, samples=256, bounces=32)
+    reference, baked, seconds = render_pair(context, tmp_path, samples=256, bounces=32)
     mean = baked.mean() / reference.mean() - 1
     blocks = block_means(baked) / block_means(reference) - 1
+    record(scene_cube_room_seconds=seconds, scene_cube_room_rel_diff_vs_cycles=abs(mean))
     print(f"\nroom of a scaled cube, baked vs Cycles: mean {mean:+.4f}, 4x4 blocks "
           f"{np.abs(blocks).max():.4f} at most\n{np.round(blocks, 3)}")
     assert reference.mean() > 0.05  # the room is lit (one-sided it solved black)
@@ -109,9 +111,11 @@ def test_room_of_a_scaled_cube_matches_cycles(context, tmp_path):
 def test_plane_lit_from_below_matches_cycles_from_both_sides(context, tmp_path, material):
     plane_lit_from_below(context, material)
     below = camera(context, (0.4, -0.6, -3), (180 + 12, 0, 0))  # looking up, a little slanted
-    reference, baked = render_pair(context, tmp_path, samples=64, bounces=1)
+    reference, baked, seconds = render_pair(context, tmp_path, samples=64, bounces=1)
     lit = reference.mean(axis=2) > 0.02 * np.percentile(reference.mean(axis=2), 99)
     mean = baked[lit].mean() / reference[lit].mean() - 1
+    record(**{f"scene_{material}_plane_from_below_seconds": seconds,
+              f"scene_{material}_plane_from_below_rel_diff_vs_cycles": abs(mean)})
     print(f"\n{material} plane lit from below, seen from below, baked vs Cycles: mean {mean:+.4f} over "
           f"{lit.sum()} pixels, per-pixel {np.median(np.abs(baked[lit] / reference[lit] - 1)):.4f} median")
     assert lit.sum() > 0.2 * lit.size
