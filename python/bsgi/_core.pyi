@@ -108,10 +108,19 @@ class SurfaceRadiance:
     """A solved surface's outgoing radiance: `upper` leaves the front side (the glossy S of (38) if
     decomposed), `lower` the back side where it was solved (transmitting surfaces, and opaque ones
     lit from behind: Cycles shades both sides), `diffuse` / `lower_diffuse` the 2D parts D of
-    (38) on each side."""
+    (38) on each side. Textured surfaces: their diffuse splines hold irradiance / pi, `albedo`
+    (height, width, 3) over (u, v) multiplies them; `emission` is added (to the back side too with
+    `two_sided_emission`)."""
     def __init__(self, kind: Literal["diffuse", "glossy", "decomposed"], disc_radius: float, upper: TensorSpline,
                  lower: TensorSpline | None = None, diffuse: TensorSpline | None = None,
-                 lower_diffuse: TensorSpline | None = None) -> None: ...
+                 lower_diffuse: TensorSpline | None = None, albedo: npt.ArrayLike | None = None,
+                 emission: npt.ArrayLike | None = None, two_sided_emission: bool = False) -> None: ...
+    @property
+    def albedo(self) -> npt.NDArray[np.float32] | None: ...
+    @property
+    def emission(self) -> npt.NDArray[np.float32] | None: ...
+    @property
+    def two_sided_emission(self) -> bool: ...
     @property
     def kind(self) -> str: ...
     @property
