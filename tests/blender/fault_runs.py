@@ -109,8 +109,9 @@ def cancel_moments(moments: int, phase: str, seed: int, path) -> dict:
     """Cancels the solve (or the bake) of build_scene() at `moments` uniformly random moments of
     its duration; after each, the saved .blend must hold the same data as the one saved just
     before the attempt: byte-identical, or equal but for the runtime fields and pointer numbers
-    that blend_file.canonical() sets aside (a bake undone leaves the depsgraph's update tags). Attempts that finish before their moment do not count; the scene is then
-    read back from a file saved before them."""
+    that blend_file.canonical() sets aside (a bake undone leaves the depsgraph's update tags).
+    Attempts that finish before their moment do not count; after those (and after a change) the
+    scene is read back from the file saved before them."""
     import bpy
 
     build_scene()
@@ -120,26 +121,23 @@ def cancel_moments(moments: int, phase: str, seed: int, path) -> dict:
     span = solve_s if phase == "solve" else bake_s
     rng = random.Random(seed)
     stopped = {"solve": 0, "bake": 0}
-    changed, finished, identical = [], 0, 0
+    changed, finished, identical = [], 0, {"solve": 0, "bake": 0}
     while sum(stopped.values()) < moments and finished < moments:
         delay = rng.uniform(0, span)
         before = saved_bytes(path)
         where = attempt(delay, phase)
+        restore = where is None
         if where is None:
             finished += 1
         else:
             stopped[where] += 1
             after = saved_bytes(path)
-            identical += after == before
-            if after != before and blend_file.differences(before, after):
-                changed.append((where, round(delay, 4), blend_file.differences(before, after, 3)))
-        if os.environ.get("BSGI_KEEP_CHANGED") and changed and changed[-1][1] == round(delay, 4):
-            keep = pathlib.Path(os.environ["BSGI_KEEP_CHANGED"])
-            (keep / "before.blend").write_bytes(before)
-            (keep / "after.blend").write_bytes(after)
-            (keep / "again.blend").write_bytes(saved_bytes(path))
-            return {"changed": changed}
-        if where is None or changed and changed[-1][1] == round(delay, 4):
+            identical[where] += after == before
+            differences = [] if after == before else blend_file.differences(before, after, 3)
+            if differences:
+                changed.append((where, round(delay, 4), differences))
+                restore = True
+        if restore:
             pathlib.Path(path).write_bytes(before)
             bpy.ops.wm.open_mainfile(filepath=str(path))
     return {"phase": phase, "solve_seconds": solve_s, "bake_seconds": bake_s, "stopped": stopped,
