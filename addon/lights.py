@@ -1,5 +1,5 @@
 """Blender lights and the world -> the solver's emitters: area lights as emitting patches, point and
-spot lights as emitting spheres, suns as distant lights, a one-colour world as world light."""
+spot lights as emitting spheres, suns as distant lights, the world as world light (a constant, or a rendered map)."""
 from __future__ import annotations
 
 import math
@@ -10,6 +10,7 @@ import numpy as np
 import bsgi
 
 from .errors import ExportError
+from . import world_map
 from .materials import active_output, linked_node, socket_color, socket_value
 
 
@@ -143,20 +144,42 @@ def _v(x, y):
 
 
 def world_light(blender_scene, scene, warnings):
-    """The world's background, when it is one colour, as the solver's world light: radiance
-    colour x strength from every direction no surface blocks (as Cycles shines it)."""
+    """The world as the solver's world light, as Cycles shines it on diffuse and glossy surfaces:
+    a one-colour background as a constant radiance (colour x strength), any other node tree
+    (Environment or Sky Texture, strength, a Mapping node's rotation...) as the equirectangular
+    image Cycles renders of it (world_map.render_world)."""
     world = blender_scene.world
     if world is None:
         return
+    visibility = world.cycles_visibility
+    if not visibility.diffuse and not visibility.glossy:
+        return  # Cycles' diffuse and glossy rays do not see it: no light on the surfaces
+    if visibility.diffuse != visibility.glossy:
+        warnings.append(f"world '{world.name}': visible to {'diffuse' if visibility.diffuse else 'glossy'} rays only; "
+                        "solved as lighting every surface")
     color, strength = tuple(world.color), 1.0  # without nodes Cycles shines the world colour
     if world.node_tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes):  # 5.x: always nodes
         output = active_output(world.node_tree, "OUTPUT_WORLD")
-        background = linked_node(output.inputs["Surface"]) if output is not None else None
-        if background is None:
+        surface = linked_node(output.inputs["Surface"]) if output is not None else None
+        if surface is None:
             return
-        if background.type != "BACKGROUND" or any(s.is_linked for s in background.inputs):
-            warnings.append(f"world '{world.name}': only a constant background (one colour, no texture or sky) "
-                            "can be solved; its light is ignored")
+        if surface.type != "BACKGROUND" or any(s.is_linked for s in surface.inputs):
+            _world_map(blender_scene, world, scene, warnings)
             return
-        color, strength = socket_color(background, "Color"), socket_value(background, "Strength", 1.0)
+        color, strength = socket_color(surface, "Color"), socket_value(surface, "Strength", 1.0)
     scene.world_radiance = tuple(c * max(strength, 0.0) for c in color)
+
+
+def _world_map(blender_scene, world, scene, warnings):
+    """A world node tree, rendered by Cycles, as the solver's world map."""
+    light_paths = world_map.light_path_nodes(world.node_tree)
+    if light_paths:
+        names = ", ".join(f"'{n}'" for n in light_paths)
+        warnings.append(f"world '{world.name}': Light Path node{'s' if len(light_paths) > 1 else ''} {names} "
+                        "cannot be told apart by ray type here: the world's light is taken as camera rays see it")
+    settings = getattr(blender_scene, "bsgi", None)
+    width = settings.world_map_width if settings is not None else 512
+    image = world_map.render_world(world, width)
+    if not np.all(np.isfinite(image)):
+        raise ExportError(f"world '{world.name}': its node tree gives non-finite radiance (NaN or infinity)")
+    scene.world_map = np.maximum(image, 0.0)

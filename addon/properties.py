@@ -58,6 +58,10 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="Texels per face side (four times as many per UV chart side) at which Blender's evaluation of "
         "node-driven colours and emission (image and procedural textures, colour ramps, vertex colours) is baked for "
         "the solve and shown in the bake; cost grows with their square")
+    world_map_width: IntProperty(
+        name="World Map Width", default=512, min=8, max=8192,
+        description="Pixels around the horizon of the image a textured world (HDRI, sky) is rendered into "
+        "for the solve (half as many from pole to pole); a one-colour world needs none")
     show_baked: BoolProperty(
         name="Show Baked Radiance", default=True, update=_show_baked_update,
         description="Show the solved radiance, or the objects' own materials")

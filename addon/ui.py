@@ -17,6 +17,7 @@ def draw_controls(layout, scene):
     col.prop(settings, "hemisphere_nodes")
     layout.prop(settings, "chart_min_faces")
     layout.prop(settings, "texture_texels")
+    layout.prop(settings, "world_map_width")
     row = layout.row(align=True)
     row.prop(settings, "show_baked", toggle=True)
     row.operator("bsgi.rebake", text="", icon="FILE_REFRESH")

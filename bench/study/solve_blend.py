@@ -87,7 +87,7 @@ def refuse_light_the_reference_lacks(context, export):
     compared with a darker reference."""
     extra = [f"{o.data.type.lower()} light '{o.name}'" for o in context.scene.objects
              if o.type == "LIGHT" and o.data.type in {"POINT", "SPOT", "SUN"}]
-    if max(export.scene.world_radiance) > 0:
+    if max(export.scene.world_radiance) > 0 or export.scene.world_map is not None:
         extra.append(f"world '{context.scene.world.name}'")
     if extra:
         raise SystemExit(f"the study's Mitsuba reference has no {', '.join(extra)}: set them to black or remove "

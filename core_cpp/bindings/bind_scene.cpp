@@ -149,6 +149,28 @@ void bind_scene(py::module_& m) {
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },
             "RGB radiance arriving from every direction no occluder blocks (a constant world background; "
             "default black).")
+        .def_property(
+            "world_map",
+            [](const Scene& s) -> py::object {
+                const EnvironmentMap* map = s.world_map();
+                if (!map) return py::none();
+                py::array_t<double> out({map->height(), map->width(), 3});
+                std::copy(map->pixels().begin(), map->pixels().end(), out.mutable_data());
+                return std::move(out);
+            },
+            [](Scene& s, const py::object& image) {
+                if (image.is_none()) return s.set_world_map(nullptr);
+                const Array a = Array::ensure(image);
+                if (!a || a.ndim() != 3 || a.shape(2) != 3)
+                    throw std::invalid_argument("world map: expected an image of shape (height, width, 3)");
+                std::vector<double> rgb(a.data(), a.data() + a.size());
+                auto map = std::make_shared<const EnvironmentMap>(int(a.shape(0)), int(a.shape(1)), std::move(rgb));
+                s.set_world_map(std::move(map));
+            },
+            "RGB radiance arriving from each direction no occluder blocks, as an equirectangular image (height, "
+            "width, 3) in Cycles' Environment Texture layout: row 0 at the zenith (+Z), azimuth atan2(y, x) = "
+            "pi (1 - 2 u) at column centre u = (c + 1/2) / width (+X at the centre). Replaces world_radiance "
+            "(and setting world_radiance removes it); None: no map.")
         .def(
             "set_spot_cone",
             [](Scene& s, size_t i, const Array& axis, double spot_size, double blend) {
@@ -240,6 +262,8 @@ void bind_scene(py::module_& m) {
         .def_readwrite("hemisphere_nodes_theta", &SolverSettings::hemisphere_nodes_theta)
         .def_readwrite("hemisphere_nodes_phi", &SolverSettings::hemisphere_nodes_phi)
         .def_readwrite("bsdf_samples", &SolverSettings::bsdf_samples)
+        .def_readwrite("world_bright_factor", &SolverSettings::world_bright_factor)
+        .def_readwrite("world_bright_samples", &SolverSettings::world_bright_samples)
         .def_readwrite("max_bounces", &SolverSettings::max_bounces)
         .def_readwrite("form_factors", &SolverSettings::form_factors)
         .def_readwrite("tolerance", &SolverSettings::tolerance)

@@ -106,6 +106,13 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
             }
         for (size_t i = first; i < distant_.size(); ++i) distant_[i].irradiance = distant_[i].irradiance / facing;
     }
+    if (const EnvironmentMap* map = scene.world_map()) {
+        // The bright part (an HDRI's sun, a sky's sun disc, too small for the hemisphere nodes
+        // to find) as directions for shadow rays.
+        EnvironmentMap::Split split = map->split(settings.world_bright_factor, size_t(settings.world_bright_samples));
+        for (const auto& b : split.bright) distant_.push_back({b.direction, b.irradiance});
+        world_smooth_.emplace(map->height(), map->width(), std::move(split.smooth));
+    }
 }
 
 // The geometric part of (8) over the parameter cell [s0, s1] x [t0, t1] of an emitter: the
@@ -226,10 +233,9 @@ Vec3 Gatherer::texel_seen(const Texture& texture, const SurfaceHit& hit, const V
 
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
                         Receiver::Splines which, int density, bool with_world, Vec3* out, size_t& rays) const {
-    const Vec3 world = with_world ? scene_.world_radiance() : Vec3{0, 0, 0};
     const double solid_angle = 2 * kPi / (double(settings_.hemisphere_nodes_theta) * settings_.hemisphere_nodes_phi * density * density);
     hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
-        if (hit.surface < 0) return world;
+        if (hit.surface < 0) return with_world ? world_along(dir) : Vec3{0, 0, 0};
         const Receiver* h = receiver_of[hit.surface];
         if (!h) return {0, 0, 0};
         const Vec3 texel = h->albedo ? texel_seen(*h->albedo, hit, dir, solid_angle) : Vec3{1, 1, 1};
@@ -238,9 +244,8 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
 }
 
 void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
-    const Vec3 world = scene_.world_radiance();
-    hemisphere(r, j, 1, [&](const SurfaceHit& hit, const Vec3&) { return hit.surface < 0 ? world : Vec3{0, 0, 0}; }, out,
-               rays);
+    hemisphere(r, j, 1, [&](const SurfaceHit& hit, const Vec3& dir) { return hit.surface < 0 ? world_along(dir) : Vec3{0, 0, 0}; },
+               out, rays);
 }
 
 template <typename Visit>

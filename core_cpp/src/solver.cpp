@@ -37,6 +37,8 @@ void validate(const SolverSettings& s) {
     need(s.emitter_cell_ratio > 0, "emitter_cell_ratio must be > 0");
     need(s.hemisphere_nodes_theta >= 1 && s.hemisphere_nodes_phi >= 1, "hemisphere nodes must be >= 1");
     need(s.bsdf_samples >= 0, "bsdf_samples must be >= 0");
+    need(s.world_bright_factor > 1, "world_bright_factor must be > 1");
+    need(s.world_bright_samples >= 1, "world_bright_samples must be >= 1");
     need(s.max_bounces >= 0, "max_bounces must be >= 0");
     need(s.tolerance >= 0, "tolerance must be >= 0");
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");
@@ -674,7 +676,11 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     }
     for (const DistantLight& l : scene.distant_lights())
         solution.reports.push_back({l.name, "distant light", {}, "a light at infinity (sun): emits only, no spline"});
-    if (scene.has_world())
+    if (const EnvironmentMap* map = scene.world_map())
+        solution.reports.push_back({"world", "world light", {},
+                                    "an environment map of " + std::to_string(map->width()) + " x " +
+                                        std::to_string(map->height()) + " pixels from every unblocked direction"});
+    else if (scene.has_world())
         solution.reports.push_back({"world", "world light", {}, "constant radiance from every unblocked direction"});
     progress.finish();
     return solution;

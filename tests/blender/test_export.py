@@ -324,10 +324,12 @@ def test_area_light_portal_spread_and_textured_world_are_named(context):
         world.use_nodes = True
     sky = world.node_tree.nodes.new("ShaderNodeTexSky")
     world.node_tree.links.new(sky.outputs[0], world.node_tree.nodes["Background"].inputs["Color"])
+    world.node_tree.nodes.new("ShaderNodeLightPath")  # the sky is solved, what a Light Path picks is not
+    context.scene.bsgi.world_map_width = 32
     result = export.export_scene(context.evaluated_depsgraph_get())
     text = "\n".join(result.warnings)
     assert "light 'Window': a portal" in text and "light 'Lamp': its spread of 60 degrees" in text
-    assert "world 'Studio': only a constant background" in text
+    assert "world 'Studio': Light Path node 'Light Path'" in text
     assert len(result.scene) == 2  # the floor and the lamp, not the portal
 
 

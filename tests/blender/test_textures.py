@@ -11,6 +11,7 @@ import pytest
 import scenes
 from bsgi_addon import pipeline
 from bsgi_addon.export import export_scene
+from figures import record
 from test_pipeline import lit_relative_difference, render_exr
 
 LIGHT, DARK = (0.8, 0.8, 0.8), (0.8, 0.1, 0.1)  # the checker's colours: white and red
@@ -229,6 +230,8 @@ def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
           f"difference {median:.4f} over {lit.sum()} lit pixels (mean {rel.mean():.4f}); checker contrast "
           f"Cycles {contrast(reference):.3f}, bake {contrast(baked):.3f} (ratio {ratio:.4f}, {light.sum()} light and "
           f"{dark.sum()} dark pixels); solve {report['solve_seconds']:.2f} s, bake {report['bake_seconds']:.2f} s")
+    record(scene_textured_floor_wall_seconds=report["solve_seconds"] + report["bake_seconds"],
+           scene_textured_floor_wall_rel_diff_vs_cycles=median)
     assert lit.sum() > 0.5 * lit.size
     assert light.sum() > 50 and dark.sum() > 50
     assert median <= 0.03
@@ -470,6 +473,8 @@ def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
     print(f"\nfloor beside a checker screen, baked vs Cycles (direct, 512 spp): median relative difference "
           f"{median:.4f} over {lit.sum()} lit pixels (mean {rel.mean():.4f}); near the screen, white side over "
           f"black side: Cycles {ratio(reference):.3f}, bake {ratio(baked):.3f}; solve {report['solve_seconds']:.2f} s")
+    record(scene_checker_screen_seconds=report["solve_seconds"] + report["bake_seconds"],
+           scene_checker_screen_rel_diff_vs_cycles=median)
     assert ratio(reference) > 1.3  # the pattern shows (the screen's mean would give 1)
     assert median <= 0.025
     assert abs(ratio(baked) / ratio(reference) - 1) <= 0.01

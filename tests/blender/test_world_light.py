@@ -50,17 +50,18 @@ def test_constant_world_is_solved_as_world_radiance(context):
     np.testing.assert_allclose(result.scene.world_radiance, np.array(COLOR) * STRENGTH, rtol=1e-6)
 
 
-def test_textured_or_missing_world_gives_no_world_light(context):
+def test_textured_world_is_a_map_and_a_missing_world_gives_no_world_light(context):
     floor_beside_wall(context)
     w = context.scene.world
     sky = w.node_tree.nodes.new("ShaderNodeTexSky")
     w.node_tree.links.new(sky.outputs["Color"], w.node_tree.nodes["Background"].inputs["Color"])
+    context.scene.bsgi.world_map_width = 32
     result = export.export_scene(context.evaluated_depsgraph_get())
-    assert any("world 'Sky'" in m and "constant background" in m for m in result.warnings)
-    assert np.all(result.scene.world_radiance == 0)
+    assert not result.warnings  # rendered into a world map (tests/blender/test_world_map.py)
+    assert np.all(result.scene.world_radiance == 0) and result.scene.world_map.shape == (16, 32, 3)
     context.scene.world = None
     result = export.export_scene(context.evaluated_depsgraph_get())
-    assert np.all(result.scene.world_radiance == 0) and not result.warnings
+    assert np.all(result.scene.world_radiance == 0) and result.scene.world_map is None and not result.warnings
 
 
 def test_floor_beside_a_wall_under_the_world_matches_lamberts_formula(context):

@@ -4,6 +4,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "bsgi/hemisphere_map.h"
@@ -77,8 +78,9 @@ public:
     // uses more).
     void indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of, Receiver::Splines which,
                   int density, bool with_world, Vec3* out, size_t& rays) const;
-    // The world's light (Scene::world_radiance) at node j of r, scattered: the hemispherical
-    // integral (26)-(32) over the directions no occluder stops. Same layout as direct().
+    // The world's light at node j of r, scattered: the hemispherical integral (26)-(32) over
+    // the directions no occluder stops, of the constant world or of the world map's smooth
+    // remainder (its bright part is among the distant samples of direct()). Same layout as direct().
     void world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     // Generalized form factors (36)-(37): for a Lambertian, opaque receiver, the row of the
     // transport operator at node j, so that its gathered light is albedo * sum(weight * coefficient)
@@ -102,6 +104,9 @@ private:
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
                       double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit, size_t& rays) const;
+    // The world's radiance along an unblocked direction, as the hemispherical integrals see it:
+    // the constant, or the world map without its bright part.
+    Vec3 world_along(const Vec3& dir) const { return world_smooth_ ? world_smooth_->radiance(dir) : scene_.world_radiance(); }
     template <typename Visit>
     void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,
                                  size_t& rays) const;
@@ -115,7 +120,8 @@ private:
     const Scene& scene_;
     const SolverSettings& settings_;
     const RayCaster& caster_;
-    std::vector<DistantSample> distant_;  // of all distant lights
+    std::vector<DistantSample> distant_;  // of all distant lights and the world map's bright part
+    std::optional<EnvironmentMap> world_smooth_;
     std::vector<int> emitters_;
     std::vector<int> self_lit_;  // curved emitters, which light themselves too
     QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell

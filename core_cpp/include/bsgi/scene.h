@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "bsgi/bsdf.h"
+#include "bsgi/environment.h"
 #include "bsgi/surface.h"
 #include "bsgi/texture.h"
 #include "bsgi/thin_glass.h"
@@ -114,9 +115,17 @@ public:
     void set_world_radiance(const Vec3& radiance) {
         require_non_negative(radiance, "world: radiance");
         world_ = radiance;
+        world_map_.reset();
     }
     const Vec3& world_radiance() const { return world_; }
-    bool has_world() const { return max_component(world_) > 0; }
+    // Radiance arriving from each direction no occluder blocks, as an environment map (a
+    // textured world: an HDRI, a sky); replaces the constant. nullptr: no map.
+    void set_world_map(std::shared_ptr<const EnvironmentMap> map) {
+        world_map_ = std::move(map);
+        world_ = {0, 0, 0};
+    }
+    const EnvironmentMap* world_map() const { return world_map_.get(); }
+    bool has_world() const { return world_map_ || max_component(world_) > 0; }
 
     void add_distant_light(DistantLight light) {
         const std::string what = "distant light '" + light.name + "': ";
@@ -189,6 +198,7 @@ private:
 
     std::vector<SceneSurface> surfaces_;
     Vec3 world_{0, 0, 0};
+    std::shared_ptr<const EnvironmentMap> world_map_;
     std::vector<DistantLight> distant_;
 };
 

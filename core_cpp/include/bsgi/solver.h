@@ -49,6 +49,11 @@ struct SolverSettings {
     int hemisphere_nodes_theta = 12;
     int hemisphere_nodes_phi = 24;
     int bsdf_samples = 16;
+    // A world map's pixels brighter than world_bright_factor times the sky's mean (a sun, its
+    // aureole) are light reached by shadow rays, in at most world_bright_samples directions
+    // (EnvironmentMap::split); the rest of the map is gathered by the hemispherical integral.
+    double world_bright_factor = 20;
+    int world_bright_samples = 64;
 
     // Indirect phase: stop after max_bounces, or when the radiance still missing (estimated
     // from the geometric decay of the increments) is below tolerance times the radiance. With
