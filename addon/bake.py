@@ -30,6 +30,9 @@ PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and soluti
 # nodes times the irradiance spline, per slot ("" for the object's baked material).
 PROP_SLOT_MATERIALS = "bsgi_slot_materials"
 PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay when it is cleared)
+# The splines of a SurfaceRadiance, in its constructor's order (bakes before two-sided surfaces
+# stored the first three).
+SIDES = ("upper", "lower", "diffuse", "lower_diffuse")
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
 # Largest radiance atlas per object, in texels (256 MiB of float RGBA): past it the angular
@@ -67,7 +70,7 @@ def _upper(radiance):
 
 
 def _splines(radiance):
-    return [s for s in (radiance.upper, radiance.lower, radiance.diffuse) if s is not None]
+    return [s for s in (radiance.upper, radiance.lower, radiance.diffuse, radiance.lower_diffuse) if s is not None]
 
 
 def angular_samples(faces) -> int:
@@ -94,32 +97,34 @@ def _disc_radius(obj, faces) -> float:
 
 
 def _sides(faces) -> int:
-    """2 if a face transmits (a lower-hemisphere spline, paper 4.3), else 1."""
+    """2 if a face has a back side (a lower-hemisphere spline: it transmits, paper 4.3, or it is
+    opaque and lit from behind, which Cycles shades with the same BSDF), else 1."""
     return 2 if any(r is not None and r.lower is not None for _, radiances in faces for r in radiances) else 1
 
 
 def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth: bool = False) -> np.ndarray:
     """(len(disc), len(uv), 3): the radiance leaving the (u, v) rows of uv at each disc point
     (alpha, beta), on the upper or the lower side, as SurfaceRadiance::evaluate gives it along
-    the direction that the map (20)-(22) sends (alpha, beta) to. No lower spline: black. With
-    smooth, a textured surface's smooth factor (irradiance / pi), which its material multiplies
-    by the user's own colour nodes."""
+    the direction that the map (20)-(22) sends (alpha, beta) to, mirrored below the surface
+    (the lower spline's directions are those of the upper one with z turned over). No lower
+    spline: black. With smooth, a textured surface's smooth factor (irradiance / pi), which its
+    material multiplies by the user's own colour nodes."""
     out = np.zeros((len(disc), len(uv), 3))
     if radiance is None:
         return out
-    for spline in ([radiance.lower] if lower else [radiance.upper, radiance.diffuse]):
+    for spline in ([radiance.lower, radiance.lower_diffuse] if lower else [radiance.upper, radiance.diffuse]):
         if spline is None:
             continue
         if spline.dims == 2:
             factor = spline.evaluate(np.ascontiguousarray(uv, np.float64))
             # A textured surface's diffuse spline holds irradiance / pi: its albedo texture is the detail.
-            albedo = None if lower or smooth else getattr(radiance, "albedo", None)
+            albedo = None if smooth else getattr(radiance, "albedo", None)
             out += (factor if albedo is None else factor * texture_at(albedo, uv))[None]
             continue
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
         out += spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
-    emission = None if lower else getattr(radiance, "emission", None)
+    emission = None if lower and not getattr(radiance, "two_sided_emission", False) else getattr(radiance, "emission", None)
     if emission is not None:
         out += texture_at(emission, uv)[None]
     return out
@@ -484,7 +489,7 @@ def _store_splines(obj, faces) -> None:
             entry = {"kind": "emitter"}
             if r is not None:
                 entry = {"kind": r.kind, "disc_radius": r.disc_radius}
-                for side in ("upper", "lower", "diffuse"):
+                for side in SIDES:
                     spline = getattr(r, side)
                     if spline is not None:
                         arrays = bsgi.spline_to_arrays(spline)
@@ -527,7 +532,7 @@ def _stored_radiance(entry):
                     tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
                 for t in ("albedo", "emission") if t in entry}
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
-                                *(_spline(entry[side]) if side in entry else None for side in ("upper", "lower", "diffuse")),
+                                *(_spline(entry[side]) if side in entry else None for side in SIDES),
                                 **textures)
 
 

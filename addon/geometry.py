@@ -87,7 +87,7 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
         try:
             for piece, corners in pieces:
                 surface = (bsgi.BilinearPatch if len(corners) == 4 else bsgi.TrianglePatch)(piece, world[corners])
-                scene.add_surface(surface, **materials.for_surface(poly.material_index, surface))
+                materials.add(scene, poly.material_index, surface)
         except ValueError as error:
             raise ExportError(str(error)) from None
         exported.patches.append((kind, first, len(pieces)))
@@ -237,7 +237,7 @@ def build_chart(scene, job: _ChartJob, warnings) -> None:
     first = len(scene)
     try:
         chart = bsgi.MeshChart(f"{job.label}: chart 0", job.world, job.triangles, uvs[job.triangle_loops])
-        scene.add_surface(chart, **job.materials.for_surface(job.slot, chart))
+        job.materials.add(scene, job.slot, chart)
     except ValueError as error:
         raise ExportError(str(error)) from None
     job.materials.warn(warnings)
@@ -334,7 +334,7 @@ def _add_nurbs_object(scene, obj, matrix: Matrix, warnings, label: str | None = 
         index = user_spline_material_index(original, k)
         try:
             surface = nurbs_surface(f"{label}: spline {k}", spline, matrix)
-            scene.add_surface(surface, **materials.for_surface(index, surface))
+            materials.add(scene, index, surface)
         except ValueError as error:
             raise ExportError(str(error)) from None
         exported.patches.append(("nurbs", first, 1))

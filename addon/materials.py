@@ -494,6 +494,15 @@ class ObjectMaterials:
                                    "shadow_transmittance": material.shadow}
         return thin
 
+    def add(self, scene, slot: int, surface) -> int:
+        """Adds the surface with the slot's material to the scene. Cycles' Emission shader emits
+        from both sides of a mesh (area lights from their front only): so do emissive surfaces."""
+        keywords = self.for_surface(slot, surface)
+        index = scene.add_surface(surface, **keywords)
+        if max(keywords["emission"]) > 0:
+            scene.set_two_sided_emission(index)
+        return index
+
     def warn(self, warnings) -> None:
         if math.degrees(self.spread) > tangents.MAX_SPREAD_DEGREES:
             warnings.append(f"object '{self.label}': Blender's tangent for its anisotropic material turns by up to "

@@ -121,11 +121,12 @@ def representation_summary(reports) -> dict:
     counts: dict = {}
     largest = None
     for r in reports:
-        # "diffuse 2D", "glossy 4D + transmission", "emitter", "thin glass" (a window pane)
-        kind = "pane" if r["representation"] == "thin glass" else r["representation"].split()[0]
+        # "diffuse 2D", "glossy 4D + transmission", "diffuse 2D, both sides", "emitter", "thin glass" (a pane)
+        kind = "pane" if r["representation"] == "thin glass" else r["representation"].split()[0].rstrip(",")
         counts[kind] = counts.get(kind, 0) + 1
         if r["shape"]:
-            coefficients = math.prod(r["shape"]) * (2 if "transmission" in r["representation"] else 1)
+            sides = 2 if any(s in r["representation"] for s in ("transmission", "both sides")) else 1
+            coefficients = math.prod(r["shape"]) * sides
             if largest is None or coefficients > largest["coefficients"]:
                 largest = {"name": r["name"], "shape": list(r["shape"]), "coefficients": coefficients,
                            "reason": r["reason"]}

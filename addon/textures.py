@@ -182,7 +182,10 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warn
             # The diffuse colour Cycles evaluates, plus the weak specular the albedo absorbs.
             scene.set_albedo_texture(index, np.clip(image + np.asarray(material.specular, np.float32), 0, 1))
         elif not albedo and material.emission_textured:
-            scene.set_emission_texture(index, np.maximum(image, 0))
+            image = np.maximum(image, 0)
+            scene.set_emission_texture(index, image)
+            if image.max() > 0:  # Cycles' Emission shader emits from both sides of a mesh
+                scene.set_two_sided_emission(index)
 
 
 @contextmanager

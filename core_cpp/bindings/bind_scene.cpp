@@ -144,6 +144,9 @@ void bind_scene(py::module_& m) {
                 return bool(s[i].material.thin_glass);
             },
             py::arg("index"))
+        .def("set_two_sided_emission", &Scene::set_two_sided_emission, py::arg("index"), py::arg("two_sided") = true,
+             "Makes emitter `index` emit from its back side too (Cycles' Emission shader on a mesh; its area "
+             "lights emit from the front only).")
         .def_property(
             "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },
@@ -271,6 +274,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("final_gather", &SolverSettings::final_gather)
         .def_readwrite("final_spatial_factor", &SolverSettings::final_spatial_factor)
         .def_readwrite("final_integration_factor", &SolverSettings::final_integration_factor)
+        .def_readwrite("two_sided", &SolverSettings::two_sided)
         .def_readwrite("threads", &SolverSettings::threads)
         .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb)
         .def("__repr__", [](const SolverSettings& s) {
@@ -287,10 +291,13 @@ void bind_scene(py::module_& m) {
 
     py::class_<SurfaceRadiance>(m, "SurfaceRadiance",
                                 "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "
-                                "(glossy), a second spline for the lower hemisphere where it transmits.")
+                                "(glossy), a second spline for the back side (lower hemisphere) where it transmits or "
+                                "where light reaches an opaque surface's back; decomposed surfaces have their 2D parts "
+                                "apart (diffuse, lower_diffuse).")
         .def(py::init([](const std::string& kind, double disc_radius, const TensorSpline& upper,
-                         std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse, std::optional<Image> albedo,
-                         std::optional<Image> emission) {
+                         std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse,
+                         std::optional<TensorSpline> lower_diffuse, std::optional<Image> albedo,
+                         std::optional<Image> emission, bool two_sided_emission) {
                  const Representation r = kind == "glossy" ? Representation::Glossy
                                           : kind == "decomposed" ? Representation::Decomposed
                                           : kind == "diffuse" ? Representation::Diffuse
@@ -300,29 +307,39 @@ void bind_scene(py::module_& m) {
                                                  kind + "'");
                  const int dims = r == Representation::Diffuse ? 2 : 4;
                  auto rgb_of = [](const std::optional<TensorSpline>& s, int d) { return !s || (s->dims() == d && s->channels() == 3); };
-                 if (!rgb_of(upper, dims) || !rgb_of(lower, dims) || !rgb_of(diffuse, 2) ||
-                     (r == Representation::Decomposed) != bool(diffuse))
+                 if (!rgb_of(upper, dims) || !rgb_of(lower, dims) || !rgb_of(diffuse, 2) || !rgb_of(lower_diffuse, 2) ||
+                     (r == Representation::Decomposed) != bool(diffuse) ||
+                     (r == Representation::Decomposed && bool(lower) != bool(lower_diffuse)) ||
+                     (r != Representation::Decomposed && lower_diffuse))
                      throw std::invalid_argument("SurfaceRadiance: a " + kind + " surface needs RGB splines of " +
                                                  std::to_string(dims) + " dimensions" +
-                                                 (r == Representation::Decomposed ? " and a 2D diffuse part" : ""));
+                                                 (r == Representation::Decomposed
+                                                      ? " and a 2D diffuse part (and one for the back side with lower)"
+                                                      : ""));
                  if (albedo && r == Representation::Glossy)
                      throw std::invalid_argument("SurfaceRadiance: an albedo texture needs a diffuse or decomposed surface");
-                 SurfaceRadiance out{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse)};
+                 SurfaceRadiance out{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse),
+                                     std::move(lower_diffuse)};
                  if (albedo) out.albedo = texture(*albedo, "SurfaceRadiance: albedo", true);
                  if (emission) out.emission = texture(*emission, "SurfaceRadiance: emission", false);
+                 out.two_sided_emission = two_sided_emission;
                  return out;
              }),
              py::arg("kind"), py::arg("disc_radius"), py::arg("upper"), py::arg("lower") = std::nullopt,
-             py::arg("diffuse") = std::nullopt, py::arg("albedo") = std::nullopt, py::arg("emission") = std::nullopt,
+             py::arg("diffuse") = std::nullopt, py::arg("lower_diffuse") = std::nullopt, py::arg("albedo") = std::nullopt,
+             py::arg("emission") = std::nullopt, py::arg("two_sided_emission") = false,
              "Rebuilds a solved surface's radiance (as a solution file stores it).")
         .def_property_readonly("albedo", [](const SurfaceRadiance& r) { return image(r.albedo); },
                                "The albedo texture (height, width, 3) multiplying the diffuse spline (irradiance / pi), or None.")
         .def_property_readonly("emission", [](const SurfaceRadiance& r) { return image(r.emission); },
                                "The emission texture (height, width, 3) added to the front side, or None (emission in the spline).")
+        .def_readonly("two_sided_emission", &SurfaceRadiance::two_sided_emission,
+                      "Whether the emission texture leaves the back side too.")
         .def_property_readonly("kind", [](const SurfaceRadiance& r) { return kind_name(r.kind); })
         .def_readonly("upper", &SurfaceRadiance::upper)
         .def_readonly("lower", &SurfaceRadiance::lower)
         .def_readonly("diffuse", &SurfaceRadiance::diffuse)
+        .def_readonly("lower_diffuse", &SurfaceRadiance::lower_diffuse)
         .def_property_readonly("disc_radius", [](const SurfaceRadiance& r) { return r.map.radius(); })
         .def(
             "evaluate",

@@ -123,7 +123,7 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
 // and its radiance times cos_r cos_e / d^2 times the area element and weight.
 template <typename Visit>
 void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
-                            double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit,
+                            double t0, double t1, int depth, double ratio, std::array<bool, 2> sides, Visit&& visit,
                             size_t& rays) const {
     const SurfacePoint centre = emitter.evaluate(0.5 * (s0 + s1), 0.5 * (t0 + t1));
     const Vec3 c = centre.p;
@@ -143,10 +143,10 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     const bool split = 2 * radius > limit * dist || (curved && depth < kCurvedEmitterDepth);
     if (depth < settings_.emitter_max_depth && split) {
         const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
-        emitter_cell(r, emitter, light, s0, sm, t0, tm, depth + 1, ratio, both_sides, visit, rays);
-        emitter_cell(r, emitter, light, sm, s1, t0, tm, depth + 1, ratio, both_sides, visit, rays);
-        emitter_cell(r, emitter, light, s0, sm, tm, t1, depth + 1, ratio, both_sides, visit, rays);
-        emitter_cell(r, emitter, light, sm, s1, tm, t1, depth + 1, ratio, both_sides, visit, rays);
+        emitter_cell(r, emitter, light, s0, sm, t0, tm, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, sm, s1, t0, tm, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, s0, sm, tm, t1, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, sm, s1, tm, t1, depth + 1, ratio, sides, visit, rays);
         return;
     }
     const double ds = s1 - s0, dt = t1 - t0;
@@ -160,15 +160,17 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             if (!emitter.in_domain(s, t)) continue;  // the mask chi of (8)
             const SurfacePoint ep = emitter.evaluate(s, t);
             const Vec3 d = ep.p - r.p;
-            const double cos_r = dot(d, r.frame.z), cos_e = -dot(d, ep.frame.z);
-            if (cos_e <= 0 || cos_r == 0 || (cos_r < 0 && !both_sides)) continue;  // emitters radiate from their front
+            const double cos_r = dot(d, r.frame.z), facing = -dot(d, ep.frame.z);
+            // Emitters radiate from their front (and their back if two-sided).
+            const double cos_e = light.two_sided_emission ? std::abs(facing) : facing;
+            if (cos_e <= 0 || cos_r == 0 || !sides[cos_r < 0]) continue;
             const double d2 = dot(d, d), len = std::sqrt(d2);
             const double cone = light.cone ? light.cone->factor(-d / len) : 1.0;  // a spot light's
             if (cone <= 0) continue;
             // Both ends lifted off their surfaces, and the segment stopped short of the emitter,
             // so neither surface, nor one meeting the emitter along its edge, shadows it.
             const Vec3 origin = caster_.spawn(r.p, r.frame.z, d);
-            const Vec3 segment = ep.p + ep.frame.z * offset - origin;
+            const Vec3 segment = ep.p + ep.frame.z * (facing > 0 ? offset : -offset) - origin;
             const double stop = 1.0 - 2 * offset / length(segment);
             ++rays;
             if (stop <= 0) continue;
@@ -181,16 +183,16 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
 }
 
 template <typename Visit>
-void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,
-                                       size_t& rays) const {
+void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, std::array<bool, 2> sides,
+                                       Visit&& visit, size_t& rays) const {
     for (int e : emitters_) {
         if (e == receiver && std::find(self_lit_.begin(), self_lit_.end(), e) == self_lit_.end()) continue;
         const SceneSurface& es = scene_[e];
-        emitter_cell(r, *es.surface, es.material, 0, 1, 0, 1, 0, ratio, both_sides, visit, rays);
+        emitter_cell(r, *es.surface, es.material, 0, 1, 0, 1, 0, ratio, sides, visit, rays);
     }
     for (const DistantSample& d : distant_) {
         const double cos_r = dot(d.direction, r.frame.z);
-        if (cos_r == 0 || (cos_r < 0 && !both_sides)) continue;
+        if (cos_r == 0 || !sides[cos_r < 0]) continue;
         ++rays;
         const double pass = caster_.transmittance(caster_.spawn(r.p, r.frame.z, d.direction), d.direction);
         if (pass <= 0) continue;
@@ -198,9 +200,9 @@ void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, doub
     }
 }
 
-Vec3 Gatherer::irradiance(int surface, const SurfacePoint& p, size_t& rays) const {
+Vec3 Gatherer::irradiance(int surface, const SurfacePoint& p, size_t& rays, std::array<bool, 2> sides) const {
     Vec3 e{0, 0, 0};
-    for_each_emitter_sample(surface, p, settings_.emitter_cell_ratio, false,
+    for_each_emitter_sample(surface, p, settings_.emitter_cell_ratio, sides,
                             [&](const Vec3&, const Vec3& value) { e += value; }, rays);
     return e;
 }
@@ -213,10 +215,14 @@ void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) cons
     const double ratio = r.kind == Representation::Glossy
                              ? std::min(settings_.emitter_cell_ratio, 0.5 * std::max(r.bsdf->lobe_width(), 0.02))
                              : settings_.emitter_cell_ratio;
-    for_each_emitter_sample(r.surface, p, ratio, r.sides == 2, [&](const Vec3& wi_world, const Vec3& value) {
+    // Light arrives on the sides solved, or on both where the surface transmits.
+    const bool transmits = r.bsdf->transmits();
+    const std::array<bool, 2> sides{transmits || r.solves(0), transmits || r.solves(1)};
+    for_each_emitter_sample(r.surface, p, ratio, sides, [&](const Vec3& wi_world, const Vec3& value) {
         const Vec3 wi = p.frame.to_local(wi_world);
         for (int side = 0; side < r.sides; ++side)
-            for (size_t a = 0; a < r.per_node; ++a) out[side * r.per_node + a] += r.bsdf->eval(r.outgoing(side, a), wi) * value;
+            if (r.solves(side))
+                for (size_t a = 0; a < r.per_node; ++a) out[side * r.per_node + a] += r.scatter(side, a, wi) * value;
     }, rays);
 }
 
@@ -285,24 +291,47 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, int density, Incoming&& r
                       [&](const SurfaceHit& hit, const Vec3& d, double w) { L += radiance_along(hit, d) * w; }, rays);
         return L;
     };
-    // Cosine-weighted nodes on each side light arrives from (both where the surface transmits).
-    const int in_sides = r.bsdf->transmits() ? 2 : 1;
-    const double n_cos = double(nt) * np;
-    if (r.kind == Representation::Diffuse && in_sides == 1) {
-        // Lambertian: the cosine-weighted rule is exact for the BSDF; rho/pi * pi * mean.
-        Vec3 sum{0, 0, 0};
-        for (int i = 0; i < nt; ++i)
-            for (int k = 0; k < np; ++k) sum += incoming(cosine_node(i, k, nt, np));
-        out[0] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * kPi * sum / n_cos;
+    // Transmitting surfaces gather from both sides into both; an opaque one gathers each side it
+    // solves from that side alone, with its directions mirrored for the back (Receiver::scatter).
+    if (r.bsdf->transmits()) {
+        gather_sides(r, 0, r.sides, false, nt, np, density, incoming, out);
         return;
     }
-    // Glossy (or transmitting): multiple importance sampling of the cosine nodes and, per
-    // outgoing direction, bsdf_samples BSDF-sampled directions (balance heuristic).
+    for (int side = 0; side < r.sides; ++side) {
+        if (!r.solves(side)) continue;
+        auto incoming_side = [&](Vec3 wi) {
+            if (side == 1) wi.z = -wi.z;
+            return incoming(wi);
+        };
+        if (r.kind == Representation::Diffuse) {
+            // Lambertian: the cosine-weighted rule is exact for the BSDF; rho/pi * pi * mean.
+            Vec3 sum{0, 0, 0};
+            for (int i = 0; i < nt; ++i)
+                for (int k = 0; k < np; ++k) sum += incoming_side(cosine_node(i, k, nt, np));
+            out[side * r.per_node] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * kPi * sum / (double(nt) * np);
+            continue;
+        }
+        gather_sides(r, side, side + 1, side == 1, nt, np, density, incoming_side, out);
+    }
+}
+
+// The hemispherical integral into the values of sides [first, last) of node out: multiple
+// importance sampling of the cosine nodes and, per outgoing direction, bsdf_samples
+// BSDF-sampled directions (balance heuristic). Incoming light from both sides where the surface
+// transmits; for the mirrored back side of an opaque surface, everything is computed as on the
+// front and `incoming` mirrors the directions.
+template <typename Incoming>
+void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, int density,
+                            Incoming&& incoming, Vec3* out) const {
+    const int in_sides = r.bsdf->transmits() ? 2 : 1;
+    const double n_cos = double(nt) * np;
     const int nb = settings_.bsdf_samples * density;
     // The cosine nodes as one strategy over the sides sampled: n_cos nodes on each side, so
     // in_sides * n_cos samples of density |cos| / (pi * in_sides).
     const double n_strategy = in_sides * n_cos;
     auto cosine_pdf = [&](const Vec3& w) { return (w.z < 0 && in_sides == 1) ? 0.0 : std::abs(w.z) / kPi / in_sides; };
+    // The outgoing direction of value a, as the BSDF sees it.
+    auto outgoing = [&](int side, size_t a) { return r.outgoing(mirror ? 0 : side, a); };
     for (int side_in = 0; side_in < in_sides; ++side_in)
         for (int i = 0; i < nt; ++i)
             for (int k = 0; k < np; ++k) {
@@ -311,17 +340,17 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, int density, Incoming&& r
                 const Vec3 L = incoming(wi);
                 if (max_component(L) <= 0) continue;
                 const double pc = n_strategy * cosine_pdf(wi);
-                for (int side = 0; side < r.sides; ++side)
+                for (int side = first; side < last; ++side)
                     for (size_t a = 0; a < r.per_node; ++a) {
-                        const Vec3 wo = r.outgoing(side, a);
+                        const Vec3 wo = outgoing(side, a);
                         const Vec3 f = r.bsdf->eval(wo, wi);
                         if (max_component(f) <= 0) continue;
                         out[side * r.per_node + a] += L * f * (std::abs(wi.z) / (pc + nb * r.bsdf->pdf(wo, wi)));
                     }
             }
-    for (int side = 0; side < r.sides; ++side)
+    for (int side = first; side < last; ++side)
         for (size_t a = 0; a < r.per_node; ++a) {
-            const Vec3 wo = r.outgoing(side, a);
+            const Vec3 wo = outgoing(side, a);
             for (int m = 0; m < nb; ++m) {
                 double u[3];
                 stratified(m, nb, u);
@@ -373,7 +402,7 @@ void basis_terms(const TensorSpline& s, const double* x, std::vector<std::pair<s
 
 }  // namespace
 
-void Gatherer::transport_row(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
+void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const std::vector<const Receiver*>& receiver_of,
                              std::vector<TransportTerm>& row, size_t& rays) const {
     const SurfacePoint& p = r.nodes[j];
     const int nt = settings_.hemisphere_nodes_theta, np = settings_.hemisphere_nodes_phi;
@@ -382,14 +411,16 @@ void Gatherer::transport_row(const Receiver& r, size_t j, const std::vector<cons
     std::vector<TransportTerm> raw;
     for (int i = 0; i < nt; ++i)
         for (int k = 0; k < np; ++k) {
-            const Vec3 dir = p.frame.to_world(cosine_node(i, k, nt, np));
+            Vec3 wi = cosine_node(i, k, nt, np);
+            if (side_out == 1) wi.z = -wi.z;  // the back side gathers from below
+            const Vec3 dir = p.frame.to_world(wi);
             // Through window panes too: the terms of each surface seen, weighted by what the panes pass.
             through_panes(caster_.spawn(p.p, p.frame.z, dir), dir, 1.0, 0, [&](const SurfaceHit& hit, const Vec3& d, double pass) {
                 if (hit.surface < 0 || !receiver_of[hit.surface]) return;
                 const Vec3 local = hit.frame.to_local(-d);
                 const int side = local.z >= 0 ? 0 : 1;
                 for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
-                    if (side >= h->sides) continue;
+                    if (!h->solves(side)) continue;
                     double x[4] = {hit.u, hit.v, 0, 0};
                     if (h->kind != Representation::Diffuse) h->map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
                     basis_terms(h->L[side], x, terms);

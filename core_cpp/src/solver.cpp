@@ -9,6 +9,7 @@
 
 #include "bsgi/gather.h"
 #include "bsgi/parallel.h"
+#include "bsgi/sides.h"
 
 namespace bsgi {
 
@@ -50,10 +51,11 @@ struct Plan {
     int surface = -1;
     Representation kind = Representation::Diffuse;
     std::shared_ptr<const Bsdf> bsdf;
-    int nu = 0, nv = 0, na = 1, sides = 1;
+    int nu = 0, nv = 0, na = 1, sides = 1;  // spline slots: 2 if the back side is solved
+    std::array<bool, 2> live{true, false};  // the sides solved (sides.h)
     std::string reason;
     int partner_of = -1;  // the glossy part S of (38): index of the plan of its diffuse part D
-    size_t coefficients() const { return size_t(nu) * nv * na * na * sides; }
+    size_t coefficients() const { return size_t(nu) * nv * na * na * (live[0] + live[1]); }
 };
 
 double scene_extent(const Scene& scene) {
@@ -64,7 +66,8 @@ double scene_extent(const Scene& scene) {
 
 // "Model only what the scene requires": the representation from the material, the knots from
 // the BSDF's lobe and the surface's size, unless the surface's options say otherwise.
-Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double extent, int spatial_scale) {
+Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double extent, int spatial_scale,
+                  const SurfaceSides& lit) {
     const SceneSurface& ss = scene[i];
     Plan p;
     p.surface = i;
@@ -96,8 +99,16 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         why << "; albedo texture " << ss.material.albedo_texture->width() << " x " << ss.material.albedo_texture->height();
         if (p.kind == Representation::Diffuse) p.bsdf = std::make_shared<Lambert>(Vec3{1, 1, 1});
     }
-    p.sides = p.kind == Representation::Glossy && p.bsdf->transmits() ? 2 : 1;
-    if (p.sides == 2) why << ", transmits: second spline for the lower hemisphere";
+    // The sides the scene lights (a transmitting surface's lower hemisphere is paper 4.3).
+    p.live = lit.live;
+    if (p.bsdf->transmits()) p.live = {true, p.kind == Representation::Glossy};
+    p.sides = p.live[1] ? 2 : 1;
+    if (p.bsdf->transmits()) {
+        if (p.sides == 2) why << ", transmits: second spline for the lower hemisphere";
+    } else if (s.two_sided) {
+        why << "; front side: " << (p.live[0] ? "" : "no spline, ") << lit.why[0] << "; back side: "
+            << (p.live[1] ? "" : "no spline, ") << lit.why[1];
+    }
     // Spatial coefficients per direction.
     auto spatial = [&](double length) {
         if (ss.options.spatial_coeffs) return std::max(ss.options.spatial_coeffs, s.spatial_degree + 1) * spatial_scale;
@@ -132,12 +143,13 @@ size_t plan_bytes(const Plan& p) {
     return 3 * p.coefficients() * 3 * sizeof(double) + size_t(p.nu) * p.nv * sizeof(SurfacePoint);
 }
 
-std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int spatial_scale) {
+std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int spatial_scale,
+                             const std::vector<SurfaceSides>& sides) {
     const double extent = scene_extent(scene);
     std::vector<Plan> plans;
     for (size_t i = 0; i < scene.size(); ++i) {
         if (!scene[i].receiver) continue;
-        Plan p = plan_surface(scene, int(i), s, extent, spatial_scale);
+        Plan p = plan_surface(scene, int(i), s, extent, spatial_scale, sides[i]);
         if (p.kind != Representation::Decomposed) {
             plans.push_back(std::move(p));
             continue;
@@ -197,7 +209,9 @@ std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const S
     const Surface& surface = *scene[p.surface].surface;
     for (int i = 0; i < pu; ++i)
         for (int j = 0; j < pv; ++j) {
-            const Vec3 e = gather.irradiance(p.surface, surface.evaluate(a + (b - a) * i / (pu - 1), a + (b - a) * j / (pv - 1)), rays);
+            // The sides solved: a room's walls are lit from behind.
+            const Vec3 e = gather.irradiance(p.surface, surface.evaluate(a + (b - a) * i / (pu - 1), a + (b - a) * j / (pv - 1)),
+                                             rays, p.live);
             fmax = std::max(fmax, f[size_t(i) * pv + j] = e.x + e.y + e.z);
         }
     if (!(fmax > 0)) return {uniform_u, uniform_v};
@@ -228,6 +242,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     r.kind = p.kind;
     r.bsdf = p.bsdf.get();
     r.sides = p.sides;
+    r.live = p.live;
     r.map = HemisphereMap::for_max_angle(s.angular_delta);
     if (p.partner_of < 0) r.albedo = scene[p.surface].material.albedo_texture.get();
     std::vector<KnotVector> axes{ku, kv};
@@ -245,11 +260,15 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
             }
         r.per_node = r.directions.size();
     }
+    // A side not solved keeps a single zero coefficient (degree 0), which every lookup reads as 0.
+    const std::vector<KnotVector> none(axes.size(), KnotVector::clamped_uniform(1, 0, 0.0, 1.0));
     for (int side = 0; side < r.sides; ++side) {
-        r.Le.emplace_back(axes, 3);
-        r.L.emplace_back(axes, 3);
-        r.Ltmp.emplace_back(axes, 3);
+        const std::vector<KnotVector>& a = r.live[side] ? axes : none;
+        r.Le.emplace_back(a, 3);
+        r.L.emplace_back(a, 3);
+        r.Ltmp.emplace_back(a, 3);
     }
+    r.axes = axes;
     const Surface& surface = *scene[p.surface].surface;
     for (double u : ku.schoenberg_nodes())
         for (double v : kv.schoenberg_nodes()) r.nodes.push_back(surface.evaluate(u, v));
@@ -274,7 +293,7 @@ size_t gather_all(std::vector<Receiver>& receivers, Receiver::Splines target, co
             values.assign(r.sides * r.per_node, Vec3{0, 0, 0});
             work(r, j, values.data(), local_rays);
             for (int side = 0; side < r.sides; ++side)
-                for (size_t a = 0; a < r.per_node; ++a) {
+                for (size_t a = 0; a < r.per_node && r.solves(side); ++a) {
                     double* c = r.coefficient(target, side, j, a);
                     const Vec3& v = values[side * r.per_node + a];
                     c[0] = v.x, c[1] = v.y, c[2] = v.z;
@@ -448,20 +467,41 @@ SolverSettings SolverSettings::preset(const std::string& name) {
     return s;
 }
 
-size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
+namespace {
+
+// The rays' scene: the surfaces that block rays, by scene index (null for the others), and
+// the window panes among them, which rays cross.
+RayCaster ray_caster_of(const Scene& scene) {
+    std::vector<const Surface*> occluders(scene.size(), nullptr);
+    std::vector<std::optional<ThinGlass>> panes(scene.size());
+    for (size_t i = 0; i < scene.size(); ++i) {
+        if (scene[i].occluder) occluders[i] = scene[i].surface.get();
+        panes[i] = scene[i].material.thin_glass;
+    }
+    return RayCaster(occluders, panes);
+}
+
+size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<SurfaceSides>& sides) {
     size_t bytes = 0, triangles = 0;
-    for (const Plan& p : plan_scene(scene, settings, 1)) {
+    for (const Plan& p : plan_scene(scene, settings, 1, sides)) {
         bytes += plan_bytes(p);
         // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
         if (settings.form_factors && p.kind == Representation::Diffuse)
-            bytes += size_t(p.nu) * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
+            bytes += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
                      (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
     if (settings.final_gather)
-        for (const Plan& p : plan_scene(scene, settings, settings.final_spatial_factor)) bytes += plan_bytes(p) / 3;
+        for (const Plan& p : plan_scene(scene, settings, settings.final_spatial_factor, sides)) bytes += plan_bytes(p) / 3;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3;
     return bytes + triangles * 128;  // the ray caster: a 64-byte record and about as much BVH a triangle
+}
+
+}  // namespace
+
+size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
+    const RayCaster caster = ray_caster_of(scene);
+    return estimate_bytes(scene, settings, probe_sides(scene, caster, settings));
 }
 
 Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress) {
@@ -471,10 +511,16 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     if (!any_emitter && !scene.has_world() && scene.distant_lights().empty())
         throw std::invalid_argument("scene has no emitter: add a light, an emissive material or world light");
 
-    std::vector<Plan> plans = plan_scene(scene, settings, 1);
+    // Form factors carry one scalar weight per coefficient: not the colour of albedo textures.
+    const int ff_stage = settings.form_factors && !scene.has_albedo_textures() && settings.max_bounces > 0 ? 1 : 0;
+    const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? 1 : 0);
+    progress.begin_stage("building ray scene", 0, stages, 1);
+    const RayCaster caster = ray_caster_of(scene);
+    const std::vector<SurfaceSides> sides = probe_sides(scene, caster, settings);
+    std::vector<Plan> plans = plan_scene(scene, settings, 1, sides);
     std::vector<Plan> final_plans;
-    if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor);
-    const size_t bytes = estimate_solve_bytes(scene, settings);
+    if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides);
+    const size_t bytes = estimate_bytes(scene, settings, sides);
     if (bytes > settings.memory_budget_mb * 1024 * 1024) {
         const Plan* largest = nullptr;
         for (const Plan& p : plans)
@@ -493,17 +539,12 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
                                         "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
                                         "give it a roughness");
 
-    const int ff_stage = settings.form_factors && !scene.has_albedo_textures() && settings.max_bounces > 0 ? 1 : 0;
-    const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? 1 : 0);
-    progress.begin_stage("building ray scene", 0, stages, 1);
-    std::vector<const Surface*> occluders(scene.size(), nullptr);
-    std::vector<std::optional<ThinGlass>> panes(scene.size());
-    for (size_t i = 0; i < scene.size(); ++i) {
-        if (scene[i].occluder) occluders[i] = scene[i].surface.get();
-        panes[i] = scene[i].material.thin_glass;
-    }
-    const RayCaster caster(occluders, panes);
-    const Gatherer gather(scene, settings, caster);
+    // The scene as the gathering sees it: emitters whose back side encloses its light emit
+    // from their front only.
+    Scene lit_scene = scene;
+    for (size_t i = 0; i < scene.size(); ++i)
+        if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
+    const Gatherer gather(lit_scene, settings, caster);
 
     Solution solution;
     solution.stats.bytes = bytes;
@@ -543,15 +584,19 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         std::vector<std::pair<int, int>> items;
         for (size_t k = 0; k < receivers.size(); ++k) {
             if (!uses_rows(receivers[k])) continue;
-            rows[k].resize(receivers[k].nodes.size());
-            for (size_t j = 0; j < receivers[k].nodes.size(); ++j) items.emplace_back(int(k), int(j));
+            // Row side * nodes + j: node j of a side.
+            const size_t nodes = receivers[k].nodes.size();
+            rows[k].resize(receivers[k].sides * nodes);
+            for (int side = 0; side < receivers[k].sides; ++side)
+                for (size_t j = 0; j < nodes && receivers[k].solves(side); ++j) items.emplace_back(int(k), int(side * nodes + j));
         }
         std::atomic<size_t> row_rays{0};
         parallel_for(items.size(), 4, settings.threads, [&](size_t begin, size_t end) {
             size_t local = 0;
             for (size_t w = begin; w < end; ++w) {
-                const auto [k, j] = items[w];
-                gather.transport_row(receivers[k], j, receiver_of, rows[k][j], local);
+                const auto [k, row] = items[w];
+                const size_t nodes = receivers[k].nodes.size();
+                gather.transport_row(receivers[k], int(row / nodes), row % nodes, receiver_of, rows[k][row], local);
             }
             row_rays += local;
             progress.advance(end - begin);
@@ -570,12 +615,15 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
                 gather.indirect(r, j, receiver_of, &Receiver::L, 1, false, out, n);
                 return;
             }
-            Vec3 sum{0, 0, 0};
-            for (const TransportTerm& t : rows[k][j]) {
-                const double* c = &receivers[t.receiver].L[t.side].coeffs()[3 * size_t(t.index)];
-                sum += Vec3{c[0], c[1], c[2]} * double(t.weight);
+            for (int side = 0; side < r.sides; ++side) {
+                if (!r.solves(side)) continue;
+                Vec3 sum{0, 0, 0};
+                for (const TransportTerm& t : rows[k][side * r.nodes.size() + j]) {
+                    const double* c = &receivers[t.receiver].L[t.side].coeffs()[3 * size_t(t.index)];
+                    sum += Vec3{c[0], c[1], c[2]} * double(t.weight);
+                }
+                out[side] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * sum;
             }
-            out[0] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * sum;
         });
         for (auto& r : receivers)
             for (int side = 0; side < r.sides; ++side) {
@@ -627,36 +675,47 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     std::vector<Receiver>& result = settings.final_gather ? finals : receivers;
     solution.stats.rays = rays;
 
-    // Outgoing radiance = emission (front side, the same in every direction: constants are
-    // reproduced exactly by the partition of unity) + the cumulative reflected radiance.
+    // Outgoing radiance = emission (front side, and back side where two-sided; the same in every
+    // direction: constants are reproduced exactly by the partition of unity) + the cumulative
+    // reflected radiance.
     solution.radiance.resize(scene.size());
     for (size_t k = 0; k < result.size(); ++k) {
         Receiver& r = result[k];
         if (r.is_partner) continue;  // consumed with its diffuse part
         for (const Receiver* part = &r; part; part = part->is_partner ? nullptr : part->partner)
-            for (int side = 0; side < part->sides; ++side) solution.stats.coefficients += part->Le[side].coeffs().size() / 3;
+            for (int side = 0; side < part->sides; ++side)
+                if (part->solves(side)) solution.stats.coefficients += part->Le[side].coeffs().size() / 3;
         const Material& m = scene[r.surface].material;
         std::shared_ptr<const Texture> emission = m.emission_texture;
         if (!emission && m.albedo_texture && m.emits())  // kept out of the textured spline: one texel
             emission = std::make_shared<Texture>(1, 1, std::vector<float>{float(m.emission.x), float(m.emission.y), float(m.emission.z)},
                                                  "emission", false);
-        if (!emission) {
-            auto& c = r.Le[0].coeffs();
+        for (int side = 0; side < r.sides && !emission; ++side) {
+            if (!r.solves(side) || (side == 1 && !m.two_sided_emission)) continue;
+            auto& c = r.Le[side].coeffs();
             for (size_t i = 0; i < c.size(); i += 3) c[i] += m.emission.x, c[i + 1] += m.emission.y, c[i + 2] += m.emission.z;
         }
+        // The front spline of a surface lit only from behind is zero (the output always has one);
+        // the back spline exists only where the back side was solved.
+        auto front = [](Receiver& part) { return part.live[0] ? std::move(part.Le[0]) : TensorSpline(part.axes, 3); };
+        auto back = [](Receiver& part) {
+            return part.solves(1) ? std::optional<TensorSpline>(std::move(part.Le[1])) : std::nullopt;
+        };
         std::optional<SurfaceRadiance> out;
         std::string kind;
         if (r.partner) {
             Receiver& s = result[r.partner->index];
-            out = SurfaceRadiance{Representation::Decomposed, s.map, std::move(s.Le[0]), std::nullopt, std::move(r.Le[0])};
+            out = SurfaceRadiance{Representation::Decomposed, s.map, front(s), back(s), front(r), back(r)};
             kind = "decomposed 2D + 4D (38)";
         } else {
-            out = SurfaceRadiance{r.kind, r.map, std::move(r.Le[0]), std::nullopt, std::nullopt};
-            if (r.sides == 2) out->lower = std::move(r.Le[1]);
-            kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 ? "glossy 4D + transmission" : "glossy 4D");
+            out = SurfaceRadiance{r.kind, r.map, front(r), back(r), std::nullopt, std::nullopt};
+            kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 && r.bsdf->transmits() ? "glossy 4D + transmission" : "glossy 4D");
         }
         out->albedo = m.albedo_texture;
         out->emission = emission;
+        out->two_sided_emission = m.two_sided_emission;
+        if (!r.bsdf->transmits() && settings.two_sided)
+            kind += r.live[0] ? (r.live[1] ? ", both sides" : "") : (r.live[1] ? ", back side" : ", no side lit");
         const Plan& p = (settings.final_gather ? final_plans : plans)[k];
         std::vector<int> shape;
         for (size_t n : out->upper.shape()) shape.push_back(int(n));

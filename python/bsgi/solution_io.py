@@ -47,8 +47,9 @@ def settings_from_dict(values: dict) -> _core.SolverSettings:
 class StoredSolution:
     """What a solution file holds: per surface its radiance (None for pure emitters), as the
     upper-hemisphere spline (`radiance`) and as the whole SurfaceRadiance (`surfaces`: kind,
-    disc radius, the lower-hemisphere spline of transmitting surfaces, the albedo and emission
-    textures of textured surfaces)."""
+    disc radius, the back side's splines where it was solved: transmitting surfaces and opaque ones
+    lit from behind; files from before two-sided surfaces load with the back sides they had; the
+    albedo and emission textures of textured surfaces)."""
 
     radiance: list
     surfaces: list
@@ -63,8 +64,9 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
     splines, read back as diffuse or glossy by their dimension), with the surfaces' names."""
     if len(radiance) != len(names):
         raise ValueError(f"save_solution: {len(radiance)} splines but {len(names)} names")
-    arrays, kinds, radii = {}, [], []
+    arrays, kinds, radii, two_sided = {}, [], [], []
     for i, entry in enumerate(radiance):
+        two_sided.append(bool(entry.two_sided_emission) if isinstance(entry, _core.SurfaceRadiance) else False)
         if entry is None:
             kinds.append(None)
             radii.append(None)
@@ -74,7 +76,8 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
         kinds.append(surface.kind if surface else ("glossy" if upper.dims == 4 else "diffuse"))
         radii.append(surface.disc_radius if surface else None)
         sides = {"upper": upper, "lower": surface.lower if surface else None,
-                 "diffuse": surface.diffuse if surface else None}
+                 "diffuse": surface.diffuse if surface else None,
+                 "lower_diffuse": surface.lower_diffuse if surface else None}
         for side, spline in sides.items():
             if spline is not None:
                 for key, value in spline_to_arrays(spline).items():
@@ -84,7 +87,8 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
             if image is not None:
                 arrays[f"surface{i}/{texture}"] = image
     meta = {"format": FORMAT, "names": list(names), "settings": settings_to_dict(settings),
-            "stats": dict(stats or {}), "solved": [k is not None for k in kinds], "kinds": kinds, "disc_radii": radii}
+            "stats": dict(stats or {}), "solved": [k is not None for k in kinds], "kinds": kinds, "disc_radii": radii,
+            "two_sided_emission": two_sided}
     with open(path, "wb") as f:
         np.savez_compressed(f, meta=np.frombuffer(json.dumps(meta).encode(), np.uint8), **arrays)
 
@@ -96,13 +100,14 @@ def load_solution(path) -> StoredSolution:
         if meta.get("format") != FORMAT:
             raise ValueError(f"{path}: not a bsgi solution file (format {meta.get('format')!r})")
         radiance, surfaces = [], []
+        two_sided = meta.get("two_sided_emission")  # absent in files from before two-sided emission
         for i, solved in enumerate(meta["solved"]):
             if not solved:
                 radiance.append(None)
                 surfaces.append(None)
                 continue
             sides = {}
-            for side in ("upper", "lower", "diffuse"):
+            for side in ("upper", "lower", "diffuse", "lower_diffuse"):
                 prefix = f"surface{i}/{side}/"
                 found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
                 sides[side] = spline_from_arrays(found) if found else None
@@ -111,5 +116,7 @@ def load_solution(path) -> StoredSolution:
             textures = {t: data[f"surface{i}/{t}"] if f"surface{i}/{t}" in data.files else None
                         for t in ("albedo", "emission")}
             surfaces.append(_core.SurfaceRadiance(meta["kinds"][i], radius if radius is not None else 1.0,
-                                                  sides["upper"], sides["lower"], sides["diffuse"], **textures))
+                                                  sides["upper"], sides["lower"], sides["diffuse"],
+                                                  sides["lower_diffuse"], **textures,
+                                                  two_sided_emission=bool(two_sided[i]) if two_sided else False))
     return StoredSolution(radiance, surfaces, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])

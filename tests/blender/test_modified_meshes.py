@@ -59,9 +59,12 @@ def evaluated_face_normals(obj):
 
 
 def image_at(image, uv):
-    """Blender's Linear, Extend lookup of an image at (N, 2) UVs: texel centres at (i + 0.5) / n."""
+    """Blender's Linear, Extend lookup of an image at (N, 2) UVs: texel centres at (i + 0.5) / n.
+    Of the front side's square: a chart lit on both sides has its back side's square above it."""
     w, h = image.size
     pixels = np.array(image.pixels[:], np.float64).reshape(h, w, 4)[..., :3]
+    h = h // max(1, h // w)
+    pixels = pixels[:h]
     x = np.clip(uv[:, 0] * w - 0.5, 0, w - 1)
     y = np.clip(uv[:, 1] * h - 0.5, 0, h - 1)
     x0, y0 = np.minimum(x.astype(int), w - 2), np.minimum(y.astype(int), h - 2)

@@ -53,15 +53,15 @@ def custom(context, coeffs, degree=2, bounces=0):
 
 
 def baked(context):
-    """Solve and bake the scene; (job, solution) and each object's image as (size, size, 3)."""
+    """Solve and bake the scene; (job, solution) and each object's image as (height, width, 3)."""
     job = pipeline.prepare(context)
     solution = pipeline.run(job)
     pipeline.finish(context, job, solution)
     images = {}
     for exported in job.export.objects:
         image = bpy.data.images[f"BSGI {exported.name}"]
-        size = image.size[0]
-        pixels = np.array(image.pixels[:], np.float32).reshape(size, size, 4)[..., :3]
+        width, height = image.size  # a surface lit on both sides: its back side's tiles above
+        pixels = np.array(image.pixels[:], np.float32).reshape(height, width, 4)[..., :3]
         assert np.isfinite(pixels).all()
         images[exported.name] = pixels
     return job, solution, images

@@ -79,3 +79,28 @@ def test_glossy_and_transmitting_surfaces_round_trip(tmp_path):
     assert stored.surfaces[0].kind == "diffuse" and stored.surfaces[2] is None
     assert stored.surfaces[3].kind == "decomposed" and stored.surfaces[3].diffuse is not None
     np.testing.assert_array_equal(sol.surfaces[3].evaluate(uv, np.abs(d)), stored.surfaces[3].evaluate(uv, np.abs(d)))
+
+
+def test_back_sides_round_trip(tmp_path):
+    # A decomposed plane lit from below only: its back side has a glossy S and a diffuse D of
+    # its own (lower, lower_diffuse), its front none; the file keeps them exactly.
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("plane", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), albedo=[0.5] * 3,
+                             emission=[0] * 3, bsdf=bsgi.DiffuseGgx([0.4] * 3, 0.3, 0.3, [0.5] * 3),
+                             representation="decomposed")
+    scene.add_bilinear_patch("lamp", np.array([[0, 0, -1], [1, 0, -1], [1, 1, -1], [0, 1, -1]], float), albedo=[0] * 3,
+                             emission=[4] * 3, receiver=False, occluder=False)
+    settings = bsgi.SolverSettings()
+    settings.spatial_coeffs = 6
+    settings.max_bounces = 0
+    sol = bsgi.solve(scene, settings)
+    surface = sol.surfaces[0]
+    assert surface.lower is not None and surface.lower_diffuse is not None
+    path = tmp_path / "two_sided.npz"
+    bsgi.save_solution(path, sol.surfaces, ["plane", "lamp"], settings)
+    stored = bsgi.load_solution(path).surfaces[0]
+    rng = np.random.default_rng(1)
+    uv, dirs = rng.uniform(0, 1, (40, 2)), rng.normal(size=(40, 3))
+    got = stored.evaluate(uv, dirs)
+    np.testing.assert_array_equal(got, surface.evaluate(uv, dirs))
+    assert got[dirs[:, 2] < 0].max() > 0 and got[dirs[:, 2] > 0].max() == 0

@@ -2,6 +2,7 @@
 // integral (8)/(35) over the emitters (direct light), and the hemispherical integral (26)-(32)
 // of the radiance other surfaces send (indirect light).
 #pragma once
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -17,7 +18,9 @@
 namespace bsgi {
 
 // A receiving surface during the solve: its nodes and its radiance splines (Figure 4), one per
-// side (the lower side only where the surface transmits, section 4.3).
+// side: the lower side where the surface transmits (section 4.3) or where light reaches an opaque
+// surface's back (which reflects it with the BSDF mirrored, as Cycles shades it). A side the
+// scene does not light (sides.h) is not solved: its spline is a single zero coefficient.
 struct Receiver {
     int surface = -1;
     int index = -1;                   // position among the receivers
@@ -28,12 +31,14 @@ struct Receiver {
     Representation kind = Representation::Diffuse;
     const Bsdf* bsdf = nullptr;
     const Texture* albedo = nullptr;  // the albedo texture of a diffuse part holding irradiance / pi
-    int sides = 1;
+    int sides = 1;                    // spline slots: 2 if the back side is solved
+    std::array<bool, 2> live{true, false};
     HemisphereMap map{1.0};
     std::vector<SurfacePoint> nodes;  // spatial Schoenberg nodes (u_i, v_j), i slowest
     std::vector<Vec3> directions;     // outgoing local directions of the angular nodes, upper side
     size_t per_node = 1;              // angular nodes per spatial node (1 if diffuse)
     std::vector<TensorSpline> Le, L, Ltmp;  // cumulative, incremental, temporary; per side
+    std::vector<KnotVector> axes;           // of a solved side's splines
 
     using Splines = std::vector<TensorSpline> Receiver::*;
     size_t values() const { return sides * nodes.size() * per_node; }
@@ -41,6 +46,15 @@ struct Receiver {
     Vec3 outgoing(int side, size_t a) const {
         const Vec3 d = kind == Representation::Diffuse ? Vec3{0, 0, 1} : directions[a];
         return side == 0 ? d : Vec3{d.x, d.y, -d.z};
+    }
+    bool solves(int side) const { return side < sides && live[side]; }
+    // The back side of an opaque surface scatters as the front does with both directions mirrored
+    // through the surface: f(flip wo, flip wi), flip(x, y, z) = (x, y, -z).
+    bool mirrored(int side) const { return side == 1 && !bsdf->transmits(); }
+    // BSDF value for value a of a node on a side and light arriving from local direction wi.
+    Vec3 scatter(int side, size_t a, const Vec3& wi) const {
+        const Vec3 wo = outgoing(side, a);
+        return mirrored(side) ? bsdf->eval({wo.x, wo.y, -wo.z}, {wi.x, wi.y, -wi.z}) : bsdf->eval(wo, wi);
     }
     // RGB coefficient of (side, spatial node, angular node) of one of the spline sets.
     double* coefficient(Splines which, int side, size_t node, size_t a) {
@@ -83,12 +97,13 @@ public:
     // remainder (its bright part is among the distant samples of direct()). Same layout as direct().
     void world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     // Generalized form factors (36)-(37): for a Lambertian, opaque receiver, the row of the
-    // transport operator at node j, so that its gathered light is albedo * sum(weight * coefficient)
-    // over the receivers' incremental splines: the rays are cast once, not every bounce.
-    void transport_row(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
+    // transport operator at node j of a side, so that its gathered light is albedo *
+    // sum(weight * coefficient) over the receivers' incremental splines: the rays are cast once,
+    // not every bounce.
+    void transport_row(const Receiver& r, int side, size_t j, const std::vector<const Receiver*>& receiver_of,
                        std::vector<TransportTerm>& row, size_t& rays) const;
-    // Direct irradiance at a point (for probing where the light has detail).
-    Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays) const;
+    // Direct irradiance at a point on the given sides (for probing where the light has detail).
+    Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays, std::array<bool, 2> sides = {true, false}) const;
 
 private:
     // The hemispherical integral at node j of r of radiance_along(hit, world direction), the
@@ -101,15 +116,20 @@ private:
     template <typename Visit>
     void through_panes(const Vec3& o, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const;
     static constexpr double kMinPaneReflection = 0.01;
-    template <typename Visit>
-    void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
-                      double t0, double t1, int depth, double ratio, bool both_sides, Visit&& visit, size_t& rays) const;
     // The world's radiance along an unblocked direction, as the hemispherical integrals see it:
     // the constant, or the world map without its bright part.
     Vec3 world_along(const Vec3& dir) const { return world_smooth_ ? world_smooth_->radiance(dir) : scene_.world_radiance(); }
+    template <typename Incoming>
+    void gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, int density,
+                      Incoming&& incoming, Vec3* out) const;
     template <typename Visit>
-    void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, bool both_sides, Visit&& visit,
-                                 size_t& rays) const;
+    void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
+                      double t0, double t1, int depth, double ratio, std::array<bool, 2> sides, Visit&& visit,
+                      size_t& rays) const;
+    // Light arriving on the receiver's sides marked in `sides` (front: along its normal).
+    template <typename Visit>
+    void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, std::array<bool, 2> sides,
+                                 Visit&& visit, size_t& rays) const;
 
     // A direction of a distant light's disc, and the irradiance it brings to a surface facing it.
     struct DistantSample {

@@ -1,6 +1,7 @@
 // A surface's solved outgoing radiance (paper 3.1-3.3, 4.3): a 2D spline D(u, v) where the
 // surface is diffuse, a 4D spline L(u, v, alpha, beta) over the hemisphere map (20)-(22) where
-// it is glossy, and a second spline for the lower hemisphere where it transmits.
+// it is glossy, and a second spline for the lower hemisphere where it transmits or where light
+// reaches an opaque surface's back side.
 #pragma once
 #include <cmath>
 #include <optional>
@@ -32,16 +33,24 @@ struct SurfaceRadiance {
     Representation kind = Representation::Diffuse;
     HemisphereMap map{1.0};
     TensorSpline upper;                   // leaving the front side (the glossy S of (38) if decomposed)
-    std::optional<TensorSpline> lower;    // leaving the back side (transmitting surfaces)
+    std::optional<TensorSpline> lower;    // leaving the back side, where it was solved (S's if decomposed)
     std::optional<TensorSpline> diffuse;  // D(u, v) of (38), emission included, if decomposed
+    std::optional<TensorSpline> lower_diffuse;  // D of the back side, if decomposed and solved there
     // Textured surfaces: the diffuse spline (upper if diffuse, else D) holds irradiance / pi, the
     // smooth factor, and the albedo texture its detail; the emission is then the emission
     // texture (constant emission as one texel), not part of the spline.
     std::shared_ptr<const Texture> albedo, emission;
+    bool two_sided_emission = false;  // the emission leaves the back side too
 
     // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
     Vec3 evaluate(double u, double v, const Vec3& local) const {
-        if (local.z < 0) return lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
+        if (local.z < 0) {
+            Vec3 L = lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
+            if (lower_diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *lower_diffuse, u, v, local), u, v);
+            else if (kind == Representation::Diffuse) L = textured(L, u, v);
+            if (emission && two_sided_emission) L += emission->at(u, v);
+            return L;
+        }
         Vec3 L = evaluate_side(kind, map, upper, u, v, local);
         if (diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local), u, v);
         else if (kind == Representation::Diffuse) L = textured(L, u, v);
@@ -54,7 +63,9 @@ struct SurfaceRadiance {
 // What the solver chose for a surface, and why.
 struct SurfaceReport {
     std::string name;
-    std::string representation;  // "diffuse 2D", "glossy 4D", "glossy 4D + transmission", "emitter"
+    // "diffuse 2D", "glossy 4D", "glossy 4D + transmission", "emitter"; opaque surfaces add the
+    // sides solved other than the front alone: ", both sides", ", back side", ", no side lit".
+    std::string representation;
     std::vector<int> shape;      // coefficients per dimension of the upper spline
     std::string reason;
 };

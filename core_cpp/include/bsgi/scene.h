@@ -33,7 +33,8 @@ struct SpotCone {
 };
 
 // How a surface scatters and emits. Without a BSDF the surface is Lambertian with `albedo`.
-// Emission is radiance leaving the front side, in every direction or within a spot cone.
+// Emission is radiance leaving the front side, in every direction or within a spot cone, and
+// the back side too where it is two-sided (Cycles' emissive meshes; its area lights are not).
 // Textures over the surface's (u, v) replace the constants (which then hold their means): the
 // albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission.
 // With thin_glass the surface is a window pane instead: rays cross it (see thin_glass.h).
@@ -44,6 +45,7 @@ struct Material {
     std::optional<SpotCone> cone;
     std::shared_ptr<const Texture> albedo_texture, emission_texture;
     std::optional<ThinGlass> thin_glass;
+    bool two_sided_emission = false;
     bool emits() const { return max_component(emission) > 0; }
     // Mean emission over the parameter rectangle [u0, u1] x [v0, v1].
     Vec3 emission_over(double u0, double u1, double v0, double v1) const {
@@ -173,6 +175,14 @@ public:
         for (const auto& s : surfaces_)
             if (s.material.albedo_texture) return true;
         return false;
+    }
+    // Makes emitter i emit its radiance from its back side too, as Cycles' Emission shader does
+    // on a mesh.
+    void set_two_sided_emission(size_t i, bool two_sided = true) {
+        if (i >= surfaces_.size()) throw std::out_of_range("set_two_sided_emission: no surface " + std::to_string(i));
+        if (!surfaces_[i].material.emits())
+            throw std::invalid_argument("surface '" + surfaces_[i].surface->name() + "': emits no light");
+        surfaces_[i].material.two_sided_emission = two_sided;
     }
 
     size_t size() const { return surfaces_.size(); }

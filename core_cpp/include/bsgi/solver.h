@@ -74,6 +74,11 @@ struct SolverSettings {
     int final_spatial_factor = 2;
     int final_integration_factor = 2;
 
+    // Cycles shades both sides of an opaque surface with the same BSDF: the back side reflects
+    // light arriving from below, mirrored. Sides no light reaches get no spline (sides.h). Off:
+    // opaque surfaces reflect on their front side only.
+    bool two_sided = true;
+
     int threads = 0;  // 0: all hardware threads
     double memory_budget_mb = 4096;
 

@@ -1,0 +1,239 @@
+"""Two-sided opaque surfaces, as Cycles shades them: the back side of an opaque surface reflects
+light arriving from behind with the same BSDF, mirrored through the surface; sides no light
+reaches get no spline (SolverSettings.two_sided, bsgi/sides.h)."""
+import numpy as np
+import pytest
+
+import bsgi
+from closed_forms import polygon_irradiance
+from reference.scene_spec import quad
+
+ALBEDO = 0.6
+LAMP = 5.0
+
+
+def settings(**kw):
+    s = bsgi.SolverSettings()
+    s.spatial_coeffs = 10
+    for k, v in kw.items():
+        setattr(s, k, v)
+    return s
+
+
+def plane_lit_from_below(bsdf=None, representation="auto", flipped=False):
+    """A 2 x 2 plane at z = 0 (front +z, or -z if flipped) over a 1 x 1 lamp at z = -0.5 facing up."""
+    scene = bsgi.Scene()
+    corners = quad([0, 0, 0], [1, 0, 0], [0, 1, 0])
+    if flipped:
+        corners = corners[::-1].copy()
+    scene.add_bilinear_patch("plane", corners, albedo=[ALBEDO] * 3, emission=[0] * 3, bsdf=bsdf,
+                             representation=representation)
+    scene.add_bilinear_patch("lamp", quad([0.2, 0.1, -0.5], [0.5, 0, 0], [0, 0.5, 0]), albedo=[0] * 3,
+                             emission=[LAMP] * 3, receiver=False, occluder=False)
+    return scene
+
+
+UV = np.random.default_rng(5).uniform(0.05, 0.95, (60, 2))
+
+
+def plane_points(uv):
+    return np.column_stack([2 * uv[:, 0] - 1, 2 * uv[:, 1] - 1, np.zeros(len(uv))])
+
+
+def test_plane_lit_from_below_reflects_lambert_on_its_back():
+    lamp = list(quad([0.2, 0.1, -0.5], [0.5, 0, 0], [0, 0.5, 0]))
+    want = np.array([ALBEDO / np.pi * LAMP * polygon_irradiance(p, [0, 0, -1], lamp) for p in plane_points(UV)])
+    sol = bsgi.solve(plane_lit_from_below(), settings(spatial_coeffs=32))
+    surface = sol.surfaces[0]
+    assert surface.kind == "diffuse" and surface.lower is not None
+    below = surface.evaluate(UV, np.tile([0.3, 0.2, -1.0], (len(UV), 1)))[:, 0]
+    above = surface.evaluate(UV, np.tile([0.3, 0.2, 1.0], (len(UV), 1)))
+    err = np.abs(below / want - 1)
+    print(f"\nplane lit from below, back side against Lambert: max {err.max():.4f}, mean {err.mean():.4f}")
+    # Schoenberg's approximation of the peaked irradiance, second order: 2.4% with 16
+    # coefficients, 0.59% with 32 (the same as the front of the turned-over plane).
+    assert err.max() < 0.012
+    assert np.all(above == 0)  # seen from above: black, as in Cycles (no light reaches the top)
+    report = sol.reports[0]
+    assert report["representation"] == "diffuse 2D, back side"
+    assert "front side: no spline, sees no light" in report["reason"]
+    assert "back side: receives light from 'lamp'" in report["reason"]
+
+
+def test_one_sided_solve_leaves_the_back_black():
+    sol = bsgi.solve(plane_lit_from_below(), settings(two_sided=False))
+    surface = sol.surfaces[0]
+    assert surface.lower is None
+    assert np.all(surface.evaluate(UV, np.tile([0, 0, -1.0], (len(UV), 1))) == 0)
+    assert sol.reports[0]["representation"] == "diffuse 2D"
+
+
+@pytest.mark.parametrize("representation", ["glossy", "decomposed"])
+def test_back_side_is_the_front_side_of_the_mirrored_plane(representation):
+    # Cycles' two-sidedness: the back of a surface shades as the front of the same surface turned
+    # over. Reversing the corners turns the plane over (its normal and its u, v directions).
+    bsdf = bsgi.DiffuseGgx([0.4] * 3, 0.3, 0.3, [0.5] * 3)
+    s = settings(spatial_coeffs=8, max_bounces=0)
+    back = bsgi.solve(plane_lit_from_below(bsdf, representation), s).surfaces[0]
+    front = bsgi.solve(plane_lit_from_below(bsdf, representation, flipped=True), s).surfaces[0]
+    assert back.lower is not None and front.lower is None
+    if representation == "decomposed":
+        assert back.lower_diffuse is not None
+    # The same world points and directions: the reversed corners put the original's (u, v) at
+    # (u, 1 - v), and its frame (x along s_u as before, z turned over, so y too) turns the
+    # original's local direction (a, b, c) into (a, -b, -c).
+    dirs = np.random.default_rng(7).normal(size=(len(UV), 3))
+    dirs[:, 2] = -np.abs(dirs[:, 2]) - 0.3
+    got = back.evaluate(UV, dirs)
+    want = front.evaluate(np.column_stack([UV[:, 0], 1 - UV[:, 1]]), dirs * [1, -1, -1])
+    rel = np.abs(got - want).max() / np.abs(want).max()
+    print(f"\n{representation}: back side against the turned-over plane's front, max difference {rel:.2e}")
+    assert rel < 1e-9
+
+
+def cube(name_prefix, centre, half, albedo):
+    """The six faces of an axis-aligned cube, normals outward (as Blender's default cube)."""
+    c, h = np.asarray(centre, float), half
+    faces = []
+    for axis in range(3):
+        for sign in (1, -1):
+            n = np.zeros(3)
+            n[axis] = sign
+            a = np.zeros(3)
+            a[(axis + 1) % 3] = h
+            b = np.zeros(3)
+            b[(axis + 2) % 3] = h
+            if sign < 0:
+                a, b = b, a
+            faces.append((f"{name_prefix}{'xyz'[axis]}{'+' if sign > 0 else '-'}", quad(c + n * h, a, b)))
+    return faces
+
+
+def room_scene(lamp_inside=True):
+    scene = bsgi.Scene()
+    for name, corners in cube("wall ", [0, 0, 0], 1.0, ALBEDO):
+        scene.add_bilinear_patch(name, corners, albedo=[ALBEDO] * 3, emission=[0] * 3)
+    z = 0.9 if lamp_inside else 1.5
+    scene.add_bilinear_patch("lamp", quad([0, 0, z], [0, 0.2, 0], [0.2, 0, 0]), albedo=[0] * 3,
+                             emission=[LAMP] * 3, receiver=False, occluder=False)  # faces down
+    return scene
+
+
+def mean_radiance(surface, side):
+    # Mean over the face of the side's radiance (diffuse: any direction on that side).
+    g = (np.arange(100) + 0.5) / 100
+    uv = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    dirs = np.tile([0, 0, 1.0 if side == 0 else -1.0], (len(uv), 1))
+    return surface.evaluate(uv, dirs)[:, 0].mean()
+
+
+@pytest.mark.parametrize("form_factors", [False, True])
+def test_closed_room_of_outward_faces_conserves_energy(form_factors):
+    # A closed room (a cube with outward normals, seen from inside) around a lamp: every watt
+    # the lamp emits lands on the walls, which reflect rho of it, all of which lands on the
+    # walls again. So the light leaving the walls sums to rho / (1 - rho) of the lamp's power,
+    # and their mean radiance is that over pi times their area.
+    sol = bsgi.solve(room_scene(), settings(spatial_coeffs=16, form_factors=form_factors, tolerance=1e-4))
+    lamp_power = np.pi * 0.4 * 0.4 * LAMP
+    want = ALBEDO / (1 - ALBEDO) * lamp_power / (np.pi * 6 * 4.0)
+    got = np.mean([mean_radiance(sol.surfaces[i], 1) for i in range(6)])
+    print(f"\nclosed room (form factors {form_factors}): mean wall radiance {got:.5f}, closed form {want:.5f}, "
+          f"{got / want - 1:+.4f}")
+    # Schoenberg's approximation is biased low under the peak beneath the lamp, at second order:
+    # -5.1% with 8 coefficients, -0.75% with 16, -0.13% with 32 (-2.9%, -0.31%, -0.11% for the
+    # direct light alone).
+    assert abs(got / want - 1) < 0.015
+    for i in range(6):
+        assert sol.surfaces[i].lower is not None
+        assert np.all(sol.surfaces[i].upper.coefficients == 0)  # the outside sees no light
+        assert sol.reports[i]["representation"] == "diffuse 2D, back side"
+
+
+def test_inside_of_a_closed_cube_lit_from_outside_gets_no_spline():
+    sol = bsgi.solve(room_scene(lamp_inside=False), settings(spatial_coeffs=6))
+    for i in range(6):
+        r = sol.reports[i]
+        assert sol.surfaces[i].lower is None, r
+        assert "back side: no spline, sees no light (the inside of a closed mesh?)" in r["reason"]
+    top = sol.reports[0 if sol.reports[0]["name"] == "wall z+" else 4]
+    assert top["name"] == "wall z+" and top["representation"] == "diffuse 2D"
+    assert "front side: receives light from 'lamp'" in top["reason"]
+    # The side walls see neither the lamp (it faces down, above them) nor lit surfaces: nothing.
+    side = next(r for r in sol.reports if r["name"] == "wall x+")
+    assert side["representation"] == "diffuse 2D, no side lit"
+
+
+def test_back_side_costs_memory_only_where_lit():
+    s = settings(spatial_coeffs=64)
+    one_sided = settings(spatial_coeffs=64, two_sided=False)
+    lit_below = bsgi.estimate_solve_bytes(plane_lit_from_below(), s)
+    assert lit_below == bsgi.estimate_solve_bytes(plane_lit_from_below(), one_sided)  # back instead of front
+    scene = plane_lit_from_below()
+    scene.world_radiance = [0.1] * 3  # now the top sees the world too: both sides
+    both = bsgi.estimate_solve_bytes(scene, s)
+    spline = 3 * 64 * 64 * 3 * 8
+    assert both - lit_below == pytest.approx(spline, rel=0.01)
+
+
+def test_two_sided_emission_lights_what_its_back_faces():
+    # Cycles' Emission shader on a mesh emits from both sides: a lamp patch facing up lights
+    # the floor under it from its back, by Lambert's closed form, and shows its radiance there.
+    lamp = quad([0.2, 0.1, 0.5], [0.5, 0, 0], [0, 0.5, 0])  # front +z, away from the floor
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[ALBEDO] * 3, emission=[0] * 3)
+    index = scene.add_bilinear_patch("lamp", lamp, albedo=[0] * 3, emission=[LAMP] * 3)
+    one_sided = bsgi.solve(scene, settings(spatial_coeffs=32, max_bounces=0))
+    assert np.all(one_sided.radiance[0].coefficients == 0)
+    scene.set_two_sided_emission(index)
+    sol = bsgi.solve(scene, settings(spatial_coeffs=32, max_bounces=0))
+    want = np.array([ALBEDO / np.pi * LAMP * polygon_irradiance(p, [0, 0, 1], list(lamp)[::-1]) for p in plane_points(UV)])
+    got = sol.radiance[0].evaluate(UV)[:, 0]
+    err = np.abs(got / want - 1)
+    print(f"\nfloor lit by the back of a two-sided emitter against Lambert: max {err.max():.4f}")
+    assert err.max() < 0.012  # as the plane lit from below: 0.59% with 32 coefficients
+    below = sol.surfaces[index].evaluate(UV, np.tile([0, 0, -1.0], (len(UV), 1)))
+    np.testing.assert_allclose(below, LAMP, rtol=1e-12)
+    assert "back side: emits" in sol.reports[index]["reason"]
+    with pytest.raises(ValueError, match="'floor': emits no light"):
+        scene.set_two_sided_emission(0)
+
+
+def test_cornell_box_solves_only_the_sides_that_see_light():
+    # Closed boxes standing on the floor, turned about z: their insides see no light, even
+    # where probe rays graze the edges between their patches or meet the floor under them; the
+    # room's outsides face a black world. Every lit side is a front, as one-sided solves had.
+    from reference import scene_spec
+
+    sol = bsgi.solve(scene_spec.to_bsgi(scene_spec.cornell_box()), settings(spatial_coeffs=4, max_bounces=0))
+    reports = {r["name"]: r for r in sol.reports}
+    for name, r in reports.items():
+        if name == "lamp":
+            continue
+        bottom = name in ("tall box 4", "short box 4")  # the faces lying on the floor (-z)
+        assert r["representation"] == ("diffuse 2D, no side lit" if bottom else "diffuse 2D"), (name, r)
+        assert "back side: no spline, sees no light" in r["reason"], (name, r)
+
+
+def test_closed_two_sided_emitter_keeps_its_back_light_inside():
+    # An emissive sphere (a closed surface) emitting from both sides: its inside sees only
+    # itself, so it gets no spline and lights no one; the floor gets exactly what the sphere's
+    # outside sends, as with one-sided emission.
+    from nurbs_reference import SPHERE_FLAGS, blender_sphere_points
+
+    def scene_with(two_sided):
+        points = blender_sphere_points(0.3)
+        points[:, :3] += [0.1, 0.2, 0.8]
+        scene = bsgi.Scene()
+        scene.add_bilinear_patch("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[ALBEDO] * 3, emission=[0] * 3)
+        k = scene.add_surface(bsgi.NurbsSurface("bulb", points, **SPHERE_FLAGS), albedo=[0.2] * 3, emission=[LAMP] * 3)
+        if two_sided:
+            scene.set_two_sided_emission(k)
+        return scene, k
+
+    s = settings(spatial_coeffs=6, max_bounces=1)
+    one, _ = scene_with(False)
+    scene, k = scene_with(True)
+    want, got = bsgi.solve(one, s), bsgi.solve(scene, s)
+    np.testing.assert_array_equal(got.radiance[0].coefficients, want.radiance[0].coefficients)
+    assert got.surfaces[k].lower is None
+    assert "back side: no spline, emits, but only into itself" in got.reports[k]["reason"]
