@@ -110,8 +110,9 @@ def cancel_moments(moments: int, phase: str, seed: int, path) -> dict:
     its duration; after each, the saved .blend must hold the same data as the one saved just
     before the attempt: byte-identical, or equal but for the runtime fields and pointer numbers
     that blend_file.canonical() sets aside (a bake undone leaves the depsgraph's update tags).
-    Attempts that finish before their moment do not count; after those (and after a change) the
-    scene is read back from the file saved before them."""
+    Attempts that finish before their moment do not count (and shrink the span the moments are
+    drawn from by 5%); after those (and after a change) the scene is read back from the file
+    saved before them."""
     import bpy
 
     build_scene()
@@ -122,13 +123,14 @@ def cancel_moments(moments: int, phase: str, seed: int, path) -> dict:
     rng = random.Random(seed)
     stopped = {"solve": 0, "bake": 0}
     changed, finished, identical = [], 0, {"solve": 0, "bake": 0}
-    while sum(stopped.values()) < moments and finished < moments:
+    while sum(stopped.values()) < moments and finished < 3 * moments:
         delay = rng.uniform(0, span)
         before = saved_bytes(path)
         where = attempt(delay, phase)
         restore = where is None
-        if where is None:
+        if where is None:  # the phase ran faster than the first one timed: draw from less
             finished += 1
+            span *= 0.95
         else:
             stopped[where] += 1
             after = saved_bytes(path)

@@ -219,7 +219,7 @@ def test_baked_chart_sphere_matches_cycles_path_tracing(context, tmp_path, uv_ma
     print(f"\nchart sphere ({uv_map} UV map), baked vs Cycles (512 spp): mean relative difference {rel.mean():.4f} over {lit.sum()} "
           f"lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size
-    assert rel.mean() <= 0.10
+    assert rel.mean() <= 0.097  # measured 0.040 (own UV map) and 0.049 (generated)
 
 
 def test_object_setting_forces_a_chart_or_faces(context):
