@@ -51,7 +51,7 @@ def test_grid_with_a_uv_map_is_one_chart_lit_as_the_closed_form(context):
     spline = pipeline.run(job).radiance[exported.patches[0][1]]
     # As for the single-quad floor (test_export.py): Schoenberg smoothing of the peak, measured
     # -1.13%, -0.40% and -0.20%.
-    for u, v, bound in [(0.5, 0.5, 0.023), (0.2, 0.7, 0.008), (0.85, 0.3, 0.004)]:
+    for u, v, bound in [(0.5, 0.5, 0.02), (0.2, 0.7, 0.008), (0.85, 0.3, 0.004)]:
         e = polygon_irradiance([2 * u - 1, 2 * v - 1, 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
         got = spline.evaluate(np.array([[u, v]]))[0, 0]
         print(f"\nchart floor at ({u}, {v}): relative error {got / (0.5 / math.pi * e) - 1:.2e}")
@@ -159,7 +159,7 @@ def test_chart_bake_shows_the_spline_through_the_charts_uv_map_and_clears(contex
         cu, cv = (i + 0.5) / n, (j + 0.5) / n
         e = polygon_irradiance([2 * cu - 1, 2 * cv - 1, 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
         print(f"\nchart texel at ({u}, {v}): relative error {pixels[j, i, 0] / (0.5 / math.pi * e) - 1:.2e}")
-        assert pixels[j, i, 0] == pytest.approx(0.5 / math.pi * e, rel=0.023)  # measured 1.13% at most
+        assert pixels[j, i, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)  # measured 1.13% at most
     before = pixels.copy()
     bake.rebake(floor)  # from the stored spline and the chart's UV map, no solve
     np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(n, n, 4), before)

@@ -249,7 +249,7 @@ def test_area_light_lights_a_floor_as_cycles_does(context):
     radiance = 50.0 / (math.pi * 1.0)  # Cycles' convention, checked against a Cycles render
     # Schoenberg smoothing of the peak under the lamp: measured -1.13% at the centre, -0.40% at
     # (0.2, 0.7) (another convention would be off by 25% or more).
-    for u, v, bound in [(0.5, 0.5, 0.023), (0.2, 0.7, 0.008)]:
+    for u, v, bound in [(0.5, 0.5, 0.02), (0.2, 0.7, 0.008)]:
         e = polygon_irradiance([2 * u - 1, 2 * v - 1, 0], [0, 0, 1], lamp, radiance)
         got = spline.evaluate(np.array([[u, v]]))[0, 0]
         print(f"\nfloor under a square lamp at ({u}, {v}): relative error {got / (0.5 / math.pi * e) - 1:.2e}")
