@@ -418,7 +418,8 @@ def surface_options(obj) -> dict:
     """The object's per-surface solver options (Object properties), as the core's keywords. Read
     from the original object: the evaluated copy's may predate the user's last change."""
     return {"representation": object_setting(obj, "representation").lower(),
-            "spatial_coeffs": object_setting(obj, "spatial_coeffs"), "angular_coeffs": object_setting(obj, "angular_coeffs")}
+            "spatial_coeffs": object_setting(obj, "spatial_coeffs"),
+            "angular_coeffs": object_setting(obj, "angular_coeffs")}
 
 
 def user_slots(obj) -> list:

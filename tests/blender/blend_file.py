@@ -1,12 +1,13 @@
 """A saved .blend, block by block, to tell whether two saves hold the same data.
 
-Blender saves the same session to the same bytes, but two saves of equal data can differ in two
-ways that carry no data: runtime fields Blender writes as they are (ID.recalc_after_undo_push, the
-depsgraph's update tags since the last undo step; members of a *Runtime type, such as a cache the
-sequencer made; the sharing handles of shared arrays, memory addresses) and the pointer values (stand-ins numbered in the
-order of writing, so one block more or less earlier renumbers all later ones). canonical() sets
-the first to zero and numbers the pointers by the order of the blocks they point to; everything
-else is compared byte for byte.
+Blender saves the same session to the same bytes, but two saves of equal data can differ where
+no data is: runtime fields Blender writes as they are (ID.recalc_after_undo_push, the
+depsgraph's update tags since the last undo step; members of a *Runtime type, such as a cache
+the sequencer made; the sharing handles of shared arrays, memory addresses), the pointer values
+(stand-ins numbered in the order of writing, so a block written and removed earlier renumbers
+all later ones; shared arrays keep their memory address) and the order of some blocks.
+canonical() clears the runtime fields, replaces each pointer by a digest of the block it points
+to, and sorts the blocks; everything else is compared byte for byte.
 """
 from __future__ import annotations
 
@@ -26,7 +27,8 @@ def blocks(data: bytes) -> list:
     out, pos = [], HEADER
     while pos + BHEAD.size <= len(data):
         code, sdna, old, length, count = BHEAD.unpack_from(data, pos)
-        out.append((code.rstrip(b"\0").decode("latin1"), sdna, old, count, data[pos + BHEAD.size:pos + BHEAD.size + length]))
+        body = data[pos + BHEAD.size:pos + BHEAD.size + length]
+        out.append((code.rstrip(b"\0").decode("latin1"), sdna, old, count, body))
         pos += BHEAD.size + length
         if code == b"ENDB":
             break
