@@ -10,7 +10,8 @@ material slots (slot.link = 'OBJECT'), and switching the slots back to 'DATA' sh
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
@@ -304,6 +305,7 @@ def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int,
     h, w = layout.shape
     values = np.zeros((sides, samples * samples, h, w, 3))
     for index, (_, radiances) in enumerate(faces):
+        check_cancelled()
         mask = layout.face == index
         uv = layout.uv[mask]
         for side in range(sides):
@@ -333,6 +335,7 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
     sources, face_slots = detail or ({}, [])
     smooth = {i for i, slot in enumerate(face_slots) if slot in sources}
     atlas = atlas_pixels(layout, faces, samples, radius, sides, smooth)
+    check_cancelled()
     images = (_radiance_image(name, atlas), _radiance_image(f"{name} tangent", tangent),
               _radiance_image(f"{name} normal", normal))
 
@@ -380,6 +383,7 @@ def bake_object(obj, faces, chart_uvs=None) -> list:
     UVs per loop (None: the UV map of an earlier bake). The radiance is also stored on the
     object, so the bake can be redone without a solve. Returns warnings about what the bake
     approximates."""
+    check_cancelled()
     if obj.type == "SURFACE":
         return _bake_nurbs(obj, faces)
     if faces and faces[0][0] == "chart":
@@ -566,10 +570,18 @@ def _radiance_image(name: str, pixels: np.ndarray):
     # Radiance and frames are scene-linear data: the colour space is set before the pixels,
     # since changing it afterwards discards them.
     image.colorspace_settings.name = "Non-Color"
-    image.pixels.foreach_set(pixels.ravel())
-    image.pack()
     image[PROP_BAKED_IMAGE] = True
+    try:
+        image.pixels.foreach_set(pixels.ravel())
+        pack(image)
+    except (RuntimeError, MemoryError) as error:  # the transaction removes the image
+        raise RuntimeError(f"the bake cannot write or pack its image '{name}' ({width} x {height}): {error}") from None
     return image
+
+
+def pack(image) -> None:
+    """Packs the image's pixels into the .blend (the bake's images have no file)."""
+    image.pack()
 
 
 def _link_baked_material(obj, material) -> None:
@@ -643,3 +655,87 @@ def clear_bake(obj) -> None:
         image = bpy.data.images.get(name)
         if image is not None and (image.get(PROP_BAKED_IMAGE) or name.startswith("BSGI ")):
             bpy.data.images.remove(image)
+
+
+# The progress whose cancel() stops the bake under way (transaction), checked between objects,
+# faces and images.
+_progress = None
+
+
+def check_cancelled() -> None:
+    if _progress is not None and _progress.cancelled:
+        raise bsgi.SolveCancelled("bake cancelled")
+
+
+@dataclass
+class _Transaction:
+    """What a bake changes, to undo it: the data-blocks there were before, and per object it
+    touches the bake it had (its stored radiance and its chart's UVs), or None."""
+
+    before: dict
+    show_baked: bool
+    touched: dict = field(default_factory=dict)  # object name -> (faces, chart uvs) of its earlier bake, or None
+
+    def touch(self, obj) -> None:
+        if obj.name in self.touched:
+            return
+        earlier = None
+        if is_baked(obj) and PROP_RADIANCE in obj:
+            uv = obj.data.uv_layers.get(UV_NAME) if obj.type == "MESH" else None
+            uvs = None
+            if uv is not None:
+                uvs = np.empty(len(uv.data) * 2, np.float32)
+                uv.data.foreach_get("uv", uvs)
+            earlier = (stored_faces(obj), None if uvs is None else uvs.reshape(-1, 2))
+        self.touched[obj.name] = earlier
+
+    def undo(self) -> None:
+        """Each touched object back to its earlier bake (or none), and the data-blocks the bake
+        made removed."""
+        global _progress
+        _progress = None  # the undo itself is not cancelled
+        for name, earlier in self.touched.items():
+            obj = bpy.data.objects.get(name)
+            if obj is None:
+                continue
+            if earlier is None:
+                clear_bake(obj)
+                # A bake stopped before it linked its material: what it wrote before that.
+                uv = obj.data.uv_layers.get(UV_NAME) if obj.type == "MESH" else None
+                if uv is not None:
+                    obj.data.uv_layers.remove(uv)
+                for prop in (PROP_RADIANCE, PROP_SPLINE_INDICES, PROP_ADDED_SLOT):
+                    if prop in obj:
+                        del obj[prop]
+                if not obj.keys():  # the bake's properties leave an empty group behind
+                    obj.id_properties_clear()
+                continue
+            faces, uvs = earlier
+            bake_object(obj, faces, uvs if faces and faces[0][0] == "chart" else None)
+            show_baked(obj, self.show_baked)
+        for kind, names in self.before.items():
+            collection = getattr(bpy.data, kind)
+            for block in [b for b in collection if b.name not in names]:
+                collection.remove(block)
+
+
+_BAKED_KINDS = ("images", "materials", "node_groups")
+
+
+@contextmanager
+def transaction(progress=None):
+    """Bakes in the block are undone if it raises (a cancel through progress.cancel() raises
+    bsgi.SolveCancelled at the next object, face or image): the scene is then as it was. Call
+    touch(obj) on the transaction before baking obj."""
+    global _progress
+    before = {kind: {b.name for b in getattr(bpy.data, kind)} for kind in _BAKED_KINDS}
+    scene = bpy.context.scene
+    record = _Transaction(before, bool(getattr(getattr(scene, "bsgi", None), "show_baked", False)))
+    _progress = progress
+    try:
+        yield record
+    except BaseException:
+        record.undo()
+        raise
+    finally:
+        _progress = None

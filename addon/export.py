@@ -10,6 +10,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
+import bpy
+
 import bsgi
 
 from . import geometry, lights, textures
@@ -62,6 +64,15 @@ def approximations(warnings: list, users: dict) -> list:
     return result
 
 
+def linked_from(obj) -> str:
+    """The library file an object or its data is linked from, or ''."""
+    for block in (obj, obj.data):
+        library = getattr(block, "library", None)
+        if library is not None:
+            return library.filepath
+    return ""
+
+
 def export_scene(depsgraph) -> Export:
     """Every visible geometry object's faces as patches (a NURBS surface object's splines as exact
     surfaces), every area and point light as an emitter, suns as distant lights, a one-colour world
@@ -106,6 +117,9 @@ def _export_scene(depsgraph) -> Export:
                 exported.not_baked = (f"{geometry.EVALUATED_ONLY[obj.type]} objects are meshes only as Blender evaluates "
                                       "them, and a bake needs a mesh of its own to hold its UV map; convert it to a "
                                       "mesh (Object > Convert > Mesh) to bake it")
+            elif linked_from(obj.original):
+                exported.not_baked = (f"it is linked from the library '{linked_from(obj.original)}', whose data a "
+                                      "bake cannot change; make it local (Object > Relations > Make Local) to bake it")
             objects.append(exported)
     for job in pending_charts:
         geometry.build_chart(scene, job, warnings)
@@ -122,5 +136,9 @@ def _export_scene(depsgraph) -> Export:
                         f"{'are' if count > 1 else 'is'} solved (casting shadows and reflecting light) but not "
                         "baked: instances share one mesh, which cannot show each instance's own light; make them "
                         "real (Object > Apply > Make Instances Real) to bake them")
+    for name in users:
+        for image, path in textures.missing_images(bpy.data.materials.get(name)):
+            warnings.append(f"material '{name}': image '{image}' cannot be read ('{path}' is missing); it is solved "
+                            "magenta, as Cycles renders it")
     lights.world_light(depsgraph.scene, scene, warnings)
     return Export(scene, objects, list(dict.fromkeys(warnings)), users, textured)

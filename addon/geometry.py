@@ -13,6 +13,7 @@ import bsgi
 
 from . import charts
 from .errors import ExportError
+from .properties import object_setting
 from .materials import THIN_SLAB_MAX_RATIO, GlassShape, ObjectMaterials, object_materials, surface_options, user_slots
 from .user_materials import UV_NAME, user_spline_material_index
 
@@ -102,7 +103,7 @@ PANE_NOTE = ("it is a thin glass pane, which has no radiance spline; its own gla
 
 def glass_choice(obj) -> str:
     """The object's Glass setting (Object properties): AUTO, THIN or SOLID."""
-    return getattr(getattr(obj.original, "bsgi", None), "glass", "AUTO")
+    return object_setting(obj, "glass")
 
 
 def _used_slots(mesh, slots: int) -> set:
@@ -154,7 +155,7 @@ def modifier_names(obj) -> str:
 
 def _chart_refusal(obj, mesh, slots: list) -> str:
     """Why a mesh whose modifiers change its faces cannot be one chart, or ''."""
-    if getattr(getattr(obj.original, "bsgi", None), "mesh_surfaces", "AUTO") == "FACES":
+    if object_setting(obj, "mesh_surfaces") == "FACES":
         return "its Mesh Surfaces setting is Per Face"
     indices = np.empty(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", indices)
@@ -167,7 +168,7 @@ def _wants_chart(obj, mesh, slots: list, label: str, warnings) -> bool:
     """From the scene's face count (0: never) a mesh of one material becomes a UV chart, unless
     the object says otherwise; a chart is one surface with one BSDF, so a mesh of several
     materials stays per face."""
-    choice = getattr(getattr(obj.original, "bsgi", None), "mesh_surfaces", "AUTO")
+    choice = object_setting(obj, "mesh_surfaces")
     threshold = chart_min_faces(bpy.context.scene)
     if choice == "FACES" or (choice == "AUTO" and (not threshold or len(mesh.polygons) < threshold)):
         return False

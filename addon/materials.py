@@ -13,6 +13,7 @@ from mathutils import Matrix
 import bsgi
 
 from . import tangents
+from .properties import object_setting
 from .user_materials import is_baked, user_materials
 
 # Blender's look for a surface with no material: a light grey diffuse.
@@ -268,8 +269,29 @@ def active_output(tree, kind):
     return next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
 
 
-def linked_node(socket):
-    return socket.links[0].from_node if socket.is_linked else None
+def linked_node(socket, groups=(), depth=0):
+    """The node feeding a socket as Cycles sees it: through reroutes, muted nodes (their internal
+    links) and node groups (into the group to what feeds its output, and out again at its Group
+    Input; groups is the stack of group nodes entered). None for an unlinked socket, a muted or
+    invalid link (Blender marks the links of a cycle invalid), or a chain deeper than 64."""
+    links = [link for link in socket.links if link.is_valid and not link.is_muted] if socket.is_linked else []
+    if not links or depth > 64:
+        return None
+    link = links[0]
+    node, out = link.from_node, link.from_socket
+    if node.type == "REROUTE":
+        return linked_node(node.inputs[0], groups, depth + 1)
+    if node.mute:
+        through = next((i.from_socket for i in node.internal_links if i.to_socket == out), None)
+        return None if through is None else linked_node(through, groups, depth + 1)
+    if node.type == "GROUP":
+        output = None if node.node_tree is None else active_output(node.node_tree, "GROUP_OUTPUT")
+        inner = None if output is None else next((s for s in output.inputs if s.identifier == out.identifier), None)
+        return None if inner is None else linked_node(inner, (*groups, node), depth + 1)
+    if node.type == "GROUP_INPUT" and groups:
+        outer = next((s for s in groups[-1].inputs if s.identifier == out.identifier), None)
+        return None if outer is None else linked_node(outer, groups[:-1], depth + 1)
+    return node
 
 
 def describe_material(material, warnings) -> SurfaceMaterial:
@@ -395,11 +417,9 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
 def surface_options(obj) -> dict:
     """The object's per-surface solver options (Object properties), as the core's keywords. Read
     from the original object: the evaluated copy's may predate the user's last change."""
-    settings = getattr(obj.original, "bsgi", None)
-    if settings is None:
-        return {}
-    return {"representation": settings.representation.lower(), "spatial_coeffs": settings.spatial_coeffs,
-            "angular_coeffs": settings.angular_coeffs}
+    return {"representation": object_setting(obj, "representation").lower(),
+            "spatial_coeffs": object_setting(obj, "spatial_coeffs"),
+            "angular_coeffs": object_setting(obj, "angular_coeffs")}
 
 
 def user_slots(obj) -> list:

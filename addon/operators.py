@@ -34,7 +34,7 @@ class BSGI_OT_solve(bpy.types.Operator):
 
         try:
             rep = pipeline.solve_and_bake(context, on_progress=on_progress)
-        except (ExportError, ValueError, RuntimeError) as error:
+        except (ExportError, ValueError, RuntimeError, MemoryError) as error:  # MemoryError: bsgi.MemoryBudgetError
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self._report_done(rep)
@@ -44,8 +44,14 @@ class BSGI_OT_solve(bpy.types.Operator):
         if bpy.app.background:
             return self.execute(context)
         try:
+            pipeline.claim()  # released when the modal solve ends
+        except RuntimeError as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        try:
             self._job = pipeline.prepare(context)
-        except (ExportError, ValueError) as error:
+        except (ExportError, ValueError, MemoryError) as error:
+            pipeline.release()
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self._result = {}
@@ -79,15 +85,25 @@ class BSGI_OT_solve(bpy.types.Operator):
         wm.event_timer_remove(self._timer)
         wm.progress_end()
         context.workspace.status_text_set(None)
+        try:
+            return self._finish(context)
+        finally:
+            pipeline.release()
+
+    def _finish(self, context):
         error = self._result.get("error")
+        t1 = time.perf_counter()
+        if error is None:
+            try:
+                pipeline.finish(context, self._job, self._result["solution"])
+            except (bsgi.SolveCancelled, ValueError, RuntimeError, MemoryError) as bake_error:
+                error = bake_error
         if isinstance(error, bsgi.SolveCancelled):
             self.report({"WARNING"}, "B-spline GI: solve cancelled; the scene is unchanged")
             return {"CANCELLED"}
         if error is not None:
             self.report({"ERROR"}, f"B-spline GI: {error}")
             return {"CANCELLED"}
-        t1 = time.perf_counter()
-        pipeline.finish(context, self._job, self._result["solution"])
         self._report_done(pipeline.report(self._job, self._result["solution"], t1 - self._t0, time.perf_counter() - t1))
         return {"FINISHED"}
 

@@ -3,7 +3,9 @@ main thread, Blender's data is read and written only on it."""
 from __future__ import annotations
 
 import math
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import bpy
@@ -21,13 +23,38 @@ class Job:
     progress: bsgi.Progress
 
 
-def prepare(context) -> Job:
+# One solve at a time per Blender process: two would bake into the same scene data at once.
+_running = threading.Lock()
+BUSY_MESSAGE = ("B-spline GI: another solve is running in this Blender session; wait for it to finish or cancel "
+                "it (Esc) first")
+
+
+def claim() -> None:
+    """Take the process's one solve slot, or raise RuntimeError saying another solve runs."""
+    if not _running.acquire(blocking=False):
+        raise RuntimeError(BUSY_MESSAGE)
+
+
+def release() -> None:
+    _running.release()
+
+
+@contextmanager
+def one_solve():
+    claim()
+    try:
+        yield
+    finally:
+        release()
+
+
+def prepare(context, progress: bsgi.Progress | None = None) -> Job:
     """Main thread: read the scene. Raises ExportError naming the object on bad input."""
     depsgraph = context.evaluated_depsgraph_get()
     # Objects that cannot be baked (curves, texts, metaballs; meshes whose modifiers carry no
     # chart) are solved but left out of export.objects, with a warning each.
     export = export_scene(depsgraph)
-    return Job(export, context.scene.bsgi.solver_settings(), bsgi.Progress())
+    return Job(export, context.scene.bsgi.solver_settings(), progress or bsgi.Progress())
 
 
 def run(job: Job) -> bsgi.Solution:
@@ -36,23 +63,30 @@ def run(job: Job) -> bsgi.Solution:
 
 
 def finish(context, job: Job, solution: bsgi.Solution) -> None:
-    """Main thread: bake the solution into the scene; the bake's warnings join the export's."""
+    """Main thread: bake the solution into the scene; the bake's warnings join the export's.
+    job.progress cancels the bake too (bsgi.SolveCancelled); a cancelled or failed bake is undone,
+    so the scene is as it was before the solve."""
     warnings = job.export.warnings
-    for exported in job.export.objects:
-        warnings += bake.bake_object(bpy.data.objects[exported.name], bake.face_splines(exported, solution.surfaces),
-                                     exported.chart_uvs)
+    with bake.transaction(job.progress) as baking:
+        for exported in job.export.objects:
+            obj = bpy.data.objects[exported.name]
+            baking.touch(obj)
+            warnings += bake.bake_object(obj, bake.face_splines(exported, solution.surfaces), exported.chart_uvs)
     job.export.warnings = list(dict.fromkeys(warnings))
     context.scene.bsgi.show_baked = True
 
 
-def solve_and_bake(context, on_progress=None) -> dict:
-    """The whole job on the calling thread; returns a report of what was done."""
-    t0 = time.perf_counter()
-    job = prepare(context)
-    solution = bsgi.solve(job.export.scene, job.settings, job.progress, on_progress=on_progress)
-    t1 = time.perf_counter()
-    finish(context, job, solution)
-    return report(job, solution, solve_seconds=t1 - t0, bake_seconds=time.perf_counter() - t1)
+def solve_and_bake(context, on_progress=None, progress: bsgi.Progress | None = None) -> dict:
+    """The whole job on the calling thread; returns a report of what was done. progress.cancel()
+    from another thread stops the solve or the bake (bsgi.SolveCancelled), leaving the scene as
+    it was; a second solve while one runs raises RuntimeError (BUSY_MESSAGE)."""
+    with one_solve():
+        t0 = time.perf_counter()
+        job = prepare(context, progress)
+        solution = bsgi.solve(job.export.scene, job.settings, job.progress, on_progress=on_progress)
+        t1 = time.perf_counter()
+        finish(context, job, solution)
+        return report(job, solution, solve_seconds=t1 - t0, bake_seconds=time.perf_counter() - t1)
 
 
 def report(job: Job, solution: bsgi.Solution, solve_seconds: float, bake_seconds: float) -> dict:

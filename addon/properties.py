@@ -80,6 +80,18 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         return s
 
 
+def object_setting(obj, name: str):
+    """One of an object's settings below, read from the original object without writing to it:
+    reading obj.bsgi creates the object's settings in the .blend, and a solve (or a refused one)
+    must leave the .blend unchanged. Objects the user never set read the defaults."""
+    original = obj.original
+    system = (original.bl_system_properties_get(do_create=False) if hasattr(original, "bl_system_properties_get")
+              else original)  # Blender 4.x keeps add-on settings with the custom properties
+    if system is None or "bsgi" not in system.keys():
+        return BSGIObjectSettings.bl_rna.properties[name].default
+    return getattr(original.bsgi, name)
+
+
 class BSGIObjectSettings(bpy.types.PropertyGroup):
     """Per-object options of the object's surfaces (every face of a mesh, every spline of a NURBS
     surface); 0 and Automatic leave the choice to the solver."""

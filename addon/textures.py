@@ -11,6 +11,7 @@ objects, meshes and materials are read only, and the render settings are put bac
 from __future__ import annotations
 
 import math
+import os
 import time
 from contextlib import contextmanager
 
@@ -42,6 +43,21 @@ def _slot_flags(obj):
     for m in user_slots(obj):
         described = describe_material(m, [])
         yield described.albedo_textured or described.emission_textured
+
+
+def missing_images(material) -> list:
+    """Names and paths of the images the material's Image Texture nodes cannot read (no file,
+    not packed): Cycles renders them magenta, and so does the texture bake."""
+    tree = getattr(material, "node_tree", None)
+    found = []
+    for node in (tree.nodes if tree is not None else ()):
+        image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
+        if image is None or image.packed_file is not None or image.source not in {"FILE", "SEQUENCE", "TILED"}:
+            continue
+        path = bpy.path.abspath(image.filepath, library=image.library)
+        if not os.path.exists(path) and not (image.source == "TILED" and image.has_data):
+            found.append((image.name, image.filepath))
+    return found
 
 
 def apply_textures(depsgraph, scene, objects, warnings) -> dict:

@@ -170,9 +170,17 @@ def highlight(image, region):
     return np.array([rows.mean(), cols.mean()]), bright
 
 
-def check_view(engine, view, shown, ref, job):
-    """The error figures and the floor's highlight of one rendered view; returns where on the
-    floor the highlight is (world space)."""
+# Bounds of check_view, about twice the figures measured (README, "What the bake shows"): mean
+# relative error on the glossy and the diffuse pixels, the highlight's distance in pixels.
+# Per face (Cycles and EEVEE): 0.69-0.77%, 0.05-0.08%, 0.14 px; one UV chart: 0.41-0.54%, 0.03%, 0.3 px.
+FACES_BOUNDS = (0.016, 0.0016, 0.3)
+CHART_BOUNDS = (0.011, 0.0007, 0.7)
+
+
+def check_view(engine, view, shown, ref, job, bounds=FACES_BOUNDS):
+    """The error figures and the floor's highlight of one rendered view, against `bounds`
+    (glossy, diffuse, pixels); returns where on the floor the highlight is (world space)."""
+    glossy_bound, diffuse_bound, pixels_bound = bounds
     glossy_ids, diffuse_ids, floor_id = _ids(job)
     err, lit = relative_errors(shown, ref.radiance, ref.mask)
     ids = ref.surface[lit]
@@ -185,15 +193,15 @@ def check_view(engine, view, shown, ref, job):
           f"edge/background pixels left out; per glossy object: {per_object}")
     assert all((ids == g).sum() > 20 for g in glossy_ids)  # every glossy object is seen
     assert glossy.sum() > 300 and diffuse.sum() > 100
-    assert err[glossy].mean() <= 0.05
-    assert err[diffuse].mean() <= 0.02
+    assert err[glossy].mean() <= glossy_bound
+    assert err[diffuse].mean() <= diffuse_bound
     on_floor = ref.mask & (ref.surface == floor_id)
     (shown_at, _), (solved_at, bright) = highlight(shown, on_floor), highlight(ref.radiance, on_floor)
     where = ref.position[bright].mean(axis=0)
     print(f"  floor highlight at pixel {shown_at.round(1)} shown, {solved_at.round(1)} solved; "
           f"on the floor at {where.round(2)}")
     # The highlight is where the core puts it.
-    assert np.linalg.norm(shown_at - solved_at) <= 2.0
+    assert np.linalg.norm(shown_at - solved_at) <= pixels_bound
     return where
 
 
@@ -398,7 +406,8 @@ def test_cycles_shows_a_glossy_uv_chart(context, tmp_path):
     where = []
     for view, location in VIEWS.items():
         ref = core_reference(scene, camera_at(scene, location), job, solution)
-        where.append(check_view("Cycles, UV chart", view, render_cycles(scene, tmp_path / f"{view}.exr"), ref, job))
+        where.append(check_view("Cycles, UV chart", view, render_cycles(scene, tmp_path / f"{view}.exr"), ref, job,
+                                CHART_BOUNDS))
     assert np.linalg.norm(where[0] - where[1]) > 0.3
 
 

@@ -49,10 +49,13 @@ def test_grid_with_a_uv_map_is_one_chart_lit_as_the_closed_form(context):
     assert job.export.scene.name(exported.patches[0][1]) == "Floor: chart 0"
     np.testing.assert_array_equal(exported.chart_uvs, uv_data(floor.data, "UVMap"))  # the user's own UV map
     spline = pipeline.run(job).radiance[exported.patches[0][1]]
-    for u, v in [(0.5, 0.5), (0.2, 0.7), (0.85, 0.3)]:
+    # As for the single-quad floor (test_export.py): Schoenberg smoothing of the peak, measured
+    # -1.13%, -0.40% and -0.20%.
+    for u, v, bound in [(0.5, 0.5, 0.02), (0.2, 0.7, 0.008), (0.85, 0.3, 0.004)]:
         e = polygon_irradiance([2 * u - 1, 2 * v - 1, 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
-        # 2% as for the single-quad floor (test_export.py): Schoenberg smoothing of the peak.
-        assert spline.evaluate(np.array([[u, v]]))[0, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)
+        got = spline.evaluate(np.array([[u, v]]))[0, 0]
+        print(f"\nchart floor at ({u}, {v}): relative error {got / (0.5 / math.pi * e) - 1:.2e}")
+        assert got == pytest.approx(0.5 / math.pi * e, rel=bound)
 
 
 def test_chart_agrees_with_the_per_face_export_of_the_same_mesh(context):
@@ -107,7 +110,8 @@ def test_mesh_without_a_chart_uv_map_gets_one_generated_on_a_copy(context):
         centre = np.mean([floor.data.vertices[v].co[:] for v in poly.vertices], axis=0)
         e = polygon_irradiance([centre[0], centre[1], 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
         got = spline.evaluate(uv[list(poly.loop_indices)].mean(axis=0)[None].astype(np.float64))[0, 0]
-        assert got == pytest.approx(0.5 / math.pi * e, rel=0.03)
+        print(f"\ngenerated chart at face {poly.index}: relative error {got / (0.5 / math.pi * e) - 1:.2e}")
+        assert got == pytest.approx(0.5 / math.pi * e, rel=0.022)  # measured 1.11% at most
 
 
 def test_overlapping_uv_map_is_not_used_and_stays_unchanged(context):
@@ -154,7 +158,8 @@ def test_chart_bake_shows_the_spline_through_the_charts_uv_map_and_clears(contex
         i, j = int(u * n), int(v * n)
         cu, cv = (i + 0.5) / n, (j + 0.5) / n
         e = polygon_irradiance([2 * cu - 1, 2 * cv - 1, 0], [0, 0, 1], LAMP, LAMP_RADIANCE)
-        assert pixels[j, i, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)
+        print(f"\nchart texel at ({u}, {v}): relative error {pixels[j, i, 0] / (0.5 / math.pi * e) - 1:.2e}")
+        assert pixels[j, i, 0] == pytest.approx(0.5 / math.pi * e, rel=0.02)  # measured 1.13% at most
     before = pixels.copy()
     bake.rebake(floor)  # from the stored spline and the chart's UV map, no solve
     np.testing.assert_array_equal(np.array(image.pixels[:], np.float32).reshape(n, n, 4), before)
@@ -219,7 +224,7 @@ def test_baked_chart_sphere_matches_cycles_path_tracing(context, tmp_path, uv_ma
     print(f"\nchart sphere ({uv_map} UV map), baked vs Cycles (512 spp): mean relative difference {rel.mean():.4f} over {lit.sum()} "
           f"lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size
-    assert rel.mean() <= 0.10
+    assert rel.mean() <= 0.097  # measured 0.040 (own UV map) and 0.049 (generated)
 
 
 def test_object_setting_forces_a_chart_or_faces(context):

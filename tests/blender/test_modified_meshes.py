@@ -130,7 +130,7 @@ def test_subdivided_cube_baked_as_a_chart_agrees_with_the_applied_mesh_per_face(
     difference = np.abs(baked - reference).max() / reference.max()
     print(f"\nsubdivided cube ({uv_map} UV map): baked chart vs applied mesh per face, max difference "
           f"{difference:.4f} of the maximum radiance (mean {np.abs(baked - reference).mean() / reference.max():.4f})")
-    assert difference < 0.05
+    assert difference < 0.046  # measured 0.023 (own UV map) and 0.011 (overlapping)
     # The frames the view-dependent material reads are the evaluated (rounded) faces' normals.
     normals = image_at(bpy.data.images["BSGI Cube normal"], evaluated_face_centres(cube, bake.UV_NAME))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
@@ -207,7 +207,7 @@ def test_mirrored_mesh_with_mirror_u_falls_back_to_a_generated_map_in_half_the_s
     difference = np.abs(baked - reference).max() / reference.max()
     print(f"\nmirrored plate (Mirror U, generated map in half the square): baked vs applied per face, max "
           f"difference {difference:.4f} of the maximum radiance")
-    assert len(reference) == 64 and difference < 0.05
+    assert len(reference) == 64 and difference < 0.003  # measured 0.0014
 
 
 def _modified_state(obj):
@@ -275,4 +275,4 @@ def test_baked_subdivided_cube_matches_cycles_path_tracing(context, tmp_path):
     print(f"\nsubdivided cube (generated, carried UV map), baked vs Cycles (512 spp): mean relative difference "
           f"{rel.mean():.4f} over {lit.sum()} lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size
-    assert rel.mean() <= 0.05  # measured 0.021; UVs shifted by 7 loops give 0.107
+    assert rel.mean() <= 0.042  # measured 0.021; UVs shifted by 7 loops give 0.107

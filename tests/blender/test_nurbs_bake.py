@@ -188,7 +188,7 @@ def test_baked_nurbs_sphere_matches_cycles_path_tracing(context, tmp_path):
     print(f"\nNURBS sphere, baked vs Cycles (512 spp): mean relative difference {rel.mean():.4f} over {lit.sum()} "
           f"lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.05 * lit.size
-    assert rel.mean() <= 0.10
+    assert rel.mean() <= 0.064  # measured 0.032
 
 
 def two_patch_surface(context):
@@ -263,7 +263,7 @@ def test_surface_of_several_splines_bakes_each_spline_through_its_own_slot(conte
                          for p in world[corners]])
         worst = max(worst, float(np.max(np.abs(shown - want)) / want.max()))
     print(f"\ntwo-spline surface: shown vs closed form, max difference {worst:.4f} of the maximum")
-    assert worst < 0.03
+    assert worst < 0.017  # measured 0.0083
 
     surface_state = lambda: ([s.material_index for s in surface.data.splines],  # noqa: E731
                              [(slot.link, slot.material.name if slot.material else None)

@@ -82,7 +82,7 @@ def test_baked_cornell_box_matches_cycles_path_tracing(context, tmp_path):
     print(f"\nCornell box, baked vs Cycles ({bounces} bounces, 1024 spp): mean relative difference "
           f"{mean_rel:.4f} over {lit.sum()} lit pixels; median {np.median(rel):.4f}")
     assert lit.sum() > 0.5 * lit.size
-    assert mean_rel <= 0.10
+    assert mean_rel <= 0.09  # measured 0.0451
 
 
 def test_saved_blend_reopens_with_the_baked_result(context, tmp_path):

@@ -75,8 +75,9 @@ def tile(pixels, solution, job, name):
     return pixels[:t, :t], np.stack(np.meshgrid(g, g), -1)  # image rows are v, columns u
 
 
-@pytest.mark.parametrize("scale, offset, tolerance", [(1e-3, (0, 0, 0), 1e-5), (1e4, (0, 0, 0), 1e-5),
-                                                      (1e-3, (100, 50, -30), 1e-2)])
+# Measured 1.4e-7, 1.1e-7 and 4.1e-3.
+@pytest.mark.parametrize("scale, offset, tolerance", [(1e-3, (0, 0, 0), 3e-7), (1e4, (0, 0, 0), 3e-7),
+                                                      (1e-3, (100, 50, -30), 8.2e-3)])
 def test_tiny_huge_and_far_off_scenes_bake_the_unit_scenes_image(context, scale, offset, tolerance):
     # A floor, a blocker casting a shadow on it, one bounce between them. Blender stores
     # vertices in float: 100 units from the origin they move by up to 8e-6, 0.8% of this
@@ -119,12 +120,12 @@ def test_a_lamp_1e6_times_brighter_keeps_the_dim_floors_relative_accuracy(contex
     print(f"\nlamps 1e6 apart: centre texel against Lambert's closed form, bright floor {errors['Bright']:.1e}, "
           f"dim floor {errors['Dim']:.1e}; dim floor against itself alone {same:.1e} of its peak; "
           f"peak texels {images['Bright'].max():.3e} and {images['Dim'].max():.3e}")
-    assert errors["Bright"] <= 0.03 and errors["Dim"] <= 0.03
+    assert errors["Bright"] <= 0.044 and errors["Dim"] <= 0.044  # measured 0.022
     assert abs(errors["Bright"] - errors["Dim"]) <= 1e-4
     assert same <= 1e-5
 
 
-@pytest.mark.parametrize("degree, coeffs, tolerance", [(0, 1, 1e-3), (3, 48, 1e-2)])
+@pytest.mark.parametrize("degree, coeffs, tolerance", [(0, 1, 1e-4), (3, 48, 9.4e-3)])  # measured 4.2e-5, 4.7e-3
 def test_degree_and_coefficient_extremes_bake_the_closed_form(context, degree, coeffs, tolerance):
     # One coefficient of degree 0: the whole face shows the light at its centre (its one
     # Schoenberg node). Degree 3 with 48 coefficients: every texel is the closed form there, to

@@ -50,7 +50,7 @@ def test_floor_in_and_out_of_the_suns_shadow_matches_the_closed_form(context):
     x = np.array([-0.9, -0.6, -0.4, 0.75, 0.9])
     got = spline.evaluate(np.column_stack([(x + 1) / 2, np.full_like(x, 0.3)]))
     print("\nfloor under the sun / closed form:", np.round(got[:, 0] / lit()[0], 4))
-    np.testing.assert_allclose(got[x < 0], np.tile(lit(), (3, 1)), rtol=0.01)
+    np.testing.assert_allclose(got[x < 0], np.tile(lit(), (3, 1)), rtol=1e-4)  # exact: 1.0000
     assert np.abs(got[x > 0.5]).max() < 0.01 * lit().max()
 
 
@@ -64,8 +64,9 @@ def test_sun_convention_is_cycles(context, tmp_path):
     ratio = image[x < EDGE - 0.1] / lit()
     shade = image[x > EDGE + 0.1].mean(axis=0) / lit()
     print(f"\nCycles / closed form in the sun: median {np.median(ratio):.4f}; in the shadow {np.round(shade, 4)}")
-    assert abs(np.median(ratio) - 1) < 0.02
-    assert shade.max() < 0.01
+    # Measured 1.0000 and 0.0003: bounded by Cycles' noise at 64 samples rather.
+    assert abs(np.median(ratio) - 1) < 0.005
+    assert shade.max() < 0.001
 
 
 def test_study_refuses_scenes_its_reference_cannot_light(context):

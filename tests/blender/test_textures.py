@@ -234,8 +234,8 @@ def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
            scene_textured_floor_wall_rel_diff_vs_cycles=median)
     assert lit.sum() > 0.5 * lit.size
     assert light.sum() > 50 and dark.sum() > 50
-    assert median <= 0.03
-    assert abs(ratio - 1) <= 0.03
+    assert median <= 0.015  # measured 0.0072
+    assert abs(ratio - 1) <= 0.005  # measured 0.9999: Cycles' noise rather
 
 
 def test_bake_shows_the_users_colour_nodes_times_the_irradiance_spline(context, tmp_path):
@@ -323,7 +323,7 @@ def test_triangle_and_chart_textures_follow_their_parameters(context):
     want, away = checker_colour(np.column_stack([u, u * v]))
     got = triangle.albedo.reshape(-1, 3)
     print(f"\ntriangle texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5
     chart = next(o for o in export.objects if o.name == "Grid")
     assert chart.kind == "chart"
     albedo = solution.surfaces[chart.patches[0][1]].albedo
@@ -333,7 +333,7 @@ def test_triangle_and_chart_textures_follow_their_parameters(context):
     want, away = checker_colour(np.column_stack([u, v]))
     got = albedo.reshape(-1, 3)
     print(f"chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5
 
 
 def test_node_driven_roughness_is_its_mean_named_in_a_warning(context):
@@ -429,7 +429,7 @@ def test_nurbs_surface_texture_is_over_its_parameters(context, tmp_path):
     want, away = checker_colour(np.column_stack([u, v]))
     got = albedo.reshape(-1, 3)
     print(f"\nNURBS texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5
     pipeline.solve_and_bake(context)
     assert patch.material_slots[0].material.name == f"BSGI {patch.name} slot 0"
 
@@ -476,8 +476,8 @@ def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
     record(scene_checker_screen_seconds=report["solve_seconds"] + report["bake_seconds"],
            scene_checker_screen_rel_diff_vs_cycles=median)
     assert ratio(reference) > 1.3  # the pattern shows (the screen's mean would give 1)
-    assert median <= 0.025
-    assert abs(ratio(baked) / ratio(reference) - 1) <= 0.01
+    assert median <= 0.023  # measured 0.0115
+    assert abs(ratio(baked) / ratio(reference) - 1) <= 0.004  # measured 0.0019
 
 
 def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):
@@ -499,4 +499,4 @@ def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):
     want, away = checker_colour(np.column_stack([u, v]))
     got = albedo.reshape(-1, 3)
     print(f"\nsubdivided grid chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=0.02)
+    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5

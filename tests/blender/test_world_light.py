@@ -71,7 +71,7 @@ def test_floor_beside_a_wall_under_the_world_matches_lamberts_formula(context):
     points = np.column_stack([2 * uv - 1, np.zeros(len(uv))])
     got, want = spline.evaluate(uv), closed_form(points)
     print("\nfloor beside a wall under the world vs Lambert's formula:", np.round(got[:, 0] / want[:, 0] - 1, 4))
-    np.testing.assert_allclose(got, want, rtol=0.03)
+    np.testing.assert_allclose(got, want, rtol=0.019)  # measured 0.93% at most
 
 
 @pytest.mark.slow
@@ -84,4 +84,4 @@ def test_world_light_convention_is_cycles(context, tmp_path):
     ratio = image.reshape(-1, 3) / closed_form(points)
     print(f"\nCycles / closed form over the floor: median {np.median(ratio):.4f}, "
           f"5-95% {np.percentile(ratio, 5):.4f}-{np.percentile(ratio, 95):.4f}")
-    assert abs(np.median(ratio) - 1) < 0.03
+    assert abs(np.median(ratio) - 1) < 0.006  # measured 1.0003: Cycles' noise rather

@@ -55,7 +55,7 @@ def test_parallel_emitter_matches_rectangle_form_factor():
     _, sol = solve_direct(receiver, emitter)
     err = max_rel_error(sol, receiver, emitter, [0, 0, 1], np.vstack([UV, UV_EDGES]))
     print(f"parallel emitter: max relative error {err:.2e}")
-    assert err <= 0.01
+    assert err <= 1e-3  # measured 5.2e-4
 
 
 def test_perpendicular_emitter_matches_rectangle_form_factor():
@@ -64,7 +64,7 @@ def test_perpendicular_emitter_matches_rectangle_form_factor():
     _, sol = solve_direct(receiver, emitter)
     err = max_rel_error(sol, receiver, emitter, [0, 0, 1], np.vstack([UV, UV_EDGES]))
     print(f"perpendicular emitter: max relative error {err:.2e}")
-    assert err <= 0.01
+    assert err <= 1.2e-3  # measured 6.0e-4
 
 
 def test_close_emitter_uses_finer_quadrature():
@@ -72,7 +72,9 @@ def test_close_emitter_uses_finer_quadrature():
     receiver = rect([0, 0, 0], [0.05, 0, 0], [0, 0.05, 0])
     emitter = rect([0, 0, 0.1], [0, 1, 0], [1, 0, 0])
     _, sol = solve_direct(receiver, emitter)
-    assert max_rel_error(sol, receiver, emitter, [0, 0, 1], UV) <= 0.01
+    err = max_rel_error(sol, receiver, emitter, [0, 0, 1], UV)
+    print(f"close emitter: max relative error {err:.2e}")
+    assert err <= 5e-4  # measured 2.7e-4
 
 
 def test_occluder_casts_umbra_and_leaves_the_rest_lit():
@@ -126,7 +128,7 @@ def test_emitter_touching_the_receiver_along_an_edge():
             want = expected_radiance([u, v, 0], [0, 0, 1], emitter)
             worst = max(worst, np.abs(coeff[i, j] / want - 1).max())
     print(f"contact edge: max relative error at the nodes {worst:.2e}")
-    assert worst <= 0.01
+    assert worst <= 1.6e-3  # measured 7.9e-4
 
 
 def test_adaptive_knots_cluster_at_the_penumbra_and_reduce_the_error():
@@ -168,7 +170,9 @@ def test_disc_emitter_matches_the_coaxial_closed_form(height):
     sol = bsgi.solve(scene, settings)
     got = sol.radiance[0].evaluate(np.array([[0.5, 0.5]]))[0]
     want = ALBEDO / np.pi * np.pi * R * R / (height ** 2 + R * R) * np.array([1, 2, 3])
-    np.testing.assert_allclose(got, want, rtol=2e-3)
+    print(f"disc at {height}: relative error {np.abs(got / want - 1).max():.2e}")
+    # measured 1.7e-4 at 0.25, 2.6e-5 at 1, 1.9e-5 at 3
+    np.testing.assert_allclose(got, want, rtol={0.25: 3.5e-4, 1.0: 6e-5, 3.0: 4e-5}[height])
 
 
 def test_ellipse_emitter_faces_along_its_axes_cross_product():
@@ -184,7 +188,7 @@ def test_ellipse_emitter_faces_along_its_axes_cross_product():
 
 @pytest.mark.parametrize("emitter", [rect([0.15, -0.1, 0.5], [0, 0.5, 0], [0.4, 0, 0]),   # parallel, above
                                      rect([0, 0.5, 0.5], [0, 0.5, 0], [0, 0, 0.5])])      # perpendicular wall
-def test_final_preset_direct_light_within_half_a_percent(emitter):
+def test_final_preset_direct_light_matches_the_closed_form(emitter):
     receiver = rect([0.3, 0.5, 0], [0.1, 0, 0], [0, 0.1, 0]) if emitter[0][0] == 0 else rect([0, 0, 0], [0.1, 0, 0], [0, 0.1, 0])
     scene = bsgi.Scene()
     scene.add_bilinear_patch("receiver", receiver, albedo=[ALBEDO] * 3, emission=[0, 0, 0])
@@ -192,7 +196,7 @@ def test_final_preset_direct_light_within_half_a_percent(emitter):
     sol = bsgi.solve(scene, bsgi.SolverSettings.preset("final"))
     err = max_rel_error(sol, receiver, emitter, [0, 0, 1], np.vstack([UV, UV_EDGES]))
     print(f"\nfinal preset, direct light: max relative error {err:.2e}")
-    assert err <= 0.005
+    assert err <= 1.2e-3  # measured 5.2e-4 (parallel) and 5.6e-4 (perpendicular)
 
 
 @pytest.mark.parametrize("r", [0.1, 1e-3])
@@ -222,4 +226,4 @@ def test_curved_emitter_a_nurbs_sphere_lights_a_floor_as_the_closed_form(r):
     want = 0.5 / np.pi * np.pi * L * r * r / d2 * h / np.sqrt(d2)
     err = np.abs(got / want - 1).max()
     print(f"\nNURBS sphere emitter (radius {r}) over a floor vs the closed form: max relative error {err:.2e}")
-    assert err < 0.02
+    assert err < {0.1: 0.012, 1e-3: 0.018}[r]  # measured 5.8e-3 and 8.8e-3

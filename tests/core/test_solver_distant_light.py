@@ -116,5 +116,5 @@ def test_open_box_under_sun_and_sky_against_mitsuba():
     bias = (ours - ref).sum() / ref.sum()
     print(f"\nopen box under sun and sky vs Mitsuba 3 (noise {noise:.4f}): NRMSE {err:.4f}, bias {bias:+.4f}")
     assert noise < 0.01
-    assert err < 0.15
-    assert abs(bias) < 0.03
+    assert err < 0.15  # measured 0.094
+    assert abs(bias) < 0.022  # measured -0.011

@@ -44,7 +44,7 @@ def test_white_furnace_reaches_emission_over_one_minus_albedo(albedo):
     expected = 1.0 / (1.0 - albedo)
     err = np.abs(L / expected - 1).max()
     print(f"\nfurnace albedo {albedo}: max relative error {err:.2e} after {sol.stats['bounces']} bounces")
-    assert err <= 0.01
+    assert err <= {0.5: 3.2e-4, 0.9: 2e-4, 0.99: 1e-4}[albedo]  # measured 1.6e-4, 9.2e-5, 4.9e-5
     assert sol.stats["extrapolated"]
 
 
@@ -58,7 +58,9 @@ def test_white_furnace_converges_without_extrapolation():
     sol = bsgi.solve(scene, settings)
     assert not sol.stats["extrapolated"]
     assert 8 <= sol.stats["bounces"] < 40  # 0.5^k tail below 1e-4 needs about 14 bounces
-    assert np.abs(sample_radiance(sol, 6) / 4.0 - 1).max() <= 0.01
+    err = np.abs(sample_radiance(sol, 6) / 4.0 - 1).max()
+    print(f"furnace without extrapolation: max relative error {err:.2e}")
+    assert err <= 2.6e-4  # measured 1.3e-4
 
 
 def test_fixed_bounce_count_is_the_truncated_series():
@@ -70,7 +72,8 @@ def test_fixed_bounce_count_is_the_truncated_series():
     settings.tolerance = 0
     sol = bsgi.solve(scene, settings)
     assert sol.stats["bounces"] == 2
-    np.testing.assert_allclose(sample_radiance(sol, 6), 1 + 0.5 + 0.25 + 0.125, rtol=2e-3)
+    print(f"truncated series: max relative error {np.abs(sample_radiance(sol, 6) / 1.875 - 1).max():.2e}")
+    np.testing.assert_allclose(sample_radiance(sol, 6), 1 + 0.5 + 0.25 + 0.125, rtol=3.2e-4)  # measured 1.6e-4
 
 
 def parallel_plates_form_factor(a, b, c):
@@ -102,8 +105,8 @@ def test_open_scene_power_balance(distance):
     expected = albedo * radiance * parallel_plates_form_factor(a, b, distance)
     print(f"\nplates at {distance}: mean radiance {mean:.6f}, a L F = {expected:.6f}")
     # Schoenberg's approximation is O(h^2) and biased where the light is curved (plates close
-    # together): 0.5% at distance 0.25 and 0.14% at 1 with 16 coefficients, less beyond.
-    assert mean == pytest.approx(expected, rel=1e-2 if distance < 0.5 else 2e-3)
+    # together): 0.54% at distance 0.25, 0.14% at 1 and 0.008% at 4 with 16 coefficients.
+    assert mean == pytest.approx(expected, rel={0.25: 1.1e-2, 1.0: 2.8e-3, 4.0: 1.6e-4}[distance])
     # The emitter does not reflect and gets no spline of reflected light beyond its emission.
     assert sol.radiance[1].evaluate(uv[:5])[:, 0] == pytest.approx(radiance)
 
@@ -126,4 +129,4 @@ def test_inside_of_a_nurbs_sphere_lights_itself():
     L = sol.radiance[0].evaluate(uv)
     err = np.abs(L / 2.0 - 1).max()
     print(f"\nNURBS sphere furnace: max relative error {err:.2e}, {sol.stats['bounces']} bounces")
-    assert err <= 0.02
+    assert err <= 3.3e-4  # measured 1.7e-4

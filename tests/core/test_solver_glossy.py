@@ -37,7 +37,8 @@ def test_glossy_cornell_box_presets_against_mitsuba(glossy_cornell):
         errors[preset] = nrmse(ours, ref)
         print(f"\n{preset}: NRMSE {errors[preset]:.4f} (GGX wall {nrmse(ours[glossy], ref[glossy]):.4f}) in {seconds:.1f} s, "
               f"reference noise {noise:.4f}; wall: {sol.reports[back]['reason']}")
-    assert errors["final"] <= 0.03
+    # Measured 6.9%, 3.8% and 2.8% (the README's table of the presets).
+    assert errors["draft"] <= 0.14 and errors["preview"] <= 0.076 and errors["final"] <= 0.03
     assert errors["final"] < errors["preview"] < errors["draft"]
 
 
@@ -146,7 +147,7 @@ def test_decomposed_surface_in_a_uniform_furnace():
     cos_o = np.array([1.0, 0.7, 0.35])
     worst = worst_error_against(sol, cos_o, 0.3 + mitsuba_directional_albedo(alpha, cos_o))
     print(f"\ndecomposed furnace: worst relative error {worst:.4f}")
-    assert worst <= 0.02
+    assert worst <= 0.014  # measured 0.0070
 
 
 def test_decomposition_for_mild_gloss_and_full_4d_for_strong():

@@ -53,8 +53,9 @@ def test_soft_cone_follows_the_smoothstep_edge():
         errors[n] = np.abs(got - want).max() / want.max()
         assert np.abs(got[x > 0.75]).max() < 1e-3 * want.max()  # outside the cone, beyond the splines' reach
     print("\nsoft spot cone: max error of the peak by coefficients", {k: f"{v:.3f}" for k, v in errors.items()})
-    assert errors[64] < 0.02
-    assert errors[64] < errors[32] / 2 < errors[16] / 4
+    # Measured 0.152, 0.044, 0.012: each doubling divides the error by 3.5-3.7, second order (4).
+    assert errors[64] < 0.024
+    assert errors[64] < errors[32] / 3 and errors[32] < errors[16] / 3
 
 
 def test_hard_cone_is_full_inside_and_dark_outside():

@@ -81,7 +81,7 @@ def test_emission_texture_lights_with_its_pattern(split):
     print(f"lamp emitting on 1/{split} of it: max relative error {err:.2e}")
     # An edge on a cell boundary is exact to the quadrature; one inside a node's share of a cell
     # is weighted by the geometric factor at the node (1.5% here).
-    assert err <= (1e-3 if split == 2 else 0.03)
+    assert err <= (6e-4 if split == 2 else 0.03)  # measured 2.9e-4 and 1.5e-2
 
 
 def test_emission_texture_is_what_the_surface_shows():
@@ -144,7 +144,7 @@ def test_fine_checker_bounces_its_mean_colour():
     _, uniform = bounce_onto_wall(image.reshape(-1, 3).mean(axis=0))
     err = np.abs(textured / uniform - 1).max()
     print(f"wall lit by a 32 x 32 checker floor against its mean colour: max relative difference {err:.2e}")
-    assert err <= 2e-3
+    assert err <= 1.3e-3  # measured 6.5e-4
 
 
 def test_half_red_floor_reddens_the_wall_near_it():

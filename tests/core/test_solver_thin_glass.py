@@ -219,11 +219,12 @@ def test_floor_lit_through_a_pane_against_mitsuba():
     sol = bsgi.solve(scene, s)
     ours = sol.radiance[0].evaluate((xy + 1) / 2)
     rel = ours.sum() / ref.sum() - 1
-    # Without the pane's factor the floor would be 8% brighter: a 2% bound tells them apart.
+    # Without the pane's factor the floor would be 8% brighter; measured -0.53% (noise of the
+    # mean 0.12%).
     print(f"\nfloor through a pane vs Mitsuba thindielectric: mean {rel:+.4f} (noise of the mean {mean_noise:.4f}, "
           f"of a point {noise:.4f}); per point max {np.abs(ours / ref - 1).max():.4f}")
     assert mean_noise < 0.005
-    assert abs(rel) < 0.02
+    assert abs(rel) < 0.011
     del mi
 
 

@@ -36,5 +36,5 @@ def test_diffuse_cornell_box_against_mitsuba(cornell_reference):
           f"{sol.stats['bounces']} bounces, {sol.stats['seconds_direct'] + sol.stats['seconds_indirect']:.2f} s")
     # Default settings (16 x 16 quadratic coefficients per face, Schoenberg): the box contact
     # edges on the floor and the lamp's shadow on the ceiling dominate the error.
-    assert err <= 0.07
-    assert abs(bias) <= 0.03
+    assert err <= 0.07  # measured 0.040
+    assert abs(bias) <= 0.029  # measured -0.014

@@ -60,8 +60,8 @@ def test_floor_under_a_ceiling_matches_the_unblocked_solid_angle():
     # The hemisphere rule (cosine-weighted nodes) cuts the ceiling's edge: about first order in
     # the node spacing; the spline is fitted at the Schoenberg nodes, so what remains at 32 is
     # mostly the spatial fit of the shadow's gradient.
-    assert errors[8] < 0.08
-    assert errors[32] < 0.02
+    assert errors[8] < 0.066  # measured 0.033
+    assert errors[32] < 0.018  # measured 0.009
     assert errors[32] < errors[8]
 
 
@@ -129,6 +129,6 @@ def test_open_box_under_the_world_against_mitsuba():
     print(f"\nopen box under the world vs Mitsuba 3 (noise {noise:.4f}): NRMSE {err:.4f}, bias {bias:+.4f}, "
           f"metal wall {err_metal:.4f}, {sol.stats['bounces']} bounces")
     assert noise < 0.01
-    assert err < 0.06
-    assert abs(bias) < 0.03
-    assert err_metal < 0.05
+    assert err < 0.06  # measured 0.038
+    assert abs(bias) < 0.022  # measured -0.011
+    assert err_metal < 0.042  # measured 0.021

@@ -58,7 +58,7 @@ def test_spatial_degree_and_coefficient_extremes_in_the_white_furnace(degree, co
     err = furnace_error(sol, range(6), 2.0)
     print(f"\nfurnace, spatial degree {degree}, {coeffs} coefficients: max relative error {err:.2e}, "
           f"{sol.stats['bounces']} bounces")
-    assert err <= 1e-3
+    assert err <= 4e-4  # measured 1.2e-5 to 2.0e-4
 
 
 LAMP = rect([0.15, -0.1, 0.5], [0, 0.5, 0], [0.4, 0, 0])  # 1 x 0.8 at height 0.5, facing down
@@ -80,7 +80,7 @@ def solve_direct(**values):
     return bsgi.solve(scene, settings(max_bounces=0, **values))
 
 
-@pytest.mark.parametrize("degree, coeffs, tolerance", [(0, 1, 1e-3), (0, 200, 1e-2), (2, 200, 1e-3), (3, 150, 1e-3)])
+@pytest.mark.parametrize("degree, coeffs, tolerance", [(0, 1, 7e-5), (0, 200, 4.4e-3), (2, 200, 4.6e-4), (3, 150, 4.5e-4)])
 def test_direct_light_with_one_or_hundreds_of_coefficients(degree, coeffs, tolerance):
     # Schoenberg's coefficients are the light at the nodes: one coefficient is the light at the
     # centre; hundreds resolve the closed form everywhere (degree 0 only to O(h)). The floor of
@@ -122,7 +122,7 @@ def test_angular_degree_and_coefficient_extremes_in_the_white_furnace(degree, co
     L = np.concatenate([sol.surfaces[i].evaluate(rng.uniform(0, 1, (len(d), 2)), d) for i in range(6)])
     err = np.abs(L / 2 - 1).max()
     print(f"\n4D furnace, angular degree {degree}, {coeffs} coefficients: max relative error {err:.2e} up to theta = pi/2")
-    assert np.isfinite(L).all() and err <= 1e-3
+    assert np.isfinite(L).all() and err <= 2e-4  # measured 9.7e-5
 
 
 GRAZING_COS = np.array([1.0, 0.5, 0.2, 0.1, 0.05])  # the last at the map's rim, theta = pi/2 - 0.05
@@ -209,7 +209,7 @@ def test_tiny_and_huge_scenes_give_the_unit_scenes_radiance(unit_box_on_floor, s
     print(f"\nbox on a floor at scale {scale:g}, {offset} from the origin: max difference from the unit scene {diff:.2e} of the peak; "
           f"{sol.stats['bounces']} bounces (unit scene {unit_box_on_floor.stats['bounces']})")
     assert np.isfinite(got).all()
-    assert diff <= 1e-6
+    assert diff <= 1e-7  # measured 2e-8 (rounding)
 
 
 @pytest.mark.parametrize("size", [1e-3, 1e4])
@@ -217,7 +217,7 @@ def test_tiny_and_huge_furnaces_match_the_closed_form(size):
     sol = bsgi.solve(furnace(0.9, size=size), settings(spatial_coeffs=6))
     err = furnace_error(sol, range(6), 10.0)
     print(f"\nfurnace of size {size:g}, albedo 0.9: max relative error {err:.2e}")
-    assert err <= 1e-3
+    assert err <= 1.6e-4  # measured 7.8e-5
 
 
 # ---- albedo near 1, very bright emitters ----
@@ -227,7 +227,7 @@ def test_albedo_099_furnace_converges_to_the_closed_form():
     err = furnace_error(sol, range(6), 100.0)
     print(f"\nfurnace albedo 0.99: max relative error {err:.2e} after {sol.stats['bounces']} bounces (extrapolated)")
     assert sol.stats["extrapolated"] and sol.stats["bounces"] < 64
-    assert err <= 1e-3
+    assert err <= 2.2e-4  # measured 1.1e-4
 
 
 def test_channels_1e6_apart_keep_their_relative_accuracy():
@@ -236,7 +236,7 @@ def test_channels_1e6_apart_keep_their_relative_accuracy():
     L = radiance_at(sol, range(6))
     err = np.abs(L / (np.array([1e6, 1.0, 1e-6]) / 0.1) - 1).max(axis=0)
     print(f"\nfurnace emitting (1e6, 1, 1e-6): max relative error per channel {err[0]:.2e} {err[1]:.2e} {err[2]:.2e}")
-    assert np.all(err <= 1e-3)
+    assert np.all(err <= 1.6e-4)  # measured 7.8e-5
 
 
 @pytest.mark.parametrize("bright_albedo", [0.5, 0.2])
@@ -252,7 +252,7 @@ def test_a_room_1e6_times_brighter_does_not_stop_the_bounces_of_a_dim_one(bright
     bright = furnace_error(sol, range(6, 12), 1e6 / (1 - bright_albedo))
     print(f"\ndim furnace beside one 1e6 brighter (albedo {bright_albedo}): max relative error dim {dim:.2e}, "
           f"bright {bright:.2e}, {sol.stats['bounces']} bounces")
-    assert dim <= 1e-3 and bright <= 1e-3
+    assert dim <= 1.6e-4 and bright <= 3.3e-4  # measured 7.8e-5 and 1.6e-4
 
 
 def test_light_going_back_and_forth_between_two_plates_gets_its_whole_tail():
@@ -273,7 +273,7 @@ def test_light_going_back_and_forth_between_two_plates_gets_its_whole_tail():
     err = np.abs(radiance_at(sol, [0, 1]) / radiance_at(series, [0, 1]) - 1).max()
     print(f"\ntwo facing plates, albedo 0.9: extrapolated after {sol.stats['bounces']} bounces, max relative "
           f"difference from the series summed to 60 bounces {err:.2e}")
-    assert err <= 2e-3
+    assert err <= 1.3e-3  # measured 6.6e-4
 
 
 # ---- coincident and touching surfaces ----
@@ -301,7 +301,7 @@ def test_coincident_quads_each_get_their_own_direct_light(facing):
             continue
         errors.append(np.abs(spline.coefficients[..., 0] / want - 1).max())
     print(f"\ncoincident quads facing {facing}: max relative error at the nodes {max(errors):.2e}")
-    assert max(errors) <= 1e-3
+    assert max(errors) <= 7e-4  # measured 3.4e-4
 
 
 @pytest.mark.parametrize("offset", [(0, 0, 0), (0.3, -0.2, 0.1)])
