@@ -335,6 +335,7 @@ class SolverMaterial:
     albedo_textured: bool = False
     emission_textured: bool = False
     specular: tuple = (0.0, 0.0, 0.0)
+    pass_weight: tuple = (1.0, 1.0, 1.0)  # Cycles' diffuse-colour pass over the base colour
     # Glass ("rough_dielectric"): the user's roughness, what shadow rays get (the Light Path
     # trick, or None), and the warnings that hold only if it is solved as a rough dielectric.
     roughness: float = 0.0
@@ -375,8 +376,7 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     chosen.emission_textured = described.emission_textured
     if described.albedo_textured:
         if chosen.kind == "lambert":
-            chosen.albedo_textured = True
-            chosen.specular = described.specular
+            chosen.albedo_textured = True  # its albedo is the baked diffuse colour plus the lobe's
         else:
             warnings.append(f"material '{name}': its colour is driven by nodes on a {chosen.kind.replace('_', ' ')} "
                             "surface, which is solved with the socket's own value (textures colour diffuse surfaces)")
@@ -410,8 +410,37 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
     if glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
         warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
                         f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")
-    albedo = tuple(min(1.0, max(0.0, a + s)) for a, s in zip(described.albedo, described.specular))
-    return SolverMaterial(albedo, described.emission)
+    # Cycles layers the specular lobe over the diffuse base, which gets the energy the lobe leaves:
+    # albedo = base (1 - E) + E, E the lobe's hemispherical albedo (a rough lobe reflects far less
+    # than its f0: roughness 1 leaves 0.016 of f0 0.04).
+    lobe = layer_albedo(described.specular, described.roughness)
+    albedo = tuple(min(1.0, max(0.0, a * (1 - e) + e)) for a, e in zip(described.albedo, lobe))
+    # Cycles' diffuse-colour pass (textures.py bakes it) is the base seen along the normal, under
+    # the lobe's albedo in that direction.
+    seen = layer_albedo(described.specular, described.roughness, normal_only=True)
+    return SolverMaterial(albedo, described.emission, specular=lobe, pass_weight=tuple(1 - e for e in seen))
+
+
+def layer_albedo(f0, roughness: float, normal_only: bool = False, nodes: int = 24) -> tuple:
+    """The albedo, per channel, of a GGX reflection lobe of reflectance f0 at normal incidence and
+    Blender's roughness (alpha = roughness^2), as the core's GgxReflection gives it: hemispherical,
+    2 * integral of E(mu) mu dmu with E(mu) its directional albedo (or E(1) with normal_only), by a
+    midpoint rule in mu^2 and cosine-weighted directions (the lobes solved as diffuse are wide: a
+    coarse rule is exact to about 1e-4)."""
+    if max(f0) <= 0:
+        return (0.0, 0.0, 0.0)
+    r = min(max(roughness, 0.05), 1.0)
+    lobe = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0])
+    g = (np.arange(nodes) + 0.5) / nodes
+    cos2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * nodes) + 0.5) / (2 * nodes), indexing="ij")
+    cos_i, sin_i = np.sqrt(cos2).ravel(), np.sqrt(1 - cos2).ravel()
+    wi = np.stack([sin_i * np.cos(phi.ravel()), sin_i * np.sin(phi.ravel()), cos_i], 1)
+    views = [1.0] if normal_only else np.sqrt(g)  # outgoing directions, cosine-weighted too
+    total = np.zeros(3)
+    for mu in views:
+        wo = np.broadcast_to([np.sqrt(1 - mu * mu), 0.0, mu], wi.shape)
+        total += np.pi * lobe.eval(np.ascontiguousarray(wo), wi).mean(axis=0)
+    return tuple(float(x) for x in total / len(views))
 
 
 def surface_options(obj) -> dict:

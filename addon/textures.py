@@ -179,8 +179,11 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warn
     for index, slot, image in surfaces:
         material = materials[min(slot, len(materials) - 1)]
         if albedo and material.albedo_textured:
-            # The diffuse colour Cycles evaluates, plus the weak specular the albedo absorbs.
-            scene.set_albedo_texture(index, np.clip(image + np.asarray(material.specular, np.float32), 0, 1))
+            # The base colour (the pass Cycles evaluates is it under the specular lobe, seen along
+            # the normal), layered as the solve's albedo is: base (1 - E) + E.
+            base = image / np.asarray(material.pass_weight, np.float32)
+            lobe = np.asarray(material.specular, np.float32)
+            scene.set_albedo_texture(index, np.clip(base * (1 - lobe) + lobe, 0, 1))
         elif not albedo and material.emission_textured:
             image = np.maximum(image, 0)
             scene.set_emission_texture(index, image)
@@ -302,9 +305,8 @@ def colour_source(material):
         return None
     weight = 1.0
     if node.type == "BSDF_PRINCIPLED":
-        # Cycles' diffuse colour under the dielectric specular layer is the base colour times
-        # 1 - f0 at normal incidence (measured: 0.960 for f0 0.04, 0.925 for 0.08); metals and
-        # transmission mix in otherwise, and show the baked texture instead.
+        # The solved albedo is the colour layered under the specular lobe, colour (1 - E) + E;
+        # metals and transmission mix in otherwise, and show the baked texture instead.
         if any(node.inputs[name].is_linked or socket_value(node, name) > 0 for name in ("Metallic", "Transmission Weight")):
             return None
         weight = 1 - max(solved.specular)

@@ -364,9 +364,10 @@ def test_node_driven_roughness_is_its_mean_named_in_a_warning(context):
 
 
 def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
-    # Principled with its default specular layer (f0 0.04): Cycles' diffuse colour is the base
-    # colour times 1 - f0, the solve adds f0 (the highlight's energy) to it, and the bake's
-    # copy of the colour nodes shows colour x weight + specular: the same albedo.
+    # Principled with its default specular layer: Cycles' diffuse-colour pass is the base colour
+    # under the lobe's albedo seen along the normal, the solve layers the base under the lobe
+    # (base (1 - E) + E, E its hemispherical albedo), and the bake's copy of the colour nodes shows
+    # colour x weight + specular: the same albedo, with the base recovered from Cycles' pass.
     m = principled("Checker", checker)
     bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     bsdf.inputs["Specular IOR Level"].default_value = 0.5
@@ -384,7 +385,7 @@ def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
     colour, away = checker_colour(np.column_stack([u, v]))
     shown = colour * weight + np.asarray(specular)
     err = np.abs(albedo[away] / shown[away] - 1).max()
-    print(f"\nf0 {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + f0, max relative difference {err:.4f}")
+    print(f"\nlobe albedo {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + it, max relative difference {err:.4f}")
     assert err <= 0.005
 
 
