@@ -204,8 +204,14 @@ void bind_scene(py::module_& m) {
                 return std::const_pointer_cast<Surface>(s[i].surface);
             },
             py::arg("i"), "Surface i as the scene holds it (e.g. for a RayCaster whose ids are scene indices).")
-        .def("name", [](const Scene& s, size_t i) { return s[i].surface->name(); })
-        .def("area", [](const Scene& s, size_t i) { return s[i].surface->area(); })
+        .def("name", [](const Scene& s, size_t i) {
+            if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+            return s[i].surface->name();
+        })
+        .def("area", [](const Scene& s, size_t i) {
+            if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+            return s[i].surface->area();
+        })
         .def(
             "evaluate_surface",
             [](const Scene& s, size_t i, double u, double v) {
