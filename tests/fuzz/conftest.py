@@ -31,7 +31,7 @@ def pytest_configure(config):
 def hang_watchdog():
     """A test hung in the core (no Python frame to interrupt) ends the run with every thread's
     traceback instead of blocking CI: no fuzz test takes minutes."""
-    faulthandler.dump_traceback_later(fuzz_support.HANG_SECONDS, exit=True, file=sys.stderr)
+    faulthandler.dump_traceback_later(fuzz_support.HANG_SECONDS, exit=True, file=sys.__stderr__)
     yield
     faulthandler.cancel_dump_traceback_later()
 

@@ -80,7 +80,7 @@ def check_surface(s, uv):
     assert e["jacobian"].shape == (n,)
     assert s.in_domain(uv).shape == (n,)
     if np.isfinite(area) and area > 0 and np.isfinite(size):
-        inside = np.isfinite(uv).all(axis=1)
+        inside = ((uv >= 0) & (uv <= 1)).all(axis=1)  # the parameter domain [0, 1]^2
         finite(e["position"][inside], "points")
         for key in ("x", "y", "normal"):
             v = e[key][inside]
@@ -95,7 +95,7 @@ def check_surface(s, uv):
 
 
 @settings(max_examples=examples(1500))
-@given(spec=SURFACES, uv=points(2, elements=st.one_of(unit_float, any_float)).filter(lambda a: a.ndim == 2))
+@given(spec=SURFACES, uv=arrays(st.integers(0, 8).map(lambda n: (n, 2)), st.one_of(unit_float, any_float)))
 def test_surfaces_from_any_geometry(spec, uv):
     case(spec=spec, uv=uv)
     try:
@@ -159,6 +159,7 @@ BSDFS = st.one_of(
     st.builds(lambda eta, ax, ay: ("RoughDielectric", (eta, ax, ay)), st.one_of(st.floats(1, 3), any_float), ALPHA, ALPHA),
 )
 DIRECTION = st.one_of(st.floats(-1, 1), st.sampled_from([0.0, 1.0, -1.0, 1e-300]), any_float)
+UNIT = st.sampled_from([[0, 0, 1], [0, 0, -1], [1, 0, 0], [0.6, 0, 0.8], [0, -0.8, 0.6], [0.48, 0.6, 0.64]])
 
 
 def make_bsdf(spec):
@@ -170,14 +171,14 @@ def make_bsdf(spec):
 @given(spec=BSDFS, data=st.data())
 def test_bsdfs(spec, data):
     n = data.draw(st.integers(0, 6))
-    wo = data.draw(arrays((n, 3), DIRECTION))
+    wo = data.draw(st.one_of(arrays((n, 3), DIRECTION), st.lists(UNIT, min_size=n, max_size=n).map(lambda v: np.array(v, float).reshape(n, 3))))
     wi = data.draw(st.one_of(arrays((n, 3), DIRECTION), points(3)))
     u = data.draw(st.one_of(arrays((n, 3), unit_float), arrays((n, 3))))
     case(spec=spec, wo=wo, wi=wi, u=u)
     try:
         b = make_bsdf(spec)
     except ValueError as e:
-        refused(e, "albedo", "kd", "ks", "rd", "rs", "exponent", "GGX", "eta", "dielectric", "must")
+        refused(e, "albedo", "kd", "ks", "rd", "rs", "exponent", "GGX", "eta", "dielectric", "Lambert", "Phong", "Ashikhmin")
         return
     assert isinstance(b.name, str)
     good_wo = np.isfinite(wo).all(axis=1) & (np.linalg.norm(wo, axis=1) > 1e-100)
@@ -194,7 +195,8 @@ def test_bsdfs(spec, data):
     except ValueError as e:
         refused(e, "wo", "u")
         return
-    ok = s["valid"] & good_wo & np.isfinite(u).all(axis=1)
+    # Samples of unit directions wo from random numbers u in [0, 1]^3 are unit directions.
+    ok = s["valid"] & good_wo & ((u >= 0) & (u <= 1)).all(axis=1) & (np.abs(np.linalg.norm(wo, axis=1) - 1) < 1e-12)
     finite(s["weight"][ok], "sample weight"), finite(s["pdf"][ok], "sample pdf")
     assert (s["weight"][ok] >= 0).all()
     np.testing.assert_allclose(np.linalg.norm(finite(s["wi"][ok]), axis=1), 1, rtol=1e-6)
