@@ -43,11 +43,16 @@ def build() -> Path:
     return package.parent
 
 
-def runtime_library() -> str:
-    path = subprocess.run(["g++", "-print-file-name=libasan.so"], capture_output=True, text=True, check=True).stdout.strip()
-    if not os.path.isabs(path):
-        raise SystemExit("libasan.so not found (g++ installs it with libasan8)")
-    return os.path.realpath(path)
+def runtime_libraries() -> str:
+    """libasan first, then libstdc++: ASan resolves its __cxa_throw interceptor when it starts,
+    and a C program like python has no libstdc++ loaded yet (a CHECK failure at the first throw)."""
+    paths = []
+    for name in ("libasan.so", "libstdc++.so"):
+        path = subprocess.run(["g++", f"-print-file-name={name}"], capture_output=True, text=True, check=True).stdout.strip()
+        if not os.path.isabs(path):
+            raise SystemExit(f"{name} not found (g++ installs it)")
+        paths.append(os.path.realpath(path))
+    return " ".join(paths)
 
 
 def findings(logs: Path) -> list[str]:
@@ -72,7 +77,7 @@ def main(argv: list[str]) -> int:
     logs.mkdir(parents=True)
     env = dict(os.environ)
     env.update(
-        LD_PRELOAD=runtime_library(),
+        LD_PRELOAD=runtime_libraries(),
         PYTHONPATH=os.pathsep.join([str(pythonpath)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])),
         ASAN_OPTIONS=f"detect_leaks=0:halt_on_error=1:log_path={logs}/asan",
         UBSAN_OPTIONS=f"halt_on_error=1:print_stacktrace=1:log_path={logs}/ubsan",
