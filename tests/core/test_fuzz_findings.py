@@ -90,3 +90,10 @@ def test_settings_that_would_never_finish_are_refused(field, value):
     setattr(settings, field, value)
     with pytest.raises(ValueError, match="solver settings: "):
         bsgi.solve(scene, settings)
+
+
+@pytest.mark.parametrize("make", [bsgi.SmoothDielectric, lambda eta: bsgi.RoughDielectric(eta, 0.3, 0.3)])
+def test_a_dielectric_of_a_denormal_index_is_refused(make):
+    # Was: accepted, and its samples had infinite weights.
+    with pytest.raises(ValueError, match=r"dielectric eta must be in \[0.01, 10\]"):
+        make(2.225073858507e-311)
