@@ -84,12 +84,21 @@ def main(argv: list[str]) -> int:
         BSGI_SANITIZED="1",
     )
     start = time.monotonic()
-    status = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *args.pytest_args],
-                            cwd=ROOT, env=env).returncode
+    # --capture=sys: reports written to fd 2 by the sanitizers reach the pipe even when the process
+    # halts (pytest's fd capture would keep them in a temporary file that dies with it).
+    process = subprocess.Popen([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--capture=sys",
+                                *args.pytest_args], cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True, errors="replace")
+    stderr = []
+    for line in process.stderr:
+        sys.stderr.write(line)
+        stderr.append(line)
+    status = process.wait()
     seconds = time.monotonic() - start
-    reports = findings(logs)
+    text = "".join(stderr)
+    reports = findings(logs) + ["stderr"] * (text.count("ERROR: AddressSanitizer") + text.count("runtime error:"))
     for report in reports[:5]:
-        print(report, file=sys.stderr)
+        if report != "stderr":
+            print(report, file=sys.stderr)
     print(f"test-sanitize: {len(reports)} sanitizer findings, pytest exit status {status}, {seconds:.0f} s")
     if args.report:
         Path(args.report).write_text(json.dumps({"sanitizer_findings": len(reports), "pytest_status": status,

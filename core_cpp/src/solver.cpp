@@ -453,6 +453,7 @@ SolverSettings SolverSettings::preset(const std::string& name) {
 }
 
 size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
+    validate(settings);  // the plan's arithmetic assumes valid settings (UBSan found an int overflow)
     size_t bytes = 0, triangles = 0;
     for (const Plan& p : plan_scene(scene, settings, 1)) {
         bytes += plan_bytes(p);

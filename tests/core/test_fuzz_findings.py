@@ -97,3 +97,14 @@ def test_a_dielectric_of_a_denormal_index_is_refused(make):
     # Was: accepted, and its samples had infinite weights.
     with pytest.raises(ValueError, match=r"dielectric eta must be in \[0.01, 10\]"):
         make(2.225073858507e-311)
+
+
+def test_the_memory_estimate_refuses_invalid_settings():
+    # Was: UBSan, signed integer overflow in the solver's plan (angular_degree -1, emitter_coeffs -1).
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", QUAD, albedo=[0.5] * 3, emission=[0] * 3, bsdf=bsgi.GgxReflection(0.3, 0.3, [0.5] * 3))
+    scene.add_bilinear_patch("lamp", QUAD[::-1] + [0, 0, 1], albedo=[0] * 3, emission=[1] * 3)
+    settings = bsgi.SolverSettings()
+    settings.angular_degree, settings.emitter_coeffs, settings.angular_resolution = -1, -1, -1.5e176
+    with pytest.raises(ValueError, match="solver settings: angular_degree must be in 0..5"):
+        bsgi.estimate_solve_bytes(scene, settings)
