@@ -1,5 +1,8 @@
 # One entry point for a fresh Debian 12 machine (as root) or a developer's clone:
 #   make test   - apt packages, .venv (Python 3.11 + bpy), build the core, run the whole suite
+#                 (with the fuzzing profile in tests/fuzz and the sanitizer run, test-sanitize)
+#   make test-sanitize - the core built with AddressSanitizer + UBSan, tests/core and tests/fuzz under it
+#   make fuzz-long - the long fuzzing profile (local use; 20 times the examples of CI's)
 #   make demo   - solve and bake example_blends/cornell_box.blend headless, write out/
 #   make bench  - benchmarks, figures to bench/results.json
 #   make study  - the speed-accuracy study: bench/study/results.csv, plots, bench/study/README.md
@@ -24,11 +27,20 @@ VERSION    := $(shell sed -n 's/^version = "\(.*\)"/\1/p' pyproject.toml)
 EXTENSIONS := dist/bsgi-$(VERSION)-linux-x64-py311.zip dist/bsgi-$(VERSION)-linux-x64-py313.zip
 CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name '*.pyi' -o -name CMakeLists.txt \)) pyproject.toml
 
-.PHONY: test test-fast demo bench study apt venv venv313 build wheels extension clean
+.PHONY: test test-sanitize fuzz-long test-fast demo bench study apt venv venv313 build wheels extension clean
 
 # The packaging tests (slow) install the extension zips, on Python 3.11 (.venv) and 3.13 ($(VENV313)).
 test: build extension venv313
 	$(PY) -m pytest $(PYTEST_ARGS)
+	$(MAKE) test-sanitize
+
+# The core with -fsanitize=address,undefined in build/sanitize, preloaded into .venv's Python
+# (tools/test_sanitize.py); fails on any sanitizer report. libasan8/libubsan1 come with g++.
+test-sanitize: venv
+	$(PY) tools/test_sanitize.py
+
+fuzz-long: build
+	BSGI_FUZZ_PROFILE=long $(PY) -m pytest tests/fuzz -q
 
 # Skips the slow tests (Cycles/EEVEE renders, Mitsuba 3, the extension zips) and their set-up.
 test-fast: build

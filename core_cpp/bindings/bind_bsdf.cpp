@@ -103,27 +103,27 @@ void bind_bsdf(py::module_& m) {
             py::arg("w"), "Refractive index of the medium on the side of each direction.");
 
     py::class_<Lambert, Bsdf, std::shared_ptr<Lambert>>(m, "Lambert")
-        .def(py::init([](const Array& albedo) { return std::make_shared<Lambert>(rgb(albedo, "albedo")); }), py::arg("albedo"));
+        .def(py::init([](const Array& albedo) { return std::make_shared<Lambert>(rgb(albedo, "Lambert: albedo")); }), py::arg("albedo"));
     py::class_<NormalizedPhong, Bsdf, std::shared_ptr<NormalizedPhong>>(m, "NormalizedPhong")
         .def(py::init([](const Array& kd, const Array& ks, double n) {
-                 return std::make_shared<NormalizedPhong>(rgb(kd, "kd"), rgb(ks, "ks"), n);
+                 return std::make_shared<NormalizedPhong>(rgb(kd, "NormalizedPhong: kd"), rgb(ks, "NormalizedPhong: ks"), n);
              }),
              py::arg("kd"), py::arg("ks"), py::arg("exponent"));
     py::class_<AshikhminShirley, Bsdf, std::shared_ptr<AshikhminShirley>>(m, "AshikhminShirley")
         .def(py::init([](const Array& rd, const Array& rs, double nu, double nv) {
-                 return std::make_shared<AshikhminShirley>(rgb(rd, "rd"), rgb(rs, "rs"), nu, nv);
+                 return std::make_shared<AshikhminShirley>(rgb(rd, "AshikhminShirley: rd"), rgb(rs, "AshikhminShirley: rs"), nu, nv);
              }),
              py::arg("rd"), py::arg("rs"), py::arg("nu"), py::arg("nv"));
     py::class_<GgxReflection, Bsdf, std::shared_ptr<GgxReflection>>(
         m, "GgxReflection", "GGX reflection; rotation (radians) turns the alpha_x axis from s_u towards s_v about the normal.")
         .def(py::init([](double ax, double ay, const Array& f0, double rotation) {
-                 return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "f0"), rotation);
+                 return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "GgxReflection: f0"), rotation);
              }),
              py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("rotation") = 0.0);
     py::class_<DiffuseGgx, Bsdf, std::shared_ptr<DiffuseGgx>>(m, "DiffuseGgx",
                                                                "Lambertian base under a GGX coat: albedo / pi + GGX.")
         .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0) {
-                 return std::make_shared<DiffuseGgx>(rgb(albedo, "albedo"), ax, ay, rgb(f0, "f0"));
+                 return std::make_shared<DiffuseGgx>(rgb(albedo, "DiffuseGgx: albedo"), ax, ay, rgb(f0, "DiffuseGgx: f0"));
              }),
              py::arg("albedo"), py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"));
     py::class_<SmoothDielectric, Bsdf, std::shared_ptr<SmoothDielectric>>(m, "SmoothDielectric")
@@ -132,7 +132,7 @@ void bind_bsdf(py::module_& m) {
         .def(py::init<double, double, double>(), py::arg("eta"), py::arg("alpha_x"), py::arg("alpha_y"));
 
     py::class_<Emission>(m, "Emission", "Uniform emitted radiance over the front (or both) sides.")
-        .def(py::init([](const Array& radiance, bool two_sided) { return Emission(rgb(radiance, "radiance"), two_sided); }),
+        .def(py::init([](const Array& radiance, bool two_sided) { return Emission(rgb(radiance, "Emission: radiance"), two_sided); }),
              py::arg("radiance"), py::arg("two_sided") = false)
         .def("eval",
              [](const Emission& e, const Array& w) {

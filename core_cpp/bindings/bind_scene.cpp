@@ -22,8 +22,8 @@ std::vector<Vec3> points(const Array& a, size_t n, const char* what) {
     return p;
 }
 
-Vec3 rgb(const Array& a, const char* what) {
-    if (a.size() != 3) throw std::invalid_argument(std::string(what) + " must have 3 values");
+Vec3 rgb(const Array& a, const std::string& what) {
+    if (a.size() != 3) throw std::invalid_argument(what + " must have 3 values");
     return {a.data()[0], a.data()[1], a.data()[2]};
 }
 
@@ -45,8 +45,8 @@ py::object image(const std::shared_ptr<const Texture>& t) {
     return std::move(out);
 }
 
-Material material(const Array& albedo, const Array& emission, std::shared_ptr<const Bsdf> bsdf) {
-    return {rgb(albedo, "albedo"), rgb(emission, "emission"), std::move(bsdf)};
+Material material(const std::string& name, const Array& albedo, const Array& emission, std::shared_ptr<const Bsdf> bsdf) {
+    return {rgb(albedo, "surface '" + name + "': albedo"), rgb(emission, "surface '" + name + "': emission"), std::move(bsdf)};
 }
 
 SurfaceOptions options(const std::string& name, const std::string& representation, int spatial, int angular) {
@@ -80,7 +80,7 @@ void bind_scene(py::module_& m) {
                int spatial_coeffs, int angular_coeffs) {
                 auto p = points(corners, 4, ("surface '" + name + "'").c_str());
                 return s.add(std::make_shared<BilinearPatch>(name, p[0], p[1], p[2], p[3]),
-                             material(albedo, emission, std::move(bsdf)), receiver, occluder,
+                             material(name, albedo, emission, std::move(bsdf)), receiver, occluder,
                              options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("name"), py::arg("corners"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true,
@@ -95,7 +95,7 @@ void bind_scene(py::module_& m) {
                bool receiver, bool occluder, std::shared_ptr<const Bsdf> bsdf, const std::string& representation,
                int spatial_coeffs, int angular_coeffs) {
                 auto p = points(corners, 3, ("surface '" + name + "'").c_str());
-                return s.add(std::make_shared<TrianglePatch>(name, p[0], p[1], p[2]), material(albedo, emission, std::move(bsdf)),
+                return s.add(std::make_shared<TrianglePatch>(name, p[0], p[1], p[2]), material(name, albedo, emission, std::move(bsdf)),
                              receiver, occluder, options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("name"), py::arg("corners"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true,
@@ -106,8 +106,9 @@ void bind_scene(py::module_& m) {
             [](Scene& s, const std::string& name, const Array& center, const Array& axis_a, const Array& axis_b,
                const Array& albedo, const Array& emission, bool receiver, bool occluder, std::shared_ptr<const Bsdf> bsdf,
                const std::string& representation, int spatial_coeffs, int angular_coeffs) {
-                return s.add(std::make_shared<DiskPatch>(name, rgb(center, "center"), rgb(axis_a, "axis_a"), rgb(axis_b, "axis_b")),
-                             material(albedo, emission, std::move(bsdf)), receiver, occluder,
+                return s.add(std::make_shared<DiskPatch>(name, rgb(center, "surface '" + name + "': center"), rgb(axis_a, "surface '" + name + "': axis_a"),
+                                                        rgb(axis_b, "surface '" + name + "': axis_b")),
+                             material(name, albedo, emission, std::move(bsdf)), receiver, occluder,
                              options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("name"), py::arg("center"), py::arg("axis_a"), py::arg("axis_b"), py::arg("albedo"), py::arg("emission"),
@@ -120,7 +121,7 @@ void bind_scene(py::module_& m) {
                bool occluder, std::shared_ptr<const Bsdf> bsdf, const std::string& representation, int spatial_coeffs,
                int angular_coeffs, std::optional<double> thin_glass, bool one_interface, std::optional<double> shadow) {
                 const std::string name = surface ? surface->name() : "";
-                Material m = material(albedo, emission, std::move(bsdf));
+                Material m = material(name, albedo, emission, std::move(bsdf));
                 if (thin_glass) {
                     if (shadow && !(*shadow >= 0)) throw std::invalid_argument("surface '" + name + "': shadow_transmittance must be >= 0");
                     m.thin_glass = ThinGlass{*thin_glass, one_interface, shadow ? *shadow : -1.0};
@@ -177,7 +178,8 @@ void bind_scene(py::module_& m) {
         .def(
             "set_spot_cone",
             [](Scene& s, size_t i, const Array& axis, double spot_size, double blend) {
-                s.set_spot_cone(i, rgb(axis, "axis"), spot_size, blend);
+                if (i >= s.size()) throw py::index_error("set_spot_cone: no surface " + std::to_string(i));
+                s.set_spot_cone(i, rgb(axis, "spot light '" + s[i].surface->name() + "': axis"), spot_size, blend);
             },
             py::arg("index"), py::arg("axis"), py::arg("spot_size"), py::arg("blend") = 0.0,
             "Limits emitter `index`'s light to a cone of full angle `spot_size` (radians) around `axis`, "
@@ -205,7 +207,8 @@ void bind_scene(py::module_& m) {
         .def(
             "add_distant_light",
             [](Scene& s, const std::string& name, const Array& direction, const Array& irradiance, double angle) {
-                s.add_distant_light({name, rgb(direction, "direction"), rgb(irradiance, "irradiance"), angle});
+                const std::string what = "distant light '" + name + "': ";
+                s.add_distant_light({name, rgb(direction, what + "direction"), rgb(irradiance, what + "irradiance"), angle});
             },
             py::arg("name"), py::arg("direction"), py::arg("irradiance"), py::arg("angle") = 0.0,
             "A light at infinity (a sun): RGB `irradiance` on a surface facing it, from a disc of angular diameter "
@@ -229,8 +232,14 @@ void bind_scene(py::module_& m) {
                 return std::const_pointer_cast<Surface>(s[i].surface);
             },
             py::arg("i"), "Surface i as the scene holds it (e.g. for a RayCaster whose ids are scene indices).")
-        .def("name", [](const Scene& s, size_t i) { return s[i].surface->name(); })
-        .def("area", [](const Scene& s, size_t i) { return s[i].surface->area(); })
+        .def("name", [](const Scene& s, size_t i) {
+            if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+            return s[i].surface->name();
+        })
+        .def("area", [](const Scene& s, size_t i) {
+            if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+            return s[i].surface->area();
+        })
         .def(
             "evaluate_surface",
             [](const Scene& s, size_t i, double u, double v) {

@@ -144,7 +144,7 @@ void bind_spline(py::module_& m) {
                 for (size_t i = 0; i < n; ++i) h.to_disc(p[3 * i], p[3 * i + 1], p[3 * i + 2], out.mutable_data() + 2 * i);
                 return out;
             },
-            py::arg("directions"), "(N, 3) local directions (any positive length) -> (N, 2) (alpha, beta).")
+            py::arg("directions"), "(N, 3) local directions (any length from 1e-150 to 1e150; others give NaN) -> (N, 2) (alpha, beta).")
         .def(
             "angles",
             [](const HemisphereMap& h, const Array& ab) {

@@ -14,7 +14,8 @@ void check_alpha(double a) {
 }
 
 void check_eta(double eta) {
-    if (!std::isfinite(eta) || eta <= 0 || eta > 10) throw std::invalid_argument("dielectric eta must be in (0, 10]");
+    // Below 0.01 the relative index's square (eta^2 in the transmitted weight) leaves double range.
+    if (!std::isfinite(eta) || eta < 0.01 || eta > 10) throw std::invalid_argument("dielectric eta must be in [0.01, 10]");
 }
 
 Vec3 mirror_z(const Vec3& w) { return {w.x, w.y, -w.z}; }

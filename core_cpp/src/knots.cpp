@@ -1,7 +1,9 @@
 #include "bsgi/knots.h"
+#include "bsgi/memory_budget.h"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <sstream>
 #include <stdexcept>
 
@@ -22,6 +24,13 @@ void check_coeffs(int num_coeffs, int degree) {
         msg << "degree " << degree << " needs at least " << degree + 1 << " coefficients, got " << num_coeffs;
         fail(msg.str());
     }
+}
+
+// A generated knot vector's knots and per-span polynomial tables, checked against the memory
+// budget before they are built (a count near INT_MAX would otherwise take minutes and gigabytes).
+void check_size(int num_coeffs, int degree) {
+    check_memory_budget("knot vector of " + std::to_string(num_coeffs) + " coefficients",
+                        {size_t(num_coeffs) + size_t(degree) + 1, size_t(degree + 1) * size_t(degree + 1) + 1}, sizeof(double));
 }
 
 // Polynomials in s as coefficient arrays of length kMaxDegree + 1 (lowest power first).
@@ -72,6 +81,14 @@ void KnotVector::validate() const {
                 << knots_[i - 1] << ")";
             fail(msg.str());
         }
+        // A span whose width or inverse width overflows would give NaN basis functions.
+        const double w = knots_[i] - knots_[i - 1];
+        if (w > 0 && !(std::isfinite(w) && std::isfinite(1.0 / w))) {
+            std::ostringstream msg;
+            msg << "knot span [" << knots_[i - 1] << ", " << knots_[i] << "] is too " << (std::isfinite(w) ? "narrow" : "wide")
+                << " for double precision";
+            fail(msg.str());
+        }
         run = knots_[i] == knots_[i - 1] ? run + 1 : 1;
         if (run > degree_ + 1) {
             std::ostringstream msg;
@@ -113,7 +130,11 @@ void KnotVector::precompute() {
         }
         double* table = &span_poly_[size_t(I - d) * P * P];
         for (int k = 0; k < P; ++k)
-            for (int j = 0; j < P; ++j) table[k * P + j] = N[j].c[k];
+            for (int j = 0; j < P; ++j) {
+                if (!std::isfinite(N[j].c[k])) fail("knot spans around [" + std::to_string(tI) + ", " + std::to_string(tI + w) +
+                                                    "] differ too much in width for double precision");
+                table[k * P + j] = N[j].c[k];
+            }
     }
 
     // Equal spans over the whole domain (no empty span inside it) allow span = floor((x - a) / h).
@@ -132,6 +153,7 @@ void KnotVector::precompute() {
 KnotVector KnotVector::clamped_uniform(int num_coeffs, int degree, double a, double b) {
     check_degree(degree);
     check_coeffs(num_coeffs, degree);
+    check_size(num_coeffs, degree);
     if (!(std::isfinite(a) && std::isfinite(b) && b > a)) fail("domain [a, b] needs finite a < b");
     const int inner = num_coeffs - degree - 1;
     const double h = (b - a) / (inner + 1);
@@ -147,12 +169,13 @@ KnotVector KnotVector::symmetric(int num_coeffs, int degree, double R) {
     if (!(R > 0 && std::isfinite(R))) fail("symmetric knots on [-R, R] need R > 0");
     check_degree(degree);
     check_coeffs(num_coeffs, degree);
+    check_size(num_coeffs, degree);
     // Knot i is (2i - (m+1)) R / (m+1): an integer times one constant, so exactly symmetric about 0.
     const int inner = num_coeffs - degree - 1;
     const double step = R / (inner + 1);
     std::vector<double> t;
     for (int i = 0; i <= degree; ++i) t.push_back(-R);
-    for (int i = 1; i <= inner; ++i) t.push_back((2 * i - (inner + 1)) * step);
+    for (int i = 1; i <= inner; ++i) t.push_back(double(2 * int64_t(i) - (inner + 1)) * step);
     for (int i = 0; i <= degree; ++i) t.push_back(R);
     return KnotVector(std::move(t), degree);
 }
@@ -221,10 +244,14 @@ std::vector<double> KnotVector::schoenberg_nodes() const {
     for (int i = 0; i < num_coeffs_; ++i) {
         double s = 0;
         if (degree_ == 0) {
-            s = 0.5 * (knots_[i] + knots_[i + 1]);
+            s = 0.5 * knots_[i] + 0.5 * knots_[i + 1];
         } else {
             for (int k = 1; k <= degree_; ++k) s += knots_[i + k];
             s /= degree_;
+            if (!std::isfinite(s)) {  // the sum of knots near the largest double overflows
+                s = 0;
+                for (int k = 1; k <= degree_; ++k) s += knots_[i + k] / degree_;
+            }
         }
         nodes[i] = periodic_ ? to_domain(s) : s;
     }

@@ -33,16 +33,22 @@ void validate(const SolverSettings& s) {
     need(s.angular_delta >= 0 && s.angular_delta < 1.5, "angular_delta must be in [0, 1.5)");
     need(s.angular_resolution > 0, "angular_resolution must be > 0");
     need(s.emitter_coeffs >= s.emitter_degree + 1, "emitter_coeffs must be at least emitter_degree + 1");
+    // Upper bounds on the work per integral: far beyond any preset, short of a solve that never
+    // ends (emitter_coeffs = 10^6 is 10^12 nodes per emitter cell) or of int overflow.
+    need(s.emitter_coeffs <= 64, "emitter_coeffs must be at most 64");
+    need(s.spatial_coeffs <= 4096 && s.angular_coeffs_max <= 4096, "spatial_coeffs and angular_coeffs_max must be at most 4096");
     need(s.emitter_degree >= 0 && s.emitter_degree <= 3, "emitter_degree must be in 0..3");
     need(s.emitter_max_depth >= 0 && s.emitter_max_depth <= 20, "emitter_max_depth must be in 0..20");
     need(s.emitter_cell_ratio > 0, "emitter_cell_ratio must be > 0");
     need(s.hemisphere_nodes_theta >= 1 && s.hemisphere_nodes_phi >= 1, "hemisphere nodes must be >= 1");
-    need(s.bsdf_samples >= 0, "bsdf_samples must be >= 0");
+    need(s.hemisphere_nodes_theta <= 1024 && s.hemisphere_nodes_phi <= 1024, "hemisphere nodes must be at most 1024");
+    need(s.bsdf_samples >= 0 && s.bsdf_samples <= 4096, "bsdf_samples must be in 0..4096");
     need(s.world_bright_factor > 1, "world_bright_factor must be > 1");
     need(s.world_bright_samples >= 1, "world_bright_samples must be >= 1");
     need(s.max_bounces >= 0, "max_bounces must be >= 0");
     need(s.tolerance >= 0, "tolerance must be >= 0");
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");
+    need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
     need(s.memory_budget_mb > 0, "memory_budget_mb must be > 0");
 }
 
@@ -500,6 +506,7 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
 }  // namespace
 
 size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
+    validate(settings);  // the plan's arithmetic assumes valid settings (UBSan found an int overflow)
     const RayCaster caster = ray_caster_of(scene);
     return estimate_bytes(scene, settings, probe_sides(scene, caster, settings));
 }

@@ -26,8 +26,12 @@ def spline_from_arrays(arrays) -> _core.TensorSpline:
     degrees = [int(d) for d in np.asarray(arrays["degrees"])]
     axes = [_core.KnotVector(np.asarray(arrays[f"knots{k}"], np.float64), d) for k, d in enumerate(degrees)]
     coefficients = np.asarray(arrays["coefficients"], np.float64)
+    if coefficients.ndim != len(axes) + 1:
+        raise ValueError(f"spline arrays: coefficients of shape {coefficients.shape} for {len(axes)} axes and channels")
     spline = _core.TensorSpline(axes, coefficients.shape[-1])
-    spline.coefficients = coefficients.reshape(spline.coefficients.shape)
+    if coefficients.shape != tuple(spline.shape):
+        raise ValueError(f"spline arrays: coefficients of shape {coefficients.shape}, the knots give {tuple(spline.shape)}")
+    spline.coefficients = coefficients
     return spline
 
 
@@ -94,29 +98,88 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
 
 
 def load_solution(path) -> StoredSolution:
-    """Read a file written by save_solution."""
-    with np.load(path) as data:
+    """Read a file written by save_solution. Anything else (another file, a truncated or corrupted
+    one, another format version, splines that are not valid) raises ValueError naming the file
+    and the problem; a file that cannot be opened raises the OSError of opening it."""
+    try:
+        return _read_solution(path)
+    except (FileNotFoundError, IsADirectoryError, PermissionError):
+        raise
+    except _Refused as error:
+        raise ValueError(f"{path}: {error}") from None
+    except Exception as error:  # zip, zlib, npy, JSON or shape errors of a damaged file
+        raise ValueError(f"{path}: not a readable bsgi solution file ({type(error).__name__}: {error})") from error
+
+
+class _Refused(Exception):
+    """A problem of a readable file's content, said in the file's terms."""
+
+
+def _read_solution(path) -> StoredSolution:
+    with np.load(path, allow_pickle=False) as data:
+        if "meta" not in data.files:
+            raise _Refused("not a bsgi solution file (no 'meta' record)")
         meta = json.loads(bytes(data["meta"]).decode())
-        if meta.get("format") != FORMAT:
-            raise ValueError(f"{path}: not a bsgi solution file (format {meta.get('format')!r})")
+        if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+            found = meta.get("format") if isinstance(meta, dict) else None
+            raise _Refused(f"not a bsgi solution file of this version (format {found!r}, expected {FORMAT!r})")
+        names, solved = meta.get("names"), meta.get("solved")
+        kinds, radii = meta.get("kinds"), meta.get("disc_radii")
+        if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+            raise _Refused("'names' must be a list of surface names")
+        for key, value in (("solved", solved), ("kinds", kinds), ("disc_radii", radii)):
+            if not (isinstance(value, list) and len(value) == len(names)):
+                raise _Refused(f"'{key}' must be a list of one entry per surface ({len(names)})")
+        if not isinstance(meta.get("settings", {}), dict) or not isinstance(meta.get("stats", {}), dict):
+            raise _Refused("'settings' and 'stats' must be records")
         radiance, surfaces = [], []
         two_sided = meta.get("two_sided_emission")  # absent in files from before two-sided emission
-        for i, solved in enumerate(meta["solved"]):
-            if not solved:
+        if two_sided is not None and not (isinstance(two_sided, list) and len(two_sided) == len(names)):
+            raise _Refused(f"'two_sided_emission' must be a list of one entry per surface ({len(names)})")
+        for i, is_solved in enumerate(solved):
+            if not is_solved:
                 radiance.append(None)
                 surfaces.append(None)
                 continue
-            sides = {}
-            for side in ("upper", "lower", "diffuse", "lower_diffuse"):
-                prefix = f"surface{i}/{side}/"
-                found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
-                sides[side] = spline_from_arrays(found) if found else None
-            radiance.append(sides["upper"])
-            radius = meta["disc_radii"][i]
-            textures = {t: data[f"surface{i}/{t}"] if f"surface{i}/{t}" in data.files else None
-                        for t in ("albedo", "emission")}
-            surfaces.append(_core.SurfaceRadiance(meta["kinds"][i], radius if radius is not None else 1.0,
-                                                  sides["upper"], sides["lower"], sides["diffuse"],
-                                                  sides["lower_diffuse"], **textures,
-                                                  two_sided_emission=bool(two_sided[i]) if two_sided else False))
-    return StoredSolution(radiance, surfaces, meta["names"], settings_from_dict(meta["settings"]), meta["stats"])
+            try:
+                surface = _read_surface(data, i, kinds[i], radii[i], bool(two_sided[i]) if two_sided else False)
+            except _Refused as error:
+                raise _Refused(f"surface '{names[i]}': {error}") from None
+            except ValueError as error:  # the core's refusal of the knots, shapes or textures
+                raise _Refused(f"surface '{names[i]}': {error}") from None
+            radiance.append(surface.upper)
+            surfaces.append(surface)
+        settings = settings_from_dict(meta.get("settings", {}))
+    return StoredSolution(radiance, surfaces, names, settings, meta.get("stats", {}))
+
+
+def _read_surface(data, i: int, kind, radius, two_sided_emission: bool) -> _core.SurfaceRadiance:
+    sides = {}
+    for side in ("upper", "lower", "diffuse", "lower_diffuse"):
+        prefix = f"surface{i}/{side}/"
+        found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
+        if not found:
+            sides[side] = None
+            continue
+        for key in ("degrees", "coefficients"):
+            if key not in found:
+                raise _Refused(f"{side} spline has no '{key}'")
+        degrees = np.asarray(found["degrees"])
+        if degrees.ndim != 1 or not np.issubdtype(degrees.dtype, np.integer):
+            raise _Refused(f"{side} spline: 'degrees' must be a list of integers")
+        if any(f"knots{k}" not in found for k in range(len(degrees))):
+            raise _Refused(f"{side} spline: needs knots of each of its {len(degrees)} axes")
+        coefficients = np.asarray(found["coefficients"])
+        if coefficients.dtype.kind != "f" or not np.isfinite(coefficients).all():
+            raise _Refused(f"{side} spline: coefficients must be finite numbers")
+        sides[side] = spline_from_arrays(found)
+    if sides["upper"] is None:
+        raise _Refused("solved but no upper spline")
+    if not (radius is None or (isinstance(radius, (int, float)) and not isinstance(radius, bool))):
+        raise _Refused(f"disc radius {radius!r} is not a number")
+    if not isinstance(kind, str):
+        raise _Refused(f"kind {kind!r} is not a name")
+    textures = {t: data[f"surface{i}/{t}"] if f"surface{i}/{t}" in data.files else None for t in ("albedo", "emission")}
+    return _core.SurfaceRadiance(kind, radius if radius is not None else 1.0, sides["upper"], sides["lower"],
+                                 sides["diffuse"], sides["lower_diffuse"], **textures,
+                                 two_sided_emission=two_sided_emission)
