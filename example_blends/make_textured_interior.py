@@ -136,28 +136,29 @@ def uv_sphere_mesh(name, radius, segments, rings):
     return mesh
 
 
+def textured_material(name, texture_type):
+    """A Principled BSDF whose Base Color is a new texture node of that type; returns both."""
+    m = principled_material(name, (0.8, 0.8, 0.8), Roughness=1.0)
+    bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    texture = m.node_tree.nodes.new(texture_type)
+    m.node_tree.links.new(texture.outputs["Color"], bsdf.inputs["Base Color"])
+    return m, texture
+
+
 def checker_material():
-    """A Principled BSDF whose Base Color is a Checker Texture over the floor's UVs."""
-    m = principled_material("Checker Floor", (0.8, 0.8, 0.8), Roughness=1.0)
-    nodes, links = m.node_tree.nodes, m.node_tree.links
-    bsdf = next(n for n in nodes if n.type == "BSDF_PRINCIPLED")
-    checker = nodes.new("ShaderNodeTexChecker")
+    """A Checker Texture over the floor's UVs."""
+    m, checker = textured_material("Checker Floor", "ShaderNodeTexChecker")
     checker.inputs["Color1"].default_value = (0.75, 0.72, 0.68, 1)
     checker.inputs["Color2"].default_value = (0.12, 0.1, 0.09, 1)
     checker.inputs["Scale"].default_value = 8.0
-    coords = nodes.new("ShaderNodeTexCoord")
-    links.new(coords.outputs["UV"], checker.inputs["Vector"])
-    links.new(checker.outputs["Color"], bsdf.inputs["Base Color"])
+    coords = m.node_tree.nodes.new("ShaderNodeTexCoord")
+    m.node_tree.links.new(coords.outputs["UV"], checker.inputs["Vector"])
     return m
 
 
 def painting_material():
-    m = principled_material("Painting", (0.8, 0.8, 0.8), Roughness=1.0)
-    nodes, links = m.node_tree.nodes, m.node_tree.links
-    bsdf = next(n for n in nodes if n.type == "BSDF_PRINCIPLED")
-    texture = nodes.new("ShaderNodeTexImage")
+    m, texture = textured_material("Painting", "ShaderNodeTexImage")
     texture.image = bpy.data.images.load(str(PAINTING), check_existing=True)
-    links.new(texture.outputs["Color"], bsdf.inputs["Base Color"])
     return m
 
 
