@@ -24,14 +24,22 @@ PYTHON313  ?= $(shell for p in python3.13 $(HOME)/.pyenv/versions/3.13*/bin/pyth
 VENV313    ?= .venv313
 PACKAGING_TOOLS := tools/build_wheel.py tools/isolate_embree.py tools/requirements-wheel.txt
 VERSION    := $(shell sed -n 's/^version = "\(.*\)"/\1/p' pyproject.toml)
+# Python 3.13 builds the extension for Blender 5.1+; without it (a stock Debian 12) those packaging
+# steps and their tests are skipped, with a message.
+ifeq ($(strip $(PYTHON313)),)
+EXTENSIONS := dist/bsgi-$(VERSION)-linux-x64-py311.zip
+SKIP_PY313 := 1
+else
 EXTENSIONS := dist/bsgi-$(VERSION)-linux-x64-py311.zip dist/bsgi-$(VERSION)-linux-x64-py313.zip
+SKIP_PY313 := 0
+endif
 CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name '*.pyi' -o -name CMakeLists.txt \)) pyproject.toml
 
 .PHONY: test test-sanitize fuzz-long test-fast demo bench study apt venv venv313 build wheels extension clean
 
 # The packaging tests (slow) install the extension zips, on Python 3.11 (.venv) and 3.13 ($(VENV313)).
 test: build extension venv313
-	$(PY) -m pytest $(PYTEST_ARGS)
+	BSGI_SKIP_PY313=$(SKIP_PY313) $(PY) -m pytest $(PYTEST_ARGS)
 	$(MAKE) test-sanitize
 
 # The core with -fsanitize=address,undefined in build/sanitize, preloaded into .venv's Python
@@ -99,7 +107,12 @@ build/wheelenv-%/.stamp: tools/requirements-wheel.txt | $(VENV)/.apt-stamp
 	build/wheelenv-$*/bin/python -m pip install -q -r tools/requirements-wheel.txt
 	touch $@
 
+ifeq ($(SKIP_PY313),1)
+venv313:
+	@echo "no python3.13 found: skipping the Python 3.13 packaging steps (the extension for Blender 5.1+ and its tests)"
+else
 venv313: $(VENV313)/.deps-stamp
+endif
 $(VENV313)/.deps-stamp: requirements-py313.txt | $(VENV)/.apt-stamp
 	@py="$(PYTHON313)"; [ -n "$$py" ] || { echo "no python3.13 found (pyenv)"; exit 1; }; \
 	[ -x $(VENV313)/bin/python ] || "$$py" -m venv $(VENV313)
