@@ -88,7 +88,7 @@ class Light:
 
 
 def describe(material) -> Material:
-    from bsgi_addon.export import describe_material
+    from bsgi_addon.materials import describe_material
 
     d = describe_material(material, [])
     return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation)
@@ -111,7 +111,7 @@ def default_tangents(world, triangles, radial):
 
 def object_meshes(context) -> list:
     """Every visible geometry object as triangles (the evaluated mesh, as Cycles sees it)."""
-    from bsgi_addon.export import GEOMETRY_TYPES
+    from bsgi_addon.geometry import GEOMETRY_TYPES
     from bsgi_addon.tangents import RadialTangent
 
     depsgraph = context.evaluated_depsgraph_get()

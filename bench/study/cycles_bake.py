@@ -32,7 +32,7 @@ def bake_objects(context):
     (refined) tessellation, as a user must do to bake them."""
     import bpy
 
-    from bsgi_addon.export import GEOMETRY_TYPES
+    from bsgi_addon.geometry import GEOMETRY_TYPES
 
     out = {}
     for obj in list(context.scene.objects):
