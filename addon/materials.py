@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from contextlib import contextmanager
+from functools import lru_cache
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -413,15 +414,18 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
     # Cycles layers the specular lobe over the diffuse base, which gets the energy the lobe leaves:
     # albedo = base (1 - E) + E, E the lobe's hemispherical albedo (a rough lobe reflects far less
     # than its f0: roughness 1 leaves 0.016 of f0 0.04).
-    lobe = layer_albedo(described.specular, described.roughness)
+    lobe = layer_albedo(tuple(described.specular), described.roughness)
     albedo = tuple(min(1.0, max(0.0, a * (1 - e) + e)) for a, e in zip(described.albedo, lobe))
     # Cycles' diffuse-colour pass (textures.py bakes it) is the base seen along the normal, under
     # the lobe's albedo in that direction.
-    seen = layer_albedo(described.specular, described.roughness, normal_only=True)
+    seen = layer_albedo(tuple(described.specular), described.roughness, normal_only=True)
     return SolverMaterial(albedo, described.emission, specular=lobe, pass_weight=tuple(1 - e for e in seen))
 
 
-def layer_albedo(f0, roughness: float, normal_only: bool = False, nodes: int = 24) -> tuple:
+# Every object's slots are described anew (solver_material per object): the same few materials
+# would integrate their lobe once per object, a few milliseconds each, without the cache.
+@lru_cache(maxsize=1024)
+def layer_albedo(f0: tuple, roughness: float, normal_only: bool = False, nodes: int = 24) -> tuple:
     """The albedo, per channel, of a GGX reflection lobe of reflectance f0 at normal incidence and
     Blender's roughness (alpha = roughness^2), as the core's GgxReflection gives it: hemispherical,
     2 * integral of E(mu) mu dmu with E(mu) its directional albedo (or E(1) with normal_only), by a
