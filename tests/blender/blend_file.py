@@ -7,7 +7,9 @@ the sequencer made; the sharing handles of shared arrays, memory addresses), the
 (stand-ins numbered in the order of writing, so a block written and removed earlier renumbers
 all later ones; shared arrays keep their memory address) and the order of some blocks.
 canonical() clears the runtime fields, replaces each pointer by a digest of the block it points
-to, and sorts the blocks; everything else is compared byte for byte.
+to (pointers are the members the file's SDNA declares as such; Blender 5 numbers each ID's data
+blocks on its own, so a pointer is looked up among its own ID's blocks first), and sorts the
+blocks; everything else is compared byte for byte.
 """
 from __future__ import annotations
 
@@ -69,11 +71,12 @@ def _sdna(body: bytes) -> tuple:
     return order, fields, dict(zip(types, sizes))
 
 
-def _runtime_ranges(fields: dict, sizes: dict, struct_name: str, cache: dict) -> list:
-    """(offset, size) of the runtime members of a struct, nested structs included."""
+def _members(fields: dict, sizes: dict, struct_name: str, cache: dict) -> tuple:
+    """(runtime ranges, pointer offsets) of a struct, nested structs included: the runtime
+    members (offset, size), and the offset of every pointer member as the SDNA declares it."""
     if struct_name in cache:
         return cache[struct_name]
-    ranges, offset = [], 0
+    runtime, pointers, offset = [], [], 0
     for kind, name in fields.get(struct_name, []):
         pointer = name.startswith(("*", "(*"))
         size = 8 if pointer else sizes[kind]
@@ -83,48 +86,73 @@ def _runtime_ranges(fields: dict, sizes: dict, struct_name: str, cache: dict) ->
         # Runtime members, and the sharing handles of shared arrays (memory addresses).
         if name.lstrip("*_") == "runtime" or kind.endswith(("Runtime", "SharingInfoHandle")) or \
                 name == "recalc_after_undo_push":
-            ranges.append((offset, size * count))
-        elif not pointer and kind in fields:
-            inner = _runtime_ranges(fields, sizes, kind, cache)
-            ranges += [(offset + k * size + at, n) for k in range(count) for at, n in inner]
+            runtime.append((offset, size * count))
+        elif pointer:
+            pointers += [offset + 8 * k for k in range(count)]
+        elif kind in fields:
+            inner_runtime, inner_pointers = _members(fields, sizes, kind, cache)
+            for k in range(count):
+                runtime += [(offset + k * size + at, n) for at, n in inner_runtime]
+                pointers += [offset + k * size + at for at in inner_pointers]
         offset += size * count
-    cache[struct_name] = ranges
-    return ranges
+    cache[struct_name] = (runtime, pointers)
+    return cache[struct_name]
 
 
 def canonical(data: bytes) -> list:
     """The blocks, sorted, with runtime members cleared and each pointer replaced by a digest of
     the block it points to (its type and bytes, its own pointers zeroed): equal for two saves of
-    the same data, whatever order or addresses Blender wrote them in."""
+    the same data, whatever order or addresses Blender wrote them in. A pointer to a block the
+    file does not hold is 'loose', whatever its value.
+
+    Blender 5 numbers the data blocks of each ID on its own (the same stand-in can name a block
+    of another mesh): a pointer names a data block of its own ID, or an ID."""
     items = blocks(data)
     order, fields, sizes = _sdna(next(body for code, *_, body in items if code == "DNA1"))
     cache: dict = {}
     base = max((old >> 32 for _, _, old, _, _ in items if old), key=[old >> 32 for *_, old, _, _ in items].count)
-    targets = {old for _, _, old, _, _ in items if old}
+    owners, owner = [], -1  # the index of the ID block each block belongs to
+    for index, (code, *_rest) in enumerate(items):
+        if code != "DATA":
+            owner = index
+        owners.append(owner)
+    local = {(owners[i], old) for i, (code, _, old, _, _) in enumerate(items) if old and code == "DATA"}
+    ids = {old for code, _, old, _, _ in items if old and code != "DATA"}
     cleared = []
-    for code, sdna, old, count, body in items:
+    for (code, sdna, old, count, body), scope in zip(items, owners):
         body = bytearray(body)
         kind = order[sdna] if sdna < len(order) else str(sdna)
-        if code not in {"DNA1", "TEST", "REND", "ENDB"}:
-            stride = sizes.get(kind, 0)
-            for k in range(count if stride and stride * count == len(body) else 0):
-                for at, n in _runtime_ranges(fields, sizes, kind, cache):
-                    body[k * stride + at:k * stride + at + n] = bytes(n)
+        stride = sizes.get(kind, 0) if code not in {"DNA1", "TEST", "REND", "ENDB"} else 0
         pointers = []
-        if code not in {"DNA1", "TEST"}:
+        if stride and kind in fields and stride * count == len(body):
+            # A typed block: the SDNA says which members are runtime and which are pointers.
+            runtime, offsets = _members(fields, sizes, kind, cache)
+            for k in range(count):
+                for at, n in runtime:
+                    body[k * stride + at:k * stride + at + n] = bytes(n)
+                for at in offsets:
+                    at += k * stride
+                    pointers.append((at, int.from_bytes(body[at:at + 8], "little")))
+                    body[at:at + 8] = bytes(8)
+        elif code not in {"DNA1", "TEST"}:
+            # Raw data (arrays of pointers among them): a word is a pointer if it names a block
+            # or looks like the file's stand-ins.
             for at in range(0, len(body) - 7, 8):
                 word = int.from_bytes(body[at:at + 8], "little")
-                if word in targets or word >> 32 == base:
+                if (scope, word) in local or word in ids or word >> 32 == base:
                     pointers.append((at, word))
                     body[at:at + 8] = bytes(8)
-        cleared.append((code, kind, old, count, bytes(body), pointers))
-    digest = {old: hashlib.sha1(f"{code}{kind}{count}".encode() + body).digest()[:8]
-              for code, kind, old, count, body, _ in cleared if old}
+        cleared.append((code, kind, old, count, stride, bytes(body), pointers, scope))
+    digest = {}
+    for code, kind, old, count, _, body, _, scope in cleared:
+        if old:
+            digest[(scope, old) if code == "DATA" else old] = hashlib.sha1(f"{code}{kind}{count}".encode() + body).digest()[:8]
     out = []
-    for code, kind, old, count, body, pointers in cleared:
+    for code, kind, old, count, _, body, pointers, scope in cleared:
         body = bytearray(body)
         for at, word in pointers:
-            body[at:at + 8] = digest.get(word, b"loose\0\0\0")
+            if word:
+                body[at:at + 8] = digest.get((scope, word), digest.get(word, b"loose\0\0\0"))
         out.append((code, kind, count, bytes(body)))
     return sorted(out)
 
@@ -140,3 +168,32 @@ def differences(a: bytes, b: bytes, limit: int = 8) -> list:
     found = [f"{k[0]} {k[1]} only before ({len(k[3])} bytes)" for k in only_a]
     found += [f"{k[0]} {k[1]} only after ({len(k[3])} bytes)" for k in only_b]
     return found[:limit]
+
+
+def explain(a: bytes, b: bytes, limit: int = 4) -> list:
+    """For blocks that differ (canonically) between two saves, pairs of the same type and size:
+    the struct members at the differing bytes, with both values, to trace what changed."""
+    ca, cb = canonical(a), canonical(b)
+    only_a = list((Counter(ca) - Counter(cb)).elements())
+    only_b = list((Counter(cb) - Counter(ca)).elements())
+    order, fields, sizes = _sdna(next(body for code, *_, body in blocks(a) if code == "DNA1"))
+    out = []
+    for x in only_a[:limit]:
+        for y in only_b:
+            if x[:3] != y[:3] or len(x[3]) != len(y[3]):
+                continue
+            stride = sizes.get(x[1], 0) or len(x[3])
+            members, offset = [], 0
+            for kind, name in fields.get(x[1], []):
+                size = 8 if name.startswith(("*", "(*")) else sizes[kind]
+                for extent in re.findall(r"\[(\d+)\]", name):
+                    size *= int(extent)
+                members.append((offset, size, name))
+                offset += size
+            for at in range(len(x[3])):
+                if x[3][at] != y[3][at]:
+                    k, rel = divmod(at, stride)
+                    name = next((n for o, s, n in members if o <= rel < o + s), "?")
+                    out.append(f"{x[1]}[{k}].{name} @{rel}: {x[3][at]:#04x} -> {y[3][at]:#04x}")
+            break
+    return out[:64]
