@@ -14,6 +14,9 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from shapes import box_quads, rectangle  # noqa: E402,F401  (re-exported for the make_*.py scripts)
+
 HERE = pathlib.Path(__file__).resolve().parent
 # Weight of the corner points of a rational quadratic arc of 90 degrees (Blender's NURBS circle).
 CORNER_WEIGHT = math.sqrt(0.5)
@@ -71,31 +74,6 @@ def quad_object(name, quads, materials, material_of_quad):
         poly.material_index = k
     mesh.update()
     return link(bpy.data.objects.new(name, mesh))
-
-
-def rectangle(cx, cy, z, sx, sy):
-    """Corners of an axis-aligned rectangle at height z, facing +z."""
-    a, b = sx / 2, sy / 2
-    return [(cx - a, cy - b, z), (cx + a, cy - b, z), (cx + a, cy + b, z), (cx - a, cy + b, z)]
-
-
-def box_quads(cx, cy, sx, sy, h, angle, z0=0.0):
-    """A closed box standing at height z0, rotated by angle about z, outward normals."""
-    c, s = math.cos(angle), math.sin(angle)
-
-    def p(x, y, z):
-        return (cx + c * x - s * y, cy + s * x + c * y, z0 + z)
-
-    a, b = sx / 2, sy / 2
-    bottom = [p(-a, -b, 0), p(-a, b, 0), p(a, b, 0), p(a, -b, 0)]
-    top = [p(-a, -b, h), p(a, -b, h), p(a, b, h), p(-a, b, h)]
-    sides = [
-        [p(-a, -b, 0), p(a, -b, 0), p(a, -b, h), p(-a, -b, h)],
-        [p(a, -b, 0), p(a, b, 0), p(a, b, h), p(a, -b, h)],
-        [p(a, b, 0), p(-a, b, 0), p(-a, b, h), p(a, b, h)],
-        [p(-a, b, 0), p(-a, -b, 0), p(-a, -b, h), p(-a, b, h)],
-    ]
-    return [bottom, top] + sides
 
 
 def nurbs_object(name, points, order_u, order_v, material=None, *, endpoint=(True, True), bezier=(False, False),
