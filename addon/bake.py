@@ -33,6 +33,8 @@ PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay w
 # The splines of a SurfaceRadiance, in its constructor's order (bakes before two-sided surfaces
 # stored the first three).
 SIDES = ("upper", "lower", "diffuse", "lower_diffuse")
+# The textures of a SurfaceRadiance (bakes before textured glossy colour stored the first two).
+TEXTURES = ("albedo", "emission", "specular")
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
 # Largest radiance atlas per object, in texels (256 MiB of float RGBA): past it the angular
@@ -47,8 +49,8 @@ def tile_size(radiance) -> int:
 
 
 def _texture_side(radiance) -> int:
-    """The larger side of a textured surface's albedo or emission texture (0 without)."""
-    images = [getattr(radiance, t, None) for t in ("albedo", "emission")]
+    """The larger side of a textured surface's albedo, specular or emission texture (0 without)."""
+    images = [getattr(radiance, t, None) for t in TEXTURES]
     return max((max(i.shape[:2]) for i in images if i is not None), default=0)
 
 
@@ -123,7 +125,10 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
             continue
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
-        out += spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+        glossy = spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+        # A textured glossy colour: the 4D spline holds the radiance per unit colour, the texture its detail.
+        specular = getattr(radiance, "specular", None)
+        out += glossy if specular is None else glossy * texture_at(specular, uv)[None]
     emission = None if lower and not getattr(radiance, "two_sided_emission", False) else getattr(radiance, "emission", None)
     if emission is not None:
         out += texture_at(emission, uv)[None]
@@ -495,7 +500,7 @@ def _store_splines(obj, faces) -> None:
                         arrays = bsgi.spline_to_arrays(spline)
                         arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
                         entry[side] = arrays
-                for texture in ("albedo", "emission"):
+                for texture in TEXTURES:
                     image = getattr(r, texture)
                     if image is not None:  # float32 texels, flat, with their shape
                         entry[texture] = {"texels": image.astype(np.float64).ravel(),
@@ -530,7 +535,7 @@ def _stored_radiance(entry):
         return None
     textures = {t: np.frombuffer(memoryview(entry[t]["texels"]), np.float64).reshape(
                     tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
-                for t in ("albedo", "emission") if t in entry}
+                for t in TEXTURES if t in entry}
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
                                 *(_spline(entry[side]) if side in entry else None for side in SIDES),
                                 **textures)

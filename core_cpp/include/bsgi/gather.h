@@ -31,6 +31,9 @@ struct Receiver {
     Representation kind = Representation::Diffuse;
     const Bsdf* bsdf = nullptr;
     const Texture* albedo = nullptr;  // the albedo texture of a diffuse part holding irradiance / pi
+    // A glossy part solved with its texture's mean colour: the texture over its mean (relative_to_mean).
+    std::shared_ptr<const Texture> tint;
+    const Texture* detail() const { return albedo ? albedo : tint.get(); }
     int sides = 1;                    // spline slots: 2 if the back side is solved
     std::array<bool, 2> live{true, false};
     HemisphereMap map{1.0};
@@ -61,8 +64,10 @@ struct Receiver {
         return &(this->*which)[side].coeffs()[3 * (node * per_node + a)];
     }
     // Radiance leaving (u, v) along `local`, from one of the spline sets (with the partner's);
-    // `texel` multiplies this receiver's own part (the albedo texture as seen there).
-    Vec3 radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel = {1, 1, 1}) const;
+    // `texel` multiplies this receiver's own part, `partner_texel` its partner's (their detail
+    // textures as seen there).
+    Vec3 radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel = {1, 1, 1},
+                  const Vec3& partner_texel = {1, 1, 1}) const;
     Vec3 own_radiance(Splines which, double u, double v, const Vec3& local) const;
 };
 

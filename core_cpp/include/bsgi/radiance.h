@@ -40,24 +40,30 @@ struct SurfaceRadiance {
     // smooth factor, and the albedo texture its detail; the emission is then the emission
     // texture (constant emission as one texel), not part of the spline.
     std::shared_ptr<const Texture> albedo, emission;
+    // A textured glossy colour: the 4D splines (upper, lower) hold the radiance per unit of the
+    // colour and this texture multiplies them (D.F + S of (38) with the texture as F's detail).
+    std::shared_ptr<const Texture> specular;
     bool two_sided_emission = false;  // the emission leaves the back side too
 
     // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
     Vec3 evaluate(double u, double v, const Vec3& local) const {
         if (local.z < 0) {
-            Vec3 L = lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
+            Vec3 L = lower ? tinted(evaluate_side(kind, map, *lower, u, v, local), u, v) : Vec3{0, 0, 0};
             if (lower_diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *lower_diffuse, u, v, local), u, v);
             else if (kind == Representation::Diffuse) L = textured(L, u, v);
             if (emission && two_sided_emission) L += emission->at(u, v);
             return L;
         }
-        Vec3 L = evaluate_side(kind, map, upper, u, v, local);
+        Vec3 L = tinted(evaluate_side(kind, map, upper, u, v, local), u, v);
         if (diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local), u, v);
         else if (kind == Representation::Diffuse) L = textured(L, u, v);
         if (emission) L += emission->at(u, v);
         return L;
     }
     Vec3 textured(const Vec3& smooth, double u, double v) const { return albedo ? smooth * albedo->at(u, v) : smooth; }
+    Vec3 tinted(const Vec3& glossy, double u, double v) const {
+        return specular && kind != Representation::Diffuse ? glossy * specular->at(u, v) : glossy;
+    }
 };
 
 // What the solver chose for a surface, and why.

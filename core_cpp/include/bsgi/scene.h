@@ -36,14 +36,15 @@ struct SpotCone {
 // Emission is radiance leaving the front side, in every direction or within a spot cone, and
 // the back side too where it is two-sided (Cycles' emissive meshes; its area lights are not).
 // Textures over the surface's (u, v) replace the constants (which then hold their means): the
-// albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission.
+// albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission,
+// the colour of the glossy lobe (the BSDF then has the texture's mean as its colour).
 // With thin_glass the surface is a window pane instead: rays cross it (see thin_glass.h).
 struct Material {
     Vec3 albedo;
     Vec3 emission;
     std::shared_ptr<const Bsdf> bsdf;
     std::optional<SpotCone> cone;
-    std::shared_ptr<const Texture> albedo_texture, emission_texture;
+    std::shared_ptr<const Texture> albedo_texture, emission_texture, specular_texture;
     std::optional<ThinGlass> thin_glass;
     bool two_sided_emission = false;
     bool emits() const { return max_component(emission) > 0; }
@@ -171,9 +172,30 @@ public:
         s.material.emission = texture->mean();
         s.material.emission_texture = std::move(texture);
     }
+    // Surface i's glossy colour (a metal's f0, a glossy coat's tint) varies over its (u, v) as
+    // `texture`: its BSDF takes the texture's mean as that colour, the solve keeps the radiance per
+    // unit of the mean in its glossy spline, and the texture multiplies it where it is seen. Exact
+    // where the BSDF is linear in the colour; a Schlick Fresnel's rise towards grazing angles
+    // follows the mean colour.
+    void set_specular_texture(size_t i, std::shared_ptr<const Texture> texture) {
+        SceneSurface& s = at(i, "set_specular_texture");
+        const std::string what = "surface '" + s.surface->name() + "': specular texture";
+        if (!texture) throw std::invalid_argument(what + ": no image");
+        std::shared_ptr<const Bsdf> tinted = s.material.bsdf ? s.material.bsdf->with_specular_colour(texture->mean()) : nullptr;
+        if (!tinted)
+            throw std::invalid_argument(what + ": its " + (s.material.bsdf ? s.material.bsdf->name() : std::string("lambert")) +
+                                        " BSDF has no glossy colour for the texture to tint");
+        if (s.options.representation == Representation::Diffuse)
+            throw std::invalid_argument(what + ": needs a glossy or decomposed representation, not 'diffuse'");
+        if (s.options.representation == Representation::Glossy && max_component(s.material.bsdf->diffuse_albedo()) > 0)
+            throw std::invalid_argument(what + ": its diffuse base needs the decomposed representation, not 'glossy'");
+        s.material.bsdf = std::move(tinted);
+        s.material.specular_texture = std::move(texture);
+    }
+    // Albedo or specular textures: their colour cannot ride on scalar form-factor weights.
     bool has_albedo_textures() const {
         for (const auto& s : surfaces_)
-            if (s.material.albedo_texture) return true;
+            if (s.material.albedo_texture || s.material.specular_texture) return true;
         return false;
     }
     // Makes emitter i emit its radiance from its back side too, as Cycles' Emission shader does
