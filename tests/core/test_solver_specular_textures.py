@@ -8,22 +8,24 @@ import bsgi
 from test_solver_textures import FLOOR, LAMP, settings, texel_centres, up
 
 LIGHT, DARK = (0.9, 0.9, 0.9), (0.8, 0.1, 0.1)
-ALPHA = 0.1
+ALPHA = 0.3
 
 
-def stripes(n=4):
-    """(1, n, 3): light and dark stripes across u (constant along v)."""
-    return np.array([[LIGHT if k % 2 == 0 else DARK for k in range(n)]], np.float32)
+def stripes(n=4, texels=8):
+    """(1, n * texels, 3): n light and dark stripes across u (constant along v), each `texels`
+    wide (the core's texture is bilinear between texel centres, so a stripe holds its colour to
+    within half a texel of its edges)."""
+    return np.array([[LIGHT if k // texels % 2 == 0 else DARK for k in range(n * texels)]], np.float32)
 
 
-def metal_under_lamp(texture=None, f0=(0.5, 0.5, 0.5), bsdf=None, bounces=0, **options):
+def metal_under_lamp(texture=None, f0=(0.5, 0.5, 0.5), bsdf=None, bounces=0, coeffs=8, **options):
     scene = bsgi.Scene()
     bsdf = bsdf or bsgi.GgxReflection(ALPHA, ALPHA, list(f0))
     scene.add_bilinear_patch("metal", FLOOR, albedo=[0] * 3, emission=[0] * 3, bsdf=bsdf, **options)
     scene.add_bilinear_patch("lamp", LAMP, albedo=[0] * 3, emission=[3.0] * 3, receiver=False, occluder=False)
     if texture is not None:
         scene.set_specular_texture(0, texture)
-    return bsgi.solve(scene, settings(bounces=bounces, coeffs=8)).surfaces[0]
+    return bsgi.solve(scene, settings(bounces=bounces, coeffs=coeffs)).surfaces[0]
 
 
 def views(uv, rng):
@@ -35,6 +37,10 @@ def views(uv, rng):
 
 @pytest.fixture(scope="module")
 def mitsuba_stripes():
+    return mitsuba_stripes_reference()
+
+
+def mitsuba_stripes_reference():
     """Mitsuba 3's direct light off the striped metal (GGX, Fresnel 1, the stripes as its specular
     reflectance: the BRDF linear in the colour) at stripe centres, seen from near the normal."""
     mitsuba_reference = pytest.importorskip("reference.mitsuba_reference")
@@ -68,7 +74,7 @@ def mitsuba_stripes():
 @pytest.mark.slow
 def test_striped_metal_reflects_the_lamp_in_its_stripes_colours(mitsuba_stripes):
     uv, d, ref, stderr = mitsuba_stripes
-    metal = metal_under_lamp(stripes())
+    metal = metal_under_lamp(stripes(), coeffs=16)
     got = metal.evaluate(uv, d)
     lit = ref.max(axis=1) > 0.05 * ref.max()
     err = np.median(np.abs(got[lit] / ref[lit] - 1))
@@ -81,8 +87,9 @@ def test_striped_metal_reflects_the_lamp_in_its_stripes_colours(mitsuba_stripes)
     contrast, contrast_ref = redness(got, dark) / redness(got, light), redness(ref, dark) / redness(ref, light)
     print(f"striped metal vs Mitsuba: median relative difference {err:.4f} (Mitsuba's noise {noise:.4f}) over "
           f"{lit.sum()} lit pairs; dark/light redness {contrast:.3f}, Mitsuba {contrast_ref:.3f}")
-    assert err <= 0.03  # measured 0.012
-    assert abs(contrast / contrast_ref - 1) <= 0.02  # measured 0.003
+    # The spline's own error on this lobe (alpha 0.3, 16 x 16 spatial coefficients) dominates.
+    assert err <= 0.05  # measured 0.025 (Mitsuba's noise 0.009)
+    assert abs(contrast / contrast_ref - 1) <= 0.01  # measured below 1e-4: the texture is the detail
 
 
 def test_constant_texture_equals_the_constant_colour():
@@ -100,8 +107,9 @@ def test_constant_texture_equals_the_constant_colour():
     np.testing.assert_allclose(textured.evaluate(uv, d), plain.evaluate(uv, d), rtol=1e-6)  # float32 texels
     def coat(f0):
         return bsgi.DiffuseGgx([0.5] * 3, 0.3, 0.3, list(f0))
-    plain = metal_under_lamp(bsdf=coat(colour), spatial_coeffs=6, angular_coeffs=6)
-    textured = metal_under_lamp(image, bsdf=coat((0.04,) * 3), spatial_coeffs=6, angular_coeffs=6)
+    options = dict(spatial_coeffs=6, angular_coeffs=6, representation="decomposed")
+    plain = metal_under_lamp(bsdf=coat(colour), **options)
+    textured = metal_under_lamp(image, bsdf=coat((0.04,) * 3), **options)
     assert plain.kind == textured.kind == "decomposed"
     np.testing.assert_allclose(textured.evaluate(uv, d), plain.evaluate(uv, d), rtol=1e-6)
 
@@ -111,11 +119,11 @@ def test_the_spline_holds_radiance_per_unit_colour():
     image = stripes()
     metal = metal_under_lamp(image)
     np.testing.assert_array_equal(metal.specular, image)
-    uv = texel_centres(4)
+    uv = texel_centres(32)
     d = up(len(uv))
     x = np.column_stack([uv, np.zeros((len(uv), 2))])  # the disc's centre: along the normal
     per_unit = metal.upper.evaluate(x)
-    texel = image[0, np.minimum((uv[:, 0] * 4).astype(int), 3)]
+    texel = image[0, np.minimum((uv[:, 0] * image.shape[1]).astype(int), image.shape[1] - 1)]
     np.testing.assert_allclose(metal.evaluate(uv, d), per_unit * texel, rtol=1e-12)
 
 
@@ -140,10 +148,10 @@ def test_half_red_metal_reddens_the_wall_near_it():
     print(f"wall's red / green beside the red half {redness[:, 0].mean():.3f}, beside the white half "
           f"{redness[:, -1].mean():.3f}; the wall's total against a metal of the mean colour "
           f"{half.sum() / mean.sum():.4f}")
-    assert redness[:, 0].mean() > 1.3 * redness[:, -1].mean()
+    assert redness[:, 0].mean() > 1.1 * redness[:, -1].mean()  # measured 1.20 times (1 if the texel were not seen)
     # The light bounced in all is about that of a metal of the mean colour (the halves' shares
     # of it differ by the wall's view of them).
-    assert abs(half.sum() / mean.sum() - 1) < 0.05
+    assert abs(half.sum() / mean.sum() - 1) < 0.01  # measured 2e-4
 
 
 def test_specular_textures_need_a_glossy_colour():
