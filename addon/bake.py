@@ -30,9 +30,9 @@ PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and soluti
 # nodes times the irradiance spline, per slot ("" for the object's baked material).
 PROP_SLOT_MATERIALS = "bsgi_slot_materials"
 PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay when it is cleared)
-# The splines of a SurfaceRadiance, in its constructor's order (bakes before two-sided surfaces
-# stored the first three).
-SIDES = ("upper", "lower", "diffuse", "lower_diffuse")
+# The splines of a SurfaceRadiance (bakes before two-sided surfaces stored the first three, before
+# textured glossy colour the first four).
+SIDES = ("upper", "lower", "diffuse", "lower_diffuse", "tint_zero", "lower_tint_zero")
 # The textures of a SurfaceRadiance (bakes before textured glossy colour stored the first two).
 TEXTURES = ("albedo", "emission", "specular")
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
@@ -72,7 +72,7 @@ def _upper(radiance):
 
 
 def _splines(radiance):
-    return [s for s in (radiance.upper, radiance.lower, radiance.diffuse, radiance.lower_diffuse) if s is not None]
+    return [s for s in (getattr(radiance, side, None) for side in SIDES) if s is not None]
 
 
 def angular_samples(faces) -> int:
@@ -114,7 +114,12 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
     out = np.zeros((len(disc), len(uv), 3))
     if radiance is None:
         return out
-    for spline in ([radiance.lower, radiance.lower_diffuse] if lower else [radiance.upper, radiance.diffuse]):
+    # A textured GGX f0 blends the radiance at f0 = 1 (upper, lower) and at f0 = 0 (tint_zero).
+    specular = getattr(radiance, "specular", None)
+    tint = None if specular is None else texture_at(specular, uv)[None]
+    black = getattr(radiance, "lower_tint_zero" if lower else "tint_zero", None)
+    splines = [radiance.lower, radiance.lower_diffuse] if lower else [radiance.upper, radiance.diffuse]
+    for spline, weight in zip(splines + [black], [tint, None, None if tint is None else 1 - tint]):
         if spline is None:
             continue
         if spline.dims == 2:
@@ -126,9 +131,7 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
         glossy = spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
-        # A textured glossy colour: the 4D spline holds the radiance per unit colour, the texture its detail.
-        specular = getattr(radiance, "specular", None)
-        out += glossy if specular is None else glossy * texture_at(specular, uv)[None]
+        out += glossy if weight is None else glossy * weight
     emission = None if lower and not getattr(radiance, "two_sided_emission", False) else getattr(radiance, "emission", None)
     if emission is not None:
         out += texture_at(emission, uv)[None]
@@ -537,7 +540,7 @@ def _stored_radiance(entry):
                     tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
                 for t in TEXTURES if t in entry}
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
-                                *(_spline(entry[side]) if side in entry else None for side in SIDES),
+                                **{side: _spline(entry[side]) if side in entry else None for side in SIDES},
                                 **textures)
 
 

@@ -76,14 +76,6 @@ DiffuseGgx::DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const
     p_diffuse_ = d + c > 0 ? std::clamp(d / (d + c), 0.05, 0.95) : 0.5;
 }
 
-std::shared_ptr<const Bsdf> DiffuseGgx::with_specular_colour(const Vec3& f0) const {
-    auto out = std::make_shared<DiffuseGgx>(*this);
-    out->coat_ = std::static_pointer_cast<const GgxReflection>(coat_->with_specular_colour(f0));
-    const double d = (albedo_.x + albedo_.y + albedo_.z) / 3, c = (f0.x + f0.y + f0.z) / 3;
-    out->p_diffuse_ = d + c > 0 ? std::clamp(d / (d + c), 0.05, 0.95) : 0.5;
-    return out;
-}
-
 Vec3 DiffuseGgx::eval(const Vec3& wo, const Vec3& wi) const {
     if (wo.z <= 0 || wi.z <= 0) return {0, 0, 0};
     return albedo_ / kPiD + coat_->eval(wo, wi);

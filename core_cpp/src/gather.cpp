@@ -245,10 +245,11 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
         if (hit.surface < 0) return with_world ? world_along(dir) : Vec3{0, 0, 0};
         const Receiver* h = receiver_of[hit.surface];
         if (!h) return {0, 0, 0};
-        auto seen = [&](const Receiver* part) {
-            return part && part->detail() ? texel_seen(*part->detail(), hit, dir, solid_angle) : Vec3{1, 1, 1};
-        };
-        return h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), seen(h), seen(h->partner));
+        const Texture* detail = h->albedo ? h->albedo : h->tint;
+        const Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
+        // A tinted pair: f0 = 1 weighed by the texel, f0 = 0 by its complement.
+        return h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel,
+                           h->tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
     }, out, rays);
 }
 

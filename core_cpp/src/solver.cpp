@@ -85,15 +85,13 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     // the lobe reflects as much as the base (a strong coat), the full 4D spline is kept.
     const bool mild = sum && max_component(directional_albedo(*p.bsdf->glossy_part())) <= 0.5 * max_component(p.bsdf->diffuse_albedo());
     const bool textured = bool(ss.material.albedo_texture);
-    // A texture tinting the lobe over a diffuse base: only (38) keeps S apart for it to multiply.
-    const bool tinted_sum = sum && ss.material.specular_texture;
     if (ss.options.representation == Representation::Auto) {
         // An albedo texture colours the diffuse base, which only D of (38) keeps apart.
         p.kind = lambertian ? Representation::Diffuse
-                            : (mild || textured || tinted_sum ? Representation::Decomposed : Representation::Glossy);
+                            : (mild || textured ? Representation::Decomposed : Representation::Glossy);
         why << (lambertian ? "Lambertian material: 2D"
                            : p.bsdf->name() + (mild ? " BSDF, a diffuse base under a mild glossy lobe: D(u,v) + S(u,v,alpha,beta) (38)"
-                                                    : textured || tinted_sum ? " BSDF with a textured diffuse base or glossy colour: D(u,v) + S(u,v,alpha,beta) (38)"
+                                                    : textured ? " BSDF with a textured diffuse base: D(u,v) + S(u,v,alpha,beta) (38)"
                                                                : " BSDF: view-dependent 4D"));
     } else if (ss.options.representation == Representation::Decomposed && !sum) {
         throw std::invalid_argument("surface '" + ss.surface->name() + "': the decomposition (38) needs a BSDF with a "
@@ -107,10 +105,9 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         why << "; albedo texture " << ss.material.albedo_texture->width() << " x " << ss.material.albedo_texture->height();
         if (p.kind == Representation::Diffuse) p.bsdf = std::make_shared<Lambert>(Vec3{1, 1, 1});
     }
-    if (const auto& tint = ss.material.specular_texture) {
-        // The BSDF has the texture's mean colour; the texture over its mean multiplies the glossy part.
-        why << "; specular texture " << tint->width() << " x " << tint->height() << " (glossy part per unit of its mean colour)";
-    }
+    if (const auto& tint = ss.material.specular_texture)
+        why << "; specular texture " << tint->width() << " x " << tint->height()
+            << ": its blend of the radiance at f0 = 1 and at f0 = 0 (two 4D splines)";
     // The sides the scene lights (a transmitting surface's lower hemisphere is paper 4.3).
     p.live = lit.live;
     if (p.bsdf->transmits()) p.live = {true, p.kind == Representation::Glossy};
@@ -162,6 +159,17 @@ std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int sp
     for (size_t i = 0; i < scene.size(); ++i) {
         if (!scene[i].receiver) continue;
         Plan p = plan_surface(scene, int(i), s, extent, spatial_scale, sides[i]);
+        if (scene[i].material.specular_texture) {
+            // Schlick's Fresnel is affine in f0: the surface at f0 = 1 and, as its partner, at
+            // f0 = 0, on the same knots; the texture blends them.
+            Plan black = p;
+            p.bsdf = scene[i].material.bsdf->with_specular_colour({1, 1, 1});
+            black.bsdf = scene[i].material.bsdf->with_specular_colour({0, 0, 0});
+            black.partner_of = int(plans.size());
+            plans.push_back(std::move(p));
+            plans.push_back(std::move(black));
+            continue;
+        }
         if (p.kind != Representation::Decomposed) {
             plans.push_back(std::move(p));
             continue;
@@ -257,8 +265,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     r.live = p.live;
     r.map = HemisphereMap::for_max_angle(s.angular_delta);
     if (p.partner_of < 0) r.albedo = scene[p.surface].material.albedo_texture.get();
-    if (p.kind == Representation::Glossy && scene[p.surface].material.specular_texture)
-        r.tint = scene[p.surface].material.specular_texture->relative_to_mean();
+    if (p.partner_of < 0) r.tint = scene[p.surface].material.specular_texture.get();
     std::vector<KnotVector> axes{ku, kv};
     if (p.kind == Representation::Glossy) {
         const double R = r.map.radius();
@@ -718,7 +725,14 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         };
         std::optional<SurfaceRadiance> out;
         std::string kind;
-        if (r.partner) {
+        if (r.tint) {
+            Receiver& black = result[r.partner->index];
+            out = SurfaceRadiance{r.kind, r.map, front(r), back(r), std::nullopt, std::nullopt};
+            out->tint_zero = front(black);
+            out->lower_tint_zero = back(black);
+            out->specular = m.specular_texture;
+            kind = "glossy 4D";
+        } else if (r.partner) {
             Receiver& s = result[r.partner->index];
             out = SurfaceRadiance{Representation::Decomposed, s.map, front(s), back(s), front(r), back(r)};
             kind = "decomposed 2D + 4D (38)";
@@ -727,16 +741,6 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
             kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 && r.bsdf->transmits() ? "glossy 4D + transmission" : "glossy 4D");
         }
         out->albedo = m.albedo_texture;
-        if (m.specular_texture) {
-            // The glossy splines per unit of the texture's mean colour, which the texture replaces.
-            const Vec3 mean = m.specular_texture->mean();
-            for (TensorSpline* s : {&out->upper, out->lower ? &*out->lower : nullptr}) {
-                if (!s) continue;
-                auto& c = s->coeffs();
-                for (size_t i = 0; i < c.size(); ++i) c[i] = mean[int(i % 3)] > 0 ? c[i] / mean[int(i % 3)] : 0.0;
-            }
-            out->specular = m.specular_texture;
-        }
         out->emission = emission;
         out->two_sided_emission = m.two_sided_emission;
         if (!r.bsdf->transmits() && settings.two_sided)

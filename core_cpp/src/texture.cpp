@@ -60,12 +60,6 @@ Vec3 Texture::mean(double u0, double u1, double v0, double v1) const {
     return (integral(x1, y1) - integral(x0, y1) - integral(x1, y0) + integral(x0, y0)) / area;
 }
 
-std::shared_ptr<const Texture> Texture::relative_to_mean() const {
-    std::vector<float> rgb(rgb_.size());
-    for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = mean_[int(i % 3)] > 0 ? float(rgb_[i] / mean_[int(i % 3)]) : 0.0f;
-    return std::make_shared<Texture>(width_, height_, std::move(rgb), "relative texture", false);
-}
-
 Vec3 Texture::filtered(double u, double v, double du, double dv) const {
     if (du * width_ <= 0.5 && dv * height_ <= 0.5) return at(u, v);
     return mean(u - du, u + du, v - dv, v + dv);

@@ -1,6 +1,6 @@
-"""Textured glossy colour in the core (Scene.set_specular_texture): a metal's f0 over its (u, v),
-the glossy spline per unit of the texture's mean colour and the texture as its detail, against
-Mitsuba 3 and against the same surface with a constant colour."""
+"""Textured glossy colour in the core (Scene.set_specular_texture): a GGX metal's f0 over its
+(u, v), solved as the radiance at f0 = 1 and at f0 = 0 (Schlick's Fresnel is affine in f0) that
+the texture blends, against Mitsuba 3 and against the same surface with a constant colour."""
 import numpy as np
 import pytest
 
@@ -92,39 +92,44 @@ def test_striped_metal_reflects_the_lamp_in_its_stripes_colours(mitsuba_stripes)
     assert abs(contrast / contrast_ref - 1) <= 0.01  # measured below 1e-4: the texture is the detail
 
 
-def test_constant_texture_equals_the_constant_colour():
-    # A one-texel texture: the BSDF takes its colour, and texture x spline per unit colour is
-    # the plain solve, for GGX and for the glossy part S of a decomposed (38) surface.
+def random_views(n, seed):
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(n, 3))
+    d[:, 2] = np.abs(d[:, 2])  # any direction above the surface, grazing ones too
+    return rng.uniform(0, 1, (n, 2)), d
+
+
+def test_each_stripe_shows_its_own_fresnel_at_every_angle():
+    # Schlick's F = f0 + (1 - f0)(1 - cos)^5 is affine in f0: inside each stripe the textured
+    # metal is exactly the metal of that stripe's colour, at grazing views too (where F rises
+    # towards white whatever f0 is). The f0 given with the BSDF is replaced.
+    textured = metal_under_lamp(stripes(), f0=(0.1, 0.9, 0.5), bounces=2)
+    assert textured.kind == "glossy" and textured.specular is not None and textured.tint_zero is not None
+    uv, d = random_views(400, 1)
+    s = uv[:, 0] * 4
+    inside = np.abs(s - np.round(s)) > 0.1  # more than half a texel from a stripe's edge
+    for colour, mine in ((LIGHT, np.floor(s) % 2 == 0), (DARK, np.floor(s) % 2 == 1)):
+        plain = metal_under_lamp(f0=colour, bounces=2)
+        m = inside & mine
+        np.testing.assert_allclose(textured.evaluate(uv[m], d[m]), plain.evaluate(uv[m], d[m]), rtol=1e-6, atol=1e-12)
+    # A one-texel texture is the constant colour everywhere.
     colour = [0.7, 0.4, 0.2]
-    image = np.array([[colour]], np.float32)
-    rng = np.random.default_rng(1)
-    uv = rng.uniform(0, 1, (40, 2))
-    d = rng.normal(size=(40, 3))
-    d[:, 2] = np.abs(d[:, 2])
+    textured = metal_under_lamp(np.array([[colour]], np.float32))
     plain = metal_under_lamp(f0=colour)
-    textured = metal_under_lamp(image, f0=(0.1, 0.9, 0.5))  # the f0 given is replaced by the texture's mean
-    assert textured.kind == "glossy" and textured.specular is not None
-    np.testing.assert_allclose(textured.evaluate(uv, d), plain.evaluate(uv, d), rtol=1e-6)  # float32 texels
-    def coat(f0):
-        return bsgi.DiffuseGgx([0.5] * 3, 0.3, 0.3, list(f0))
-    options = dict(spatial_coeffs=6, angular_coeffs=6, representation="decomposed")
-    plain = metal_under_lamp(bsdf=coat(colour), **options)
-    textured = metal_under_lamp(image, bsdf=coat((0.04,) * 3), **options)
-    assert plain.kind == textured.kind == "decomposed"
-    np.testing.assert_allclose(textured.evaluate(uv, d), plain.evaluate(uv, d), rtol=1e-6)
+    np.testing.assert_allclose(textured.evaluate(uv, d), plain.evaluate(uv, d), rtol=1e-6, atol=1e-12)
 
 
-def test_the_spline_holds_radiance_per_unit_colour():
-    # The stored texture is the user's; the spline times it is what the surface shows.
+def test_the_texture_blends_the_radiance_at_f0_one_and_zero():
+    # The stored texture is the user's; what the surface shows is T x upper + (1 - T) x tint_zero.
     image = stripes()
     metal = metal_under_lamp(image)
     np.testing.assert_array_equal(metal.specular, image)
     uv = texel_centres(32)
     d = up(len(uv))
     x = np.column_stack([uv, np.zeros((len(uv), 2))])  # the disc's centre: along the normal
-    per_unit = metal.upper.evaluate(x)
     texel = image[0, np.minimum((uv[:, 0] * image.shape[1]).astype(int), image.shape[1] - 1)]
-    np.testing.assert_allclose(metal.evaluate(uv, d), per_unit * texel, rtol=1e-12)
+    want = metal.upper.evaluate(x) * texel + metal.tint_zero.evaluate(x) * (1 - texel)
+    np.testing.assert_allclose(metal.evaluate(uv, d), want, rtol=1e-12)
 
 
 def test_half_red_metal_reddens_the_wall_near_it():
@@ -154,7 +159,7 @@ def test_half_red_metal_reddens_the_wall_near_it():
     assert abs(half.sum() / mean.sum() - 1) < 0.01  # measured 2e-4
 
 
-def test_specular_textures_need_a_glossy_colour():
+def test_specular_textures_need_a_ggx_colour():
     scene = bsgi.Scene()
     scene.add_bilinear_patch("paper", FLOOR, albedo=[0.5] * 3, emission=[0] * 3)
     scene.add_bilinear_patch("glass", FLOOR, albedo=[0] * 3, emission=[0] * 3, bsdf=bsgi.RoughDielectric(1.5, 0.3, 0.3))
@@ -165,12 +170,16 @@ def test_specular_textures_need_a_glossy_colour():
         scene.set_specular_texture(0, image)
     with pytest.raises(ValueError, match="surface 'glass': specular texture: its rough_dielectric BSDF has no glossy"):
         scene.set_specular_texture(1, image)
-    with pytest.raises(ValueError, match="surface 'flat metal': specular texture: needs a glossy or decomposed"):
+    with pytest.raises(ValueError, match="surface 'flat metal': specular texture: needs the glossy representation"):
         scene.set_specular_texture(2, image)
     with pytest.raises(ValueError, match=r"surface 'flat metal': specular texture must be finite and in \[0, 1\]"):
         scene.set_specular_texture(2, np.full((2, 2, 3), 1.5))
     with pytest.raises(IndexError):
         scene.set_specular_texture(5, image)
+    scene.add_bilinear_patch("plastic", FLOOR, albedo=[0] * 3, emission=[0] * 3,
+                             bsdf=bsgi.DiffuseGgx([0.5] * 3, 0.3, 0.3, [0.04] * 3))
+    with pytest.raises(ValueError, match="surface 'plastic': specular texture: its diffuse_ggx BSDF has no glossy"):
+        scene.set_specular_texture(3, image)
 
 
 def test_specular_textured_solution_round_trips_and_gives_no_form_factors(tmp_path):

@@ -45,8 +45,9 @@ public:
     // for BSDFs that are such a sum (null otherwise).
     virtual Vec3 diffuse_albedo() const { return {0, 0, 0}; }
     virtual std::shared_ptr<const Bsdf> glossy_part() const { return nullptr; }
-    // The same BSDF with its glossy lobe's colour (GGX f0) replaced, for a textured glossy colour
-    // (Scene::set_specular_texture); null if it has no such colour.
+    // The same BSDF with its glossy colour (GGX f0) replaced, for a textured glossy colour
+    // (Scene::set_specular_texture); null if it has no such colour. Schlick's Fresnel is affine in
+    // f0: rho(f0) = f0 rho(1) + (1 - f0) rho(0) per channel.
     virtual std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& /*f0*/) const { return nullptr; }
 };
 
@@ -146,7 +147,6 @@ public:
     double lobe_width() const override { return coat_->lobe_width(); }
     Vec3 diffuse_albedo() const override { return albedo_; }
     std::shared_ptr<const Bsdf> glossy_part() const override { return coat_; }
-    std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& f0) const override;
 
 private:
     Vec3 albedo_;

@@ -25,15 +25,15 @@ struct Receiver {
     int surface = -1;
     int index = -1;                   // position among the receivers
     // Decomposition (38): the diffuse part D is the surface's receiver, the glossy part S its
-    // partner; the light leaving the surface is their sum.
+    // partner; the light leaving the surface is their sum (weighed by the tint if tinted).
     const Receiver* partner = nullptr;
     bool is_partner = false;
     Representation kind = Representation::Diffuse;
     const Bsdf* bsdf = nullptr;
     const Texture* albedo = nullptr;  // the albedo texture of a diffuse part holding irradiance / pi
-    // A glossy part solved with its texture's mean colour: the texture over its mean (relative_to_mean).
-    std::shared_ptr<const Texture> tint;
-    const Texture* detail() const { return albedo ? albedo : tint.get(); }
+    // A textured GGX f0: this receiver is the surface at f0 = 1 and its partner at f0 = 0; the
+    // texture T weighs them T and 1 - T.
+    const Texture* tint = nullptr;
     int sides = 1;                    // spline slots: 2 if the back side is solved
     std::array<bool, 2> live{true, false};
     HemisphereMap map{1.0};

@@ -37,7 +37,7 @@ struct SpotCone {
 // the back side too where it is two-sided (Cycles' emissive meshes; its area lights are not).
 // Textures over the surface's (u, v) replace the constants (which then hold their means): the
 // albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission,
-// the colour of the glossy lobe (the BSDF then has the texture's mean as its colour).
+// the f0 of a GGX lobe (the BSDF then has the texture's mean as its f0).
 // With thin_glass the surface is a window pane instead: rays cross it (see thin_glass.h).
 struct Material {
     Vec3 albedo;
@@ -172,11 +172,10 @@ public:
         s.material.emission = texture->mean();
         s.material.emission_texture = std::move(texture);
     }
-    // Surface i's glossy colour (a metal's f0, a glossy coat's tint) varies over its (u, v) as
-    // `texture`: its BSDF takes the texture's mean as that colour, the solve keeps the radiance per
-    // unit of the mean in its glossy spline, and the texture multiplies it where it is seen. Exact
-    // where the BSDF is linear in the colour; a Schlick Fresnel's rise towards grazing angles
-    // follows the mean colour.
+    // Surface i's glossy colour (a metal's f0) varies over its (u, v) as `texture`. Schlick's
+    // Fresnel is affine in f0, so the surface's radiance is exactly T L1 + (1 - T) L0 with L1, L0
+    // its radiance at f0 = 1 and f0 = 0: the solve keeps both splines and the texture T blends
+    // them where the surface is seen (its BSDF here takes the texture's mean as f0).
     void set_specular_texture(size_t i, std::shared_ptr<const Texture> texture) {
         SceneSurface& s = at(i, "set_specular_texture");
         const std::string what = "surface '" + s.surface->name() + "': specular texture";
@@ -186,9 +185,7 @@ public:
             throw std::invalid_argument(what + ": its " + (s.material.bsdf ? s.material.bsdf->name() : std::string("lambert")) +
                                         " BSDF has no glossy colour for the texture to tint");
         if (s.options.representation == Representation::Diffuse)
-            throw std::invalid_argument(what + ": needs a glossy or decomposed representation, not 'diffuse'");
-        if (s.options.representation == Representation::Glossy && max_component(s.material.bsdf->diffuse_albedo()) > 0)
-            throw std::invalid_argument(what + ": its diffuse base needs the decomposed representation, not 'glossy'");
+            throw std::invalid_argument(what + ": needs the glossy representation, not 'diffuse'");
         s.material.bsdf = std::move(tinted);
         s.material.specular_texture = std::move(texture);
     }

@@ -2,10 +2,9 @@
 // row along v, row 0 at v = 0) whose texel (c, r) covers [c/W, (c+1)/W] x [r/H, (r+1)/H].
 // Albedo textures multiply a Lambertian surface's irradiance / pi (the smooth factor of the
 // decomposition (38), the texture in the role of the detail); emission textures replace the
-// constant emission. Specular textures tint a glossy lobe: the spline holds the radiance per unit
-// of the texture's mean colour and the texture multiplies it.
+// constant emission. Specular textures tint a GGX lobe (its f0): the surface's radiance is the
+// texture's blend of its radiance at f0 = 1 and at f0 = 0, each a spline.
 #pragma once
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -34,9 +33,6 @@ public:
     // Mean over the whole domain and largest channel value.
     const Vec3& mean() const { return mean_; }
     double max() const { return max_; }
-    // The texture over its mean, per channel (0 where a channel's mean is 0): the detail factor
-    // of a surface solved with its mean colour.
-    std::shared_ptr<const Texture> relative_to_mean() const;
 
 private:
     Vec3 texel(int c, int r) const;
