@@ -395,12 +395,9 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     chosen = _solver_material(name, described, warnings)
     chosen.emission_textured = described.emission_textured
     if chosen.kind == "ggx" and described.specular_textured:
-        # The glossy-colour pass is the lobe's colour along the normal: exact for the reflection
-        # seen near the normal, while Schlick's rise towards white at grazing angles is the mean's.
+        # Its f0 over each surface (Cycles' glossy-colour pass), which the core blends exactly:
+        # Schlick's Fresnel is affine in f0.
         chosen.specular_textured = True
-        warnings.append(f"material '{name}': its node-driven glossy colour is solved as a texture times the reflection "
-                        "per unit of each surface's mean colour (exact near the normal; the Fresnel rise at grazing "
-                        "angles follows the mean colour)")
     elif described.albedo_textured or described.specular_textured:
         if chosen.kind == "lambert" and described.albedo_textured:
             chosen.albedo_textured = True  # its albedo is the baked diffuse colour plus the lobe's
