@@ -597,3 +597,33 @@ def test_checker_metal_floor_matches_cycles(context, tmp_path):
     # following the mean), it was 1.067 at roughness 0.4.
     assert median <= 0.08  # measured 0.056
     assert abs(ratio - 1) <= 0.012  # measured 0.0055
+
+
+def test_textured_metal_bake_survives_rebake_and_solution_files(context, tmp_path):
+    # The bake's images blend the radiance at f0 = 1 and f0 = 0 by the texture as the core does,
+    # and the two splines and the texture come back from the stored radiance and a solution file.
+    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], checker_metal("Checker metal"))
+    scenes.add_area_light(location=(0, 0, 1.5), size=1.0)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 8
+    pipeline.solve_and_bake(context)
+    from bsgi_addon import bake, solution_file
+
+    solved = bake.stored_faces(floor)[0][1][0]
+    assert solved.specular is not None and solved.tint_zero is not None
+    rng = np.random.default_rng(4)
+    uv = rng.uniform(0, 1, (20, 2))
+    d = rng.normal(size=(20, 3))
+    d[:, 2] = np.abs(d[:, 2])  # grazing views too, where the two splines differ most
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    up = np.tile([0.0, 0.0, 1.0], (20, 1))
+    atlas = bake._radiance_at(solved, uv, np.zeros((1, 2)), lower=False)[0]  # the disc's centre: the normal
+    np.testing.assert_allclose(atlas, solved.evaluate(uv, up), rtol=1e-9)
+    bake.rebake(floor)
+    np.testing.assert_array_equal(bake.stored_faces(floor)[0][1][0].evaluate(uv, d), solved.evaluate(uv, d))
+    path = tmp_path / "metal.npz"
+    solution_file.export_solution(context.scene, path)
+    bake.clear_bake(floor)
+    solution_file.import_solution(context.scene, path)
+    loaded = bake.stored_faces(floor)[0][1][0]
+    np.testing.assert_allclose(loaded.evaluate(uv, d), solved.evaluate(uv, d), rtol=1e-6)
