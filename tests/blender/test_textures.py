@@ -591,10 +591,9 @@ def test_checker_metal_floor_matches_cycles(context, tmp_path):
            scene_checker_metal_floor_rel_diff_vs_cycles=median)
     assert light.sum() > 30 and dark.sum() > 30
     assert contrast(reference) > 1.5  # the squares show in the reflection
-    # The glossy spline's own error dominates: at roughness 0.4 a metal of one colour (the
-    # checker's mean) measured 0.051, the checker 0.059. The contrast: with the textured f0 solved
-    # as its mean's reflection scaled by the texture (Schlick's rise at grazing angles then
-    # following the mean), it was 1.067 at roughness 0.4.
+    # The glossy spline's own error dominates: a metal of one colour (the checker's mean) measured
+    # 0.051 here. The contrast: with the textured f0 solved as its mean's reflection scaled by the
+    # texture (Schlick's rise at grazing angles then following the mean), it was 1.067 (roughness 0.4).
     assert median <= 0.08  # measured 0.056
     assert abs(ratio - 1) <= 0.012  # measured 0.0055
 
