@@ -264,8 +264,10 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     r.sides = p.sides;
     r.live = p.live;
     r.map = HemisphereMap::for_max_angle(s.angular_delta);
-    if (p.partner_of < 0) r.albedo = scene[p.surface].material.albedo_texture.get();
-    if (p.partner_of < 0) r.tint = scene[p.surface].material.specular_texture.get();
+    if (p.partner_of < 0) {  // the textures weigh the surface's own receiver and, through it, its partner
+        r.albedo = scene[p.surface].material.albedo_texture.get();
+        r.tint = scene[p.surface].material.specular_texture.get();
+    }
     std::vector<KnotVector> axes{ku, kv};
     if (p.kind == Representation::Glossy) {
         const double R = r.map.radius();
