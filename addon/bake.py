@@ -30,9 +30,11 @@ PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and soluti
 # nodes times the irradiance spline, per slot ("" for the object's baked material).
 PROP_SLOT_MATERIALS = "bsgi_slot_materials"
 PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay when it is cleared)
-# The splines of a SurfaceRadiance, in its constructor's order (bakes before two-sided surfaces
-# stored the first three).
-SIDES = ("upper", "lower", "diffuse", "lower_diffuse")
+# The splines of a SurfaceRadiance (bakes before two-sided surfaces stored the first three, before
+# textured glossy colour the first four).
+SIDES = ("upper", "lower", "diffuse", "lower_diffuse", "tint_zero", "lower_tint_zero")
+# The textures of a SurfaceRadiance (bakes before textured glossy colour stored the first two).
+TEXTURES = ("albedo", "emission", "specular")
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
 # Largest radiance atlas per object, in texels (256 MiB of float RGBA): past it the angular
@@ -47,8 +49,8 @@ def tile_size(radiance) -> int:
 
 
 def _texture_side(radiance) -> int:
-    """The larger side of a textured surface's albedo or emission texture (0 without)."""
-    images = [getattr(radiance, t, None) for t in ("albedo", "emission")]
+    """The larger side of a textured surface's albedo, specular or emission texture (0 without)."""
+    images = [getattr(radiance, t, None) for t in TEXTURES]
     return max((max(i.shape[:2]) for i in images if i is not None), default=0)
 
 
@@ -70,7 +72,7 @@ def _upper(radiance):
 
 
 def _splines(radiance):
-    return [s for s in (radiance.upper, radiance.lower, radiance.diffuse, radiance.lower_diffuse) if s is not None]
+    return [s for s in (getattr(radiance, side, None) for side in SIDES) if s is not None]
 
 
 def angular_samples(faces) -> int:
@@ -112,7 +114,12 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
     out = np.zeros((len(disc), len(uv), 3))
     if radiance is None:
         return out
-    for spline in ([radiance.lower, radiance.lower_diffuse] if lower else [radiance.upper, radiance.diffuse]):
+    # A textured GGX f0 blends the radiance at f0 = 1 (upper, lower) and at f0 = 0 (tint_zero).
+    specular = getattr(radiance, "specular", None)
+    tint = None if specular is None else texture_at(specular, uv)[None]
+    black = getattr(radiance, "lower_tint_zero" if lower else "tint_zero", None)
+    splines = [radiance.lower, radiance.lower_diffuse] if lower else [radiance.upper, radiance.diffuse]
+    for spline, weight in zip(splines + [black], [tint, None, None if tint is None else 1 - tint]):
         if spline is None:
             continue
         if spline.dims == 2:
@@ -123,7 +130,8 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
             continue
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
-        out += spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+        glossy = spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+        out += glossy if weight is None else glossy * weight
     emission = None if lower and not getattr(radiance, "two_sided_emission", False) else getattr(radiance, "emission", None)
     if emission is not None:
         out += texture_at(emission, uv)[None]
@@ -495,7 +503,7 @@ def _store_splines(obj, faces) -> None:
                         arrays = bsgi.spline_to_arrays(spline)
                         arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
                         entry[side] = arrays
-                for texture in ("albedo", "emission"):
+                for texture in TEXTURES:
                     image = getattr(r, texture)
                     if image is not None:  # float32 texels, flat, with their shape
                         entry[texture] = {"texels": image.astype(np.float64).ravel(),
@@ -530,9 +538,9 @@ def _stored_radiance(entry):
         return None
     textures = {t: np.frombuffer(memoryview(entry[t]["texels"]), np.float64).reshape(
                     tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
-                for t in ("albedo", "emission") if t in entry}
+                for t in TEXTURES if t in entry}
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
-                                *(_spline(entry[side]) if side in entry else None for side in SIDES),
+                                **{side: _spline(entry[side]) if side in entry else None for side in SIDES},
                                 **textures)
 
 

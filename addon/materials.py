@@ -42,11 +42,13 @@ class SurfaceMaterial:
     # Cycles' "Light Path" trick for windows (a Mix Shader whose Fac is Is Shadow Ray): what
     # shadow rays get through the material (the Transparent BSDF's colour, as a mean), or None.
     shadow: float | None = None
+    # Glossy colour driven by nodes (a Glossy BSDF's Color, a metallic Principled BSDF's Base Color).
+    specular_textured: bool = False
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
                                self.rotation, self.transmission * k, self.ior, _scale(self.emission, k),
-                               self.albedo_textured, self.emission_textured, self.shadow)
+                               self.albedo_textured, self.emission_textured, self.shadow, self.specular_textured)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -56,7 +58,8 @@ class SurfaceMaterial:
                                dominant.stretch, dominant.rotation, self.transmission + other.transmission, dominant.ior,
                                _add(self.emission, other.emission), self.albedo_textured or other.albedo_textured,
                                self.emission_textured or other.emission_textured,
-                               self.shadow if self.shadow is not None else other.shadow)
+                               self.shadow if self.shadow is not None else other.shadow,
+                               self.specular_textured or other.specular_textured)
 
 
 def _scale(c, k):
@@ -115,9 +118,10 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     if _is_shadow_ray_mix(node):
         return _shadow_ray_mix(node, material, warnings, depth)
     colour, glow = TEXTURED_INPUTS.get(node.type, ((), ()))
+    tint = SPECULAR_INPUTS.get(node.type, ())
     averaged = [name for name in AVERAGED_INPUTS.get(node.type, ()) if (material.name, node.name, name) in _averaged]
     linked = [s.name for s in node.inputs if s.is_linked and s.type != "SHADER"
-              and s.name not in {"Normal", "Tangent", "Alpha", *colour, *glow, *averaged}]
+              and s.name not in {"Normal", "Tangent", "Alpha", *colour, *glow, *tint, *averaged}]
     _warn_ignored_inputs(node, material, warnings)
     for name in averaged:
         warnings.append(f"material '{material.name}': {node.name}'s {name} is driven by nodes and solved as its mean "
@@ -127,6 +131,9 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
                         "their own values are used instead")
     textured = {"albedo_textured": any(_is_linked(node, name) for name in colour),
                 "emission_textured": any(_is_linked(node, name) for name in glow)}
+    # A Principled BSDF's base colour tints its lobe only where it is metallic.
+    specular_textured = any(_is_linked(node, name) for name in tint) and (
+        node.type != "BSDF_PRINCIPLED" or _scalar(material, node, "Metallic") > 0)
     kind = node.type
     if kind == "BSDF_DIFFUSE":
         return SurfaceMaterial(albedo=socket_color(node, "Color"), **textured)
@@ -144,7 +151,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         rotation = socket_value(node, "Rotation") if a else 0.0
         _warn_tangent(node, material, warnings, a)
         return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=_scalar(material, node, "Roughness", 0.5),
-                               stretch=stretch, rotation=2 * math.pi * rotation)
+                               stretch=stretch, rotation=2 * math.pi * rotation, specular_textured=specular_textured)
     if kind == "BSDF_GLASS":
         _warn_tint(socket_color(node, "Color", (1.0, 1.0, 1.0)), node, material, warnings)
         return SurfaceMaterial(transmission=1.0, roughness=_scalar(material, node, "Roughness", 0.0),
@@ -180,7 +187,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
                                roughness=_scalar(material, node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
                                rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
-                               **textured)
+                               specular_textured=specular_textured, **textured)
     if kind == "ADD_SHADER":
         return _shader(linked_node(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(linked_node(node.inputs[1]), material, warnings, depth + 1))
@@ -200,6 +207,15 @@ TEXTURED_INPUTS = {
     "BSDF_DIFFUSE": (("Color",), ()),
     "BSDF_PRINCIPLED": (("Base Color",), ("Emission Color", "Emission Strength")),
     "EMISSION": ((), ("Color", "Strength")),
+}
+
+
+# Per shader node: the inputs colouring its glossy lobe that Blender evaluates for the solve when
+# nodes drive them (a Cycles bake of the glossy-colour pass, textures.py).
+SPECULAR_INPUTS = {
+    "BSDF_GLOSSY": ("Color",),
+    "BSDF_ANISOTROPIC": ("Color",),
+    "BSDF_PRINCIPLED": ("Base Color",),
 }
 
 
@@ -335,6 +351,9 @@ class SolverMaterial:
     # albedo absorbs (the baked diffuse colour plus it is the albedo, as for constants).
     albedo_textured: bool = False
     emission_textured: bool = False
+    # Node-driven glossy colour of a GGX material: baked by textures.py into the surfaces'
+    # specular textures (the core's BSDF then takes each texture's mean as its f0).
+    specular_textured: bool = False
     specular: tuple = (0.0, 0.0, 0.0)
     pass_weight: tuple = (1.0, 1.0, 1.0)  # Cycles' diffuse-colour pass over the base colour
     # Glass ("rough_dielectric"): the user's roughness, what shadow rays get (the Light Path
@@ -375,12 +394,17 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     name = material.name if material is not None else "(none)"
     chosen = _solver_material(name, described, warnings)
     chosen.emission_textured = described.emission_textured
-    if described.albedo_textured:
-        if chosen.kind == "lambert":
+    if chosen.kind == "ggx" and described.specular_textured:
+        # Its f0 over each surface (Cycles' glossy-colour pass), which the core blends exactly:
+        # Schlick's Fresnel is affine in f0.
+        chosen.specular_textured = True
+    elif described.albedo_textured or described.specular_textured:
+        if chosen.kind == "lambert" and described.albedo_textured:
             chosen.albedo_textured = True  # its albedo is the baked diffuse colour plus the lobe's
         else:
             warnings.append(f"material '{name}': its colour is driven by nodes on a {chosen.kind.replace('_', ' ')} "
-                            "surface, which is solved with the socket's own value (textures colour diffuse surfaces)")
+                            "surface, which is solved with the socket's own value (textures colour diffuse surfaces "
+                            "and the lobe of glossy ones)")
     return chosen
 
 

@@ -1,10 +1,12 @@
 """Textured materials: node trees that drive a material's colour (a Principled BSDF's Base Color, a
-Diffuse BSDF's Color) or its emission are evaluated by Blender itself, not by the add-on: a Cycles
-bake of the diffuse-colour pass (and of the emission pass) onto a temporary copy of the object,
+Diffuse BSDF's Color, a Glossy BSDF's Color) or its emission are evaluated by Blender itself, not by
+the add-on: a Cycles bake of the diffuse-colour pass (of the glossy-colour pass for glossy surfaces,
+and of the emission pass) onto a temporary copy of the object,
 whose temporary UV map lays each solver surface's parameter square on a tile of a float image.
 The tiles become the surfaces' albedo and emission textures over their own (u, v)
-(Scene.set_albedo_texture / set_emission_texture): the solve keeps irradiance / pi in the spline
-and the texture as its detail, the paper's decomposition (38) with the texture as the detail factor.
+(Scene.set_albedo_texture / set_emission_texture / set_specular_texture): the solve keeps irradiance
+/ pi (a glossy surface: its reflected radiance per unit of its mean colour) in the spline and the
+texture as its detail, the paper's decomposition (38) with the texture as the detail factor.
 
 Everything made here (object, mesh, material copies, images) is removed afterwards; the user's
 objects, meshes and materials are read only, and the render settings are put back."""
@@ -42,7 +44,7 @@ def has_textures(obj) -> bool:
 def _slot_flags(obj):
     for m in user_slots(obj):
         described = describe_material(m, [])
-        yield described.albedo_textured or described.emission_textured
+        yield described.albedo_textured or described.emission_textured or described.specular_textured
 
 
 def missing_images(material) -> list:
@@ -70,7 +72,7 @@ def apply_textures(depsgraph, scene, objects, warnings) -> dict:
         if obj is None:
             continue
         materials = [solver_material(m, describe_material(m, []), []) for m in user_slots(obj)]
-        if not any(m.albedo_textured or m.emission_textured for m in materials):
+        if not any(m.albedo_textured or m.emission_textured or m.specular_textured for m in materials):
             continue
         if exported.kind == "nurbs" and len(exported.patches) > 1:
             warnings.append(f"object '{exported.name}': its materials' node-driven colour or emission is solved with "
@@ -96,12 +98,10 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
             layout = _ChartLayout(4 * texels, uvs.reshape(-1, 2))
         else:
             layout = _TileLayout(mesh, [kind for kind, _, _ in exported.patches], texels)
-        if any(m.albedo_textured for m in materials):
-            colour = _bake(copy, mesh, layout, "DIFFUSE")
-            _set_textures(scene, mesh, exported, layout, colour, materials, albedo=True, warnings=warnings)
-        if any(m.emission_textured for m in materials):
-            glow = _bake(copy, mesh, layout, "EMIT")
-            _set_textures(scene, mesh, exported, layout, glow, materials, albedo=False, warnings=warnings)
+        for which, pass_type in (("albedo", "DIFFUSE"), ("specular", "GLOSSY"), ("emission", "EMIT")):
+            if any(getattr(m, f"{which}_textured") for m in materials):
+                pixels = _bake(copy, mesh, layout, pass_type)
+                _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings)
         return layout.width * layout.height
 
 
@@ -159,7 +159,9 @@ def _bilinear(image, x, y):
             + (image[y1, x0] * (1 - a) + image[y1, x1] * a) * b).astype(np.float32)
 
 
-def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warnings):
+def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings):
+    """Gives the surfaces of the slots whose `which` ("albedo", "specular", "emission") is
+    node-driven their texture cut from the baked pass."""
     slot_of = np.zeros(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", slot_of)
     if exported.kind in {"chart", "nurbs"}:  # one surface over the image
@@ -170,7 +172,7 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warn
             slot = int(slot_of[poly_index])
             if kind == "ngon":
                 material = materials[min(slot, len(materials) - 1)]
-                if material.albedo_textured if albedo else material.emission_textured:
+                if getattr(material, f"{which}_textured"):
                     warnings.append(f"object '{exported.name}': face {poly_index} has more than four corners; its "
                                     "node-driven colour and emission use the sockets' own values (triangulate it "
                                     "to bake them)")
@@ -178,13 +180,18 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, albedo, warn
             surfaces.append((first, slot, layout.texture(pixels, poly_index, kind)))
     for index, slot, image in surfaces:
         material = materials[min(slot, len(materials) - 1)]
-        if albedo and material.albedo_textured:
+        if not getattr(material, f"{which}_textured"):
+            continue
+        if which == "albedo":
             # The base colour (the pass Cycles evaluates is it under the specular lobe, seen along
             # the normal), layered as the solve's albedo is: base (1 - E) + E.
             base = image / np.asarray(material.pass_weight, np.float32)
             lobe = np.asarray(material.specular, np.float32)
             scene.set_albedo_texture(index, np.clip(base * (1 - lobe) + lobe, 0, 1))
-        elif not albedo and material.emission_textured:
+        elif which == "specular":
+            # Cycles' glossy-colour pass: the lobe's colour (a metal's base colour) along the normal.
+            scene.set_specular_texture(index, np.clip(image, 0, 1))
+        else:
             image = np.maximum(image, 0)
             scene.set_emission_texture(index, image)
             if image.max() > 0:  # Cycles' Emission shader emits from both sides of a mesh
@@ -219,8 +226,8 @@ def _temporary_copy(depsgraph, obj):
 
 
 def _bake(copy, mesh, layout, kind) -> np.ndarray:
-    """Cycles' diffuse colour ('DIFFUSE') or emission ('EMIT') of the copy's materials over the
-    layout's UVs: (height, width, 3)."""
+    """Cycles' diffuse colour ('DIFFUSE'), glossy colour ('GLOSSY') or emission ('EMIT') of the
+    copy's materials over the layout's UVs: (height, width, 3)."""
     uv = mesh.uv_layers.new(name=BAKE_UV, do_init=False)
     if uv is None:
         raise ExportError(f"object '{copy.name}': no room for a UV map to bake its textures (8 at most)")
@@ -238,7 +245,7 @@ def _bake(copy, mesh, layout, kind) -> np.ndarray:
             nodes.append(node)
         with _bake_settings(copy):
             options = dict(type=kind, uv_layer=BAKE_UV, margin=PAD, use_clear=True, target="IMAGE_TEXTURES")
-            if kind == "DIFFUSE":
+            if kind in {"DIFFUSE", "GLOSSY"}:
                 options["pass_filter"] = {"COLOR"}
             bpy.ops.object.bake(**options)
         pixels = np.empty(layout.width * layout.height * 4, np.float32)

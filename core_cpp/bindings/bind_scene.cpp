@@ -196,6 +196,17 @@ void bind_scene(py::module_& m) {
             "surface or the diffuse base of a decomposed one: the spline holds irradiance / pi and the outgoing "
             "radiance is albedo(u, v) times it.")
         .def(
+            "set_specular_texture",
+            [](Scene& s, size_t i, const Image& specular) {
+                if (i >= s.size()) throw py::index_error("set_specular_texture: no surface " + std::to_string(i));
+                s.set_specular_texture(i, texture(specular, "surface '" + s[i].surface->name() + "': specular texture", true));
+            },
+            py::arg("index"), py::arg("specular"),
+            "Gives surface `index` (GGX reflection) a spatially varying f0 (a metal's colour): an (height, width, 3) "
+            "image laid out as for set_albedo_texture, values in [0, 1]. Schlick's Fresnel is affine in f0: the solve "
+            "keeps the radiance at f0 = 1 (upper, lower) and at f0 = 0 (tint_zero, lower_tint_zero) and the outgoing "
+            "radiance is specular(u, v) times the first plus (1 - specular(u, v)) times the second.")
+        .def(
             "set_emission_texture",
             [](Scene& s, size_t i, const Image& emission) {
                 if (i >= s.size()) throw py::index_error("set_emission_texture: no surface " + std::to_string(i));
@@ -306,7 +317,8 @@ void bind_scene(py::module_& m) {
         .def(py::init([](const std::string& kind, double disc_radius, const TensorSpline& upper,
                          std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse,
                          std::optional<TensorSpline> lower_diffuse, std::optional<Image> albedo,
-                         std::optional<Image> emission, bool two_sided_emission) {
+                         std::optional<Image> emission, bool two_sided_emission, std::optional<Image> specular,
+                         std::optional<TensorSpline> tint_zero, std::optional<TensorSpline> lower_tint_zero) {
                  const Representation r = kind == "glossy" ? Representation::Glossy
                                           : kind == "decomposed" ? Representation::Decomposed
                                           : kind == "diffuse" ? Representation::Diffuse
@@ -331,17 +343,35 @@ void bind_scene(py::module_& m) {
                                      std::move(lower_diffuse)};
                  if (albedo) out.albedo = texture(*albedo, "SurfaceRadiance: albedo", true);
                  if (emission) out.emission = texture(*emission, "SurfaceRadiance: emission", false);
+                 if (specular && (r != Representation::Glossy || !tint_zero || !rgb_of(tint_zero, 4) ||
+                                  !rgb_of(lower_tint_zero, 4) || bool(lower) != bool(lower_tint_zero)))
+                     throw std::invalid_argument("SurfaceRadiance: a specular texture needs a glossy surface with "
+                                                 "4D RGB tint_zero splines (and lower_tint_zero with lower)");
+                 if (!specular && (tint_zero || lower_tint_zero))
+                     throw std::invalid_argument("SurfaceRadiance: tint_zero splines need a specular texture");
+                 if (specular) {
+                     out.specular = texture(*specular, "SurfaceRadiance: specular", true);
+                     out.tint_zero = std::move(tint_zero);
+                     out.lower_tint_zero = std::move(lower_tint_zero);
+                 }
                  out.two_sided_emission = two_sided_emission;
                  return out;
              }),
              py::arg("kind"), py::arg("disc_radius"), py::arg("upper"), py::arg("lower") = std::nullopt,
              py::arg("diffuse") = std::nullopt, py::arg("lower_diffuse") = std::nullopt, py::arg("albedo") = std::nullopt,
-             py::arg("emission") = std::nullopt, py::arg("two_sided_emission") = false,
+             py::arg("emission") = std::nullopt, py::arg("two_sided_emission") = false, py::arg("specular") = std::nullopt,
+             py::arg("tint_zero") = std::nullopt, py::arg("lower_tint_zero") = std::nullopt,
              "Rebuilds a solved surface's radiance (as a solution file stores it).")
         .def_property_readonly("albedo", [](const SurfaceRadiance& r) { return image(r.albedo); },
                                "The albedo texture (height, width, 3) multiplying the diffuse spline (irradiance / pi), or None.")
         .def_property_readonly("emission", [](const SurfaceRadiance& r) { return image(r.emission); },
                                "The emission texture (height, width, 3) added to the front side, or None (emission in the spline).")
+        .def_property_readonly("specular", [](const SurfaceRadiance& r) { return image(r.specular); },
+                               "The specular texture (height, width, 3): the GGX f0 over (u, v) blending upper (f0 = 1) "
+                               "and tint_zero (f0 = 0), or None.")
+        .def_readonly("tint_zero", &SurfaceRadiance::tint_zero, "With a specular texture: the front's radiance at f0 = 0.")
+        .def_readonly("lower_tint_zero", &SurfaceRadiance::lower_tint_zero,
+                      "With a specular texture: the back's radiance at f0 = 0, where the back side was solved.")
         .def_readonly("two_sided_emission", &SurfaceRadiance::two_sided_emission,
                       "Whether the emission texture leaves the back side too.")
         .def_property_readonly("kind", [](const SurfaceRadiance& r) { return kind_name(r.kind); })

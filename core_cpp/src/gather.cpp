@@ -59,9 +59,10 @@ Vec3 Receiver::own_radiance(Splines which, double u, double v, const Vec3& local
     return side < sides ? evaluate_side(kind, map, (this->*which)[side], u, v, local) : Vec3{0, 0, 0};
 }
 
-Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel) const {
+Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel,
+                        const Vec3& partner_texel) const {
     const Vec3 L = own_radiance(which, u, v, local) * texel;
-    return partner ? L + partner->own_radiance(which, u, v, local) : L;
+    return partner ? L + partner->own_radiance(which, u, v, local) * partner_texel : L;
 }
 
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
@@ -244,8 +245,11 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
         if (hit.surface < 0) return with_world ? world_along(dir) : Vec3{0, 0, 0};
         const Receiver* h = receiver_of[hit.surface];
         if (!h) return {0, 0, 0};
-        const Vec3 texel = h->albedo ? texel_seen(*h->albedo, hit, dir, solid_angle) : Vec3{1, 1, 1};
-        return h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel);
+        const Texture* detail = h->albedo ? h->albedo : h->tint;
+        const Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
+        // A tinted pair: f0 = 1 weighed by the texel, f0 = 0 by its complement.
+        return h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel,
+                           h->tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
     }, out, rays);
 }
 

@@ -105,6 +105,9 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         why << "; albedo texture " << ss.material.albedo_texture->width() << " x " << ss.material.albedo_texture->height();
         if (p.kind == Representation::Diffuse) p.bsdf = std::make_shared<Lambert>(Vec3{1, 1, 1});
     }
+    if (const auto& tint = ss.material.specular_texture)
+        why << "; specular texture " << tint->width() << " x " << tint->height()
+            << ": its blend of the radiance at f0 = 1 and at f0 = 0 (two 4D splines)";
     // The sides the scene lights (a transmitting surface's lower hemisphere is paper 4.3).
     p.live = lit.live;
     if (p.bsdf->transmits()) p.live = {true, p.kind == Representation::Glossy};
@@ -156,6 +159,17 @@ std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int sp
     for (size_t i = 0; i < scene.size(); ++i) {
         if (!scene[i].receiver) continue;
         Plan p = plan_surface(scene, int(i), s, extent, spatial_scale, sides[i]);
+        if (scene[i].material.specular_texture) {
+            // Schlick's Fresnel is affine in f0: the surface at f0 = 1 and, as its partner, at
+            // f0 = 0, on the same knots; the texture blends them.
+            Plan black = p;
+            p.bsdf = scene[i].material.bsdf->with_specular_colour({1, 1, 1});
+            black.bsdf = scene[i].material.bsdf->with_specular_colour({0, 0, 0});
+            black.partner_of = int(plans.size());
+            plans.push_back(std::move(p));
+            plans.push_back(std::move(black));
+            continue;
+        }
         if (p.kind != Representation::Decomposed) {
             plans.push_back(std::move(p));
             continue;
@@ -250,7 +264,10 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     r.sides = p.sides;
     r.live = p.live;
     r.map = HemisphereMap::for_max_angle(s.angular_delta);
-    if (p.partner_of < 0) r.albedo = scene[p.surface].material.albedo_texture.get();
+    if (p.partner_of < 0) {  // the textures weigh the surface's own receiver and, through it, its partner
+        r.albedo = scene[p.surface].material.albedo_texture.get();
+        r.tint = scene[p.surface].material.specular_texture.get();
+    }
     std::vector<KnotVector> axes{ku, kv};
     if (p.kind == Representation::Glossy) {
         const double R = r.map.radius();
@@ -694,7 +711,7 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
                 if (part->solves(side)) solution.stats.coefficients += part->Le[side].coeffs().size() / 3;
         const Material& m = scene[r.surface].material;
         std::shared_ptr<const Texture> emission = m.emission_texture;
-        if (!emission && m.albedo_texture && m.emits())  // kept out of the textured spline: one texel
+        if (!emission && (m.albedo_texture || m.specular_texture) && m.emits())  // kept out of the textured spline: one texel
             emission = std::make_shared<Texture>(1, 1, std::vector<float>{float(m.emission.x), float(m.emission.y), float(m.emission.z)},
                                                  "emission", false);
         for (int side = 0; side < r.sides && !emission; ++side) {
@@ -710,7 +727,14 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
         };
         std::optional<SurfaceRadiance> out;
         std::string kind;
-        if (r.partner) {
+        if (r.tint) {
+            Receiver& black = result[r.partner->index];
+            out = SurfaceRadiance{r.kind, r.map, front(r), back(r), std::nullopt, std::nullopt};
+            out->tint_zero = front(black);
+            out->lower_tint_zero = back(black);
+            out->specular = m.specular_texture;
+            kind = "glossy 4D";
+        } else if (r.partner) {
             Receiver& s = result[r.partner->index];
             out = SurfaceRadiance{Representation::Decomposed, s.map, front(s), back(s), front(r), back(r)};
             kind = "decomposed 2D + 4D (38)";

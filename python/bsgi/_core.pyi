@@ -110,13 +110,23 @@ class SurfaceRadiance:
     lit from behind: Cycles shades both sides), `diffuse` / `lower_diffuse` the 2D parts D of
     (38) on each side. Textured surfaces: their diffuse splines hold irradiance / pi, `albedo`
     (height, width, 3) over (u, v) multiplies them; `emission` is added (to the back side too with
-    `two_sided_emission`)."""
+    `two_sided_emission`). A textured GGX f0 (`specular`, (height, width, 3)): upper / lower hold the
+    radiance at f0 = 1, `tint_zero` / `lower_tint_zero` at f0 = 0, and the surface shows
+    specular x the first + (1 - specular) x the second."""
     def __init__(self, kind: Literal["diffuse", "glossy", "decomposed"], disc_radius: float, upper: TensorSpline,
                  lower: TensorSpline | None = None, diffuse: TensorSpline | None = None,
                  lower_diffuse: TensorSpline | None = None, albedo: npt.ArrayLike | None = None,
-                 emission: npt.ArrayLike | None = None, two_sided_emission: bool = False) -> None: ...
+                 emission: npt.ArrayLike | None = None, two_sided_emission: bool = False,
+                 specular: npt.ArrayLike | None = None, tint_zero: TensorSpline | None = None,
+                 lower_tint_zero: TensorSpline | None = None) -> None: ...
     @property
     def albedo(self) -> npt.NDArray[np.float32] | None: ...
+    @property
+    def specular(self) -> npt.NDArray[np.float32] | None: ...
+    @property
+    def tint_zero(self) -> TensorSpline | None: ...
+    @property
+    def lower_tint_zero(self) -> TensorSpline | None: ...
     @property
     def emission(self) -> npt.NDArray[np.float32] | None: ...
     @property

@@ -53,7 +53,8 @@ class StoredSolution:
     upper-hemisphere spline (`radiance`) and as the whole SurfaceRadiance (`surfaces`: kind,
     disc radius, the back side's splines where it was solved: transmitting surfaces and opaque ones
     lit from behind; files from before two-sided surfaces load with the back sides they had; the
-    albedo and emission textures of textured surfaces)."""
+    albedo, emission and specular textures of textured surfaces, with a textured GGX f0 the
+    splines at f0 = 0)."""
 
     radiance: list
     surfaces: list
@@ -81,12 +82,14 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
         radii.append(surface.disc_radius if surface else None)
         sides = {"upper": upper, "lower": surface.lower if surface else None,
                  "diffuse": surface.diffuse if surface else None,
-                 "lower_diffuse": surface.lower_diffuse if surface else None}
+                 "lower_diffuse": surface.lower_diffuse if surface else None,
+                 "tint_zero": surface.tint_zero if surface else None,
+                 "lower_tint_zero": surface.lower_tint_zero if surface else None}
         for side, spline in sides.items():
             if spline is not None:
                 for key, value in spline_to_arrays(spline).items():
                     arrays[f"surface{i}/{side}/{key}"] = value
-        for texture in ("albedo", "emission"):  # textured surfaces: float32 images over (u, v)
+        for texture in ("albedo", "emission", "specular"):  # textured surfaces: float32 images over (u, v)
             image = getattr(surface, texture) if surface else None
             if image is not None:
                 arrays[f"surface{i}/{texture}"] = image
@@ -155,7 +158,7 @@ def _read_solution(path) -> StoredSolution:
 
 def _read_surface(data, i: int, kind, radius, two_sided_emission: bool) -> _core.SurfaceRadiance:
     sides = {}
-    for side in ("upper", "lower", "diffuse", "lower_diffuse"):
+    for side in ("upper", "lower", "diffuse", "lower_diffuse", "tint_zero", "lower_tint_zero"):
         prefix = f"surface{i}/{side}/"
         found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
         if not found:
@@ -179,7 +182,9 @@ def _read_surface(data, i: int, kind, radius, two_sided_emission: bool) -> _core
         raise _Refused(f"disc radius {radius!r} is not a number")
     if not isinstance(kind, str):
         raise _Refused(f"kind {kind!r} is not a name")
-    textures = {t: data[f"surface{i}/{t}"] if f"surface{i}/{t}" in data.files else None for t in ("albedo", "emission")}
+    textures = {t: data[f"surface{i}/{t}"] if f"surface{i}/{t}" in data.files else None
+                for t in ("albedo", "emission", "specular")}
     return _core.SurfaceRadiance(kind, radius if radius is not None else 1.0, sides["upper"], sides["lower"],
                                  sides["diffuse"], sides["lower_diffuse"], **textures,
-                                 two_sided_emission=two_sided_emission)
+                                 two_sided_emission=two_sided_emission, tint_zero=sides["tint_zero"],
+                                 lower_tint_zero=sides["lower_tint_zero"])

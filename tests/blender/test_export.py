@@ -81,15 +81,22 @@ def test_mix_shader_blends_its_inputs(context):
     assert d.emission == pytest.approx((2, 2, 2))
 
 
-def test_glossy_and_textures_are_named_in_warnings(context):
+def test_textured_glass_is_named_in_warnings_textured_glossy_is_solved(context):
+    # A Glossy BSDF's node-driven Color is solved (its glossy-colour texture); a Glass BSDF's is
+    # not (the glass is solved clear), and says so.
     m, node = shader_material("Shiny", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9, 1))
     floor = scenes.floor_under_lamp()
     floor.data.materials[0] = m
     tex = m.node_tree.nodes.new("ShaderNodeTexChecker")
     m.node_tree.links.new(tex.outputs["Color"], node.inputs["Color"])
+    glass, glass_node = shader_material("Frosted", "ShaderNodeBsdfGlass", Roughness=0.5)
+    glass.node_tree.links.new(glass.node_tree.nodes.new("ShaderNodeTexChecker").outputs["Color"],
+                              glass_node.inputs["Color"])
+    scenes.add_quad("Pane", [(-1, -1, 0.5), (1, -1, 0.5), (1, 1, 0.5), (-1, 1, 0.5)], glass)
     result = export.export_scene(context.evaluated_depsgraph_get())
     text = "\n".join(result.warnings)
-    assert "material 'Shiny'" in text and "driven by nodes" in text
+    assert "material 'Shiny'" not in text
+    assert "material 'Frosted'" in text and "driven by nodes" in text
     assert len(result.warnings) == len(set(result.warnings))
 
 

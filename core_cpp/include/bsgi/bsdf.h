@@ -45,6 +45,10 @@ public:
     // for BSDFs that are such a sum (null otherwise).
     virtual Vec3 diffuse_albedo() const { return {0, 0, 0}; }
     virtual std::shared_ptr<const Bsdf> glossy_part() const { return nullptr; }
+    // The same BSDF with its glossy colour (GGX f0) replaced, for a textured glossy colour
+    // (Scene::set_specular_texture); null if it has no such colour. Schlick's Fresnel is affine in
+    // f0: rho(f0) = f0 rho(1) + (1 - f0) rho(0) per channel.
+    virtual std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& /*f0*/) const { return nullptr; }
 };
 
 // rho = albedo / pi.
@@ -116,6 +120,9 @@ public:
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     std::string name() const override { return "ggx"; }
     double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
+    std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& f0) const override {
+        return std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_));
+    }
 
 private:
     // Local frame <-> the lobe's frame (x along the turned tangent).

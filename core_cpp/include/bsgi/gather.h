@@ -25,12 +25,15 @@ struct Receiver {
     int surface = -1;
     int index = -1;                   // position among the receivers
     // Decomposition (38): the diffuse part D is the surface's receiver, the glossy part S its
-    // partner; the light leaving the surface is their sum.
+    // partner; the light leaving the surface is their sum (weighed by the tint if tinted).
     const Receiver* partner = nullptr;
     bool is_partner = false;
     Representation kind = Representation::Diffuse;
     const Bsdf* bsdf = nullptr;
     const Texture* albedo = nullptr;  // the albedo texture of a diffuse part holding irradiance / pi
+    // A textured GGX f0: this receiver is the surface at f0 = 1 and its partner at f0 = 0; the
+    // texture T weighs them T and 1 - T.
+    const Texture* tint = nullptr;
     int sides = 1;                    // spline slots: 2 if the back side is solved
     std::array<bool, 2> live{true, false};
     HemisphereMap map{1.0};
@@ -61,8 +64,10 @@ struct Receiver {
         return &(this->*which)[side].coeffs()[3 * (node * per_node + a)];
     }
     // Radiance leaving (u, v) along `local`, from one of the spline sets (with the partner's);
-    // `texel` multiplies this receiver's own part (the albedo texture as seen there).
-    Vec3 radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel = {1, 1, 1}) const;
+    // `texel` multiplies this receiver's own part, `partner_texel` its partner's (their detail
+    // textures as seen there).
+    Vec3 radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel = {1, 1, 1},
+                  const Vec3& partner_texel = {1, 1, 1}) const;
     Vec3 own_radiance(Splines which, double u, double v, const Vec3& local) const;
 };
 

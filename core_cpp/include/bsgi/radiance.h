@@ -40,24 +40,35 @@ struct SurfaceRadiance {
     // smooth factor, and the albedo texture its detail; the emission is then the emission
     // texture (constant emission as one texel), not part of the spline.
     std::shared_ptr<const Texture> albedo, emission;
+    // A textured GGX colour f0 (Scene::set_specular_texture): upper and lower hold the radiance at
+    // f0 = 1, tint_zero and lower_tint_zero at f0 = 0 (Schlick's rise towards grazing angles), and
+    // the surface shows specular x the first + (1 - specular) x the second: (38) with the texture as
+    // the detail factor of the smooth splines.
+    std::optional<TensorSpline> tint_zero, lower_tint_zero;
+    std::shared_ptr<const Texture> specular;
     bool two_sided_emission = false;  // the emission leaves the back side too
 
     // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
     Vec3 evaluate(double u, double v, const Vec3& local) const {
         if (local.z < 0) {
-            Vec3 L = lower ? evaluate_side(kind, map, *lower, u, v, local) : Vec3{0, 0, 0};
+            Vec3 L = lower ? tinted(evaluate_side(kind, map, *lower, u, v, local), lower_tint_zero, u, v, local) : Vec3{0, 0, 0};
             if (lower_diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *lower_diffuse, u, v, local), u, v);
             else if (kind == Representation::Diffuse) L = textured(L, u, v);
             if (emission && two_sided_emission) L += emission->at(u, v);
             return L;
         }
-        Vec3 L = evaluate_side(kind, map, upper, u, v, local);
+        Vec3 L = tinted(evaluate_side(kind, map, upper, u, v, local), tint_zero, u, v, local);
         if (diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local), u, v);
         else if (kind == Representation::Diffuse) L = textured(L, u, v);
         if (emission) L += emission->at(u, v);
         return L;
     }
     Vec3 textured(const Vec3& smooth, double u, double v) const { return albedo ? smooth * albedo->at(u, v) : smooth; }
+    Vec3 tinted(const Vec3& white, const std::optional<TensorSpline>& black, double u, double v, const Vec3& local) const {
+        if (!specular) return white;
+        const Vec3 t = specular->at(u, v);
+        return white * t + (black ? evaluate_side(kind, map, *black, u, v, local) * (Vec3{1, 1, 1} - t) : Vec3{0, 0, 0});
+    }
 };
 
 // What the solver chose for a surface, and why.

@@ -36,14 +36,15 @@ struct SpotCone {
 // Emission is radiance leaving the front side, in every direction or within a spot cone, and
 // the back side too where it is two-sided (Cycles' emissive meshes; its area lights are not).
 // Textures over the surface's (u, v) replace the constants (which then hold their means): the
-// albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission.
+// albedo of a Lambertian surface or of the diffuse base of a decomposed (38) one, the emission,
+// the f0 of a GGX lobe (the BSDF then has the texture's mean as its f0).
 // With thin_glass the surface is a window pane instead: rays cross it (see thin_glass.h).
 struct Material {
     Vec3 albedo;
     Vec3 emission;
     std::shared_ptr<const Bsdf> bsdf;
     std::optional<SpotCone> cone;
-    std::shared_ptr<const Texture> albedo_texture, emission_texture;
+    std::shared_ptr<const Texture> albedo_texture, emission_texture, specular_texture;
     std::optional<ThinGlass> thin_glass;
     bool two_sided_emission = false;
     bool emits() const { return max_component(emission) > 0; }
@@ -171,9 +172,27 @@ public:
         s.material.emission = texture->mean();
         s.material.emission_texture = std::move(texture);
     }
+    // Surface i's glossy colour (a metal's f0) varies over its (u, v) as `texture`. Schlick's
+    // Fresnel is affine in f0, so the surface's radiance is exactly T L1 + (1 - T) L0 with L1, L0
+    // its radiance at f0 = 1 and f0 = 0: the solve keeps both splines and the texture T blends
+    // them where the surface is seen (its BSDF here takes the texture's mean as f0).
+    void set_specular_texture(size_t i, std::shared_ptr<const Texture> texture) {
+        SceneSurface& s = at(i, "set_specular_texture");
+        const std::string what = "surface '" + s.surface->name() + "': specular texture";
+        if (!texture) throw std::invalid_argument(what + ": no image");
+        std::shared_ptr<const Bsdf> tinted = s.material.bsdf ? s.material.bsdf->with_specular_colour(texture->mean()) : nullptr;
+        if (!tinted)
+            throw std::invalid_argument(what + ": its " + (s.material.bsdf ? s.material.bsdf->name() : std::string("lambert")) +
+                                        " BSDF has no glossy colour for the texture to tint");
+        if (s.options.representation == Representation::Diffuse)
+            throw std::invalid_argument(what + ": needs the glossy representation, not 'diffuse'");
+        s.material.bsdf = std::move(tinted);
+        s.material.specular_texture = std::move(texture);
+    }
+    // Albedo or specular textures: their colour cannot ride on scalar form-factor weights.
     bool has_albedo_textures() const {
         for (const auto& s : surfaces_)
-            if (s.material.albedo_texture) return true;
+            if (s.material.albedo_texture || s.material.specular_texture) return true;
         return false;
     }
     // Makes emitter i emit its radiance from its back side too, as Cycles' Emission shader does

@@ -2,7 +2,8 @@
 // row along v, row 0 at v = 0) whose texel (c, r) covers [c/W, (c+1)/W] x [r/H, (r+1)/H].
 // Albedo textures multiply a Lambertian surface's irradiance / pi (the smooth factor of the
 // decomposition (38), the texture in the role of the detail); emission textures replace the
-// constant emission.
+// constant emission. Specular textures tint a GGX lobe (its f0): the surface's radiance is the
+// texture's blend of its radiance at f0 = 1 and at f0 = 0, each a spline.
 #pragma once
 #include <string>
 #include <vector>
