@@ -86,7 +86,7 @@ def test_the_panorama_is_the_cores_layout(context):
     # A pixel's mean direction is its centre's shortened by under 0.2% (5.6 degree pixels).
     err = np.abs(got - want).max()
     print(f"\npanorama directions vs the documented layout: max difference {err:.4f}")
-    assert err < 0.01
+    assert err < 0.01  # measured 0.0067
 
 
 def test_hdri_world_becomes_the_hdri(context, tmp_path):
@@ -112,9 +112,10 @@ def test_hdri_world_becomes_the_hdri(context, tmp_path):
     energy = (image * solid_angles(256, 512)[..., None]).sum(axis=(0, 1))
     want = (ref * solid_angles(128, 256)[..., None]).sum(axis=(0, 1))
     print(f"map vs HDRI: median {np.median(rel):.2e}, max {rel.max():.2e} on the smooth pixels; "
-          f"light over the sphere {np.round(energy / want, 4)}")
-    assert np.median(rel) < 1e-6 and rel.max() < 1.5e-3
-    np.testing.assert_allclose(energy, want, rtol=1e-3)
+          f"light over the sphere {np.abs(energy / want - 1).max():.2e} off")
+    # Measured: median 1.6e-7, max 7.2e-4; the light over the sphere 2.3e-5 off.
+    assert np.median(rel) < 4e-7 and rel.max() < 1.4e-3
+    np.testing.assert_allclose(energy, want, rtol=5e-5)
 
 
 def test_strength_and_a_mapping_rotation_change_the_map_as_cycles_does(context, tmp_path):
@@ -128,7 +129,7 @@ def test_strength_and_a_mapping_rotation_change_the_map_as_cycles_does(context, 
     sky = base.max(axis=2) < 10
     rel = np.abs(turned / shifted - 1)[np.roll(sky, 32, axis=1)]
     print(f"\nstrength 3, turned 90 degrees vs the map x 3 rolled by a quarter: median {np.median(rel):.2e}")
-    assert np.median(rel) < 1e-4
+    assert np.median(rel) < 6e-5  # measured 2.7e-5
     assert np.unravel_index(turned.max(axis=2).argmax(), sky.shape)[1] == \
         np.unravel_index(base.max(axis=2).argmax(), sky.shape)[1] + 32
 
@@ -141,6 +142,7 @@ def test_sky_texture_world_has_its_sun_where_blender_puts_it(context):
     theta, phi = math.pi * (row + 0.5) / 128, math.pi * (1 - 2 * (col + 0.5) / 256)
     # Blender's sun rotation 90 degrees puts the sun towards +X (rotation 0: +Y).
     print(f"\nsky's brightest pixel at {math.degrees(theta):.1f} degrees from the zenith, azimuth {math.degrees(phi):.1f}")
+    # Measured 0.1 and 0.7 degrees off: within the pixels' half width (0.7 degrees).
     assert abs(math.degrees(theta) - 40) < 1.5 and abs(math.degrees(phi)) < 1.5
 
 
