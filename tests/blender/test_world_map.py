@@ -219,10 +219,11 @@ def test_floor_under_the_hdri_matches_cycles(context, tmp_path):
     hdri_world(context, tmp_path, strength=0.5, rotation_z=rotation)
     edge = 1 - math.tan(math.acos(sun[2]))
     rel, block_rel, bias, edges = compare_with_cycles(context, tmp_path, "world_hdri", edge, samples=256)
-    # Measured: 1.0% per pixel (0.6% over blocks: much of it Cycles' noise), bias +0.1%; edges
-    # within a pixel (0.021) of each other and of the geometry.
-    assert rel.mean() < 0.02 and block_rel.mean() < 0.012 and abs(bias) < 0.005
-    assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.04 and abs(edges[1] - edge) < 0.04
+    # Measured: 1.0% per pixel (0.56% over blocks: much of it Cycles' noise), bias +0.14%; edges
+    # within a pixel (0.021) of each other and of the geometry (ours 0.002 from it: the pixels'
+    # spacing bounds what this measures).
+    assert rel.mean() < 0.02 and block_rel.mean() < 0.011 and abs(bias) < 0.005
+    assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.025 and abs(edges[1] - edge) < 0.04
 
 
 @pytest.mark.slow
@@ -235,7 +236,7 @@ def test_floor_under_a_sky_texture_matches_cycles(context, tmp_path):
     # Cycles, in the shadow 3% darker in red, 0.4% in blue (the hemisphere nodes cutting the
     # wall's edge, where the reddish sky near the sun is); the sun's small disc gives a sharp edge
     # that the spline (32 coefficients, a span of 0.069) places 0.037 off, Cycles' pixels 0.016.
-    assert rel.mean() < 0.025 and block_rel.mean() < 0.02 and abs(bias) < 0.005
+    assert rel.mean() < 0.023 and block_rel.mean() < 0.02 and abs(bias) < 0.005
     assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.06 and abs(edges[1] - edge) < 0.03
 
 
@@ -273,8 +274,9 @@ def test_baked_box_on_a_floor_matches_cycles_path_tracing(context, tmp_path, kin
           f"{rel.mean():.4f} over {lit.sum()} lit pixels, median {np.median(rel):.4f}; export (with the world's "
           f"render), solve and bake {seconds:.2f} s")
     record(**{f"scene_world_{kind}_seconds": seconds, f"scene_world_{kind}_rel_diff_vs_cycles": rel.mean()})
-    # Measured: 2.3% (median 0.4%) under the HDRI, 2.5% (0.3%) under the sky: the shadow's
+    # Measured: 2.3% (median 0.39%) under the HDRI, 2.5% (0.29%) under the sky: the shadow's
     # outline, which the floor's spline softens, and the edges of the floor and box; 16
     # coefficients gave 4.3% under the HDRI.
     assert lit.sum() > 0.5 * lit.size
-    assert rel.mean() < 0.045 and np.median(rel) < 0.01
+    mean_bound, median_bound = {"hdri": (0.045, 0.008), "sky": (0.049, 0.006)}[kind]
+    assert rel.mean() < mean_bound and np.median(rel) < median_bound
