@@ -240,8 +240,8 @@ def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
            scene_textured_floor_wall_rel_diff_vs_cycles=median)
     assert lit.sum() > 0.5 * lit.size
     assert light.sum() > 50 and dark.sum() > 50
-    assert median <= 0.015  # measured 0.0072
-    assert abs(ratio - 1) <= 0.005  # measured 0.9999: Cycles' noise rather
+    assert median <= 0.015  # measured 0.0072-0.0073 (Cycles' seeds 1-3)
+    assert abs(ratio - 1) <= 0.0006  # measured 0.9999, 1.0002 and 0.9997 with Cycles' seeds 1-3
 
 
 def test_bake_shows_the_users_colour_nodes_times_the_irradiance_spline(context, tmp_path):
@@ -483,8 +483,10 @@ def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
     record(scene_checker_screen_seconds=report["solve_seconds"] + report["bake_seconds"],
            scene_checker_screen_rel_diff_vs_cycles=median)
     assert ratio(reference) > 1.3  # the pattern shows (the screen's mean would give 1)
-    assert median <= 0.023  # measured 0.0115
-    assert abs(ratio(baked) / ratio(reference) - 1) <= 0.004  # measured 0.0019
+    assert median <= 0.023  # measured 0.0115-0.0118 (Cycles' seeds 1-3)
+    # Measured 0.0019, 0.0054 and 0.0031 with Cycles' seeds 1, 2 and 3 (its noise, and the
+    # emission texture's bake, also Cycles'): twice the worst.
+    assert abs(ratio(baked) / ratio(reference) - 1) <= 0.011
 
 
 def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):

@@ -222,7 +222,8 @@ def test_floor_under_the_hdri_matches_cycles(context, tmp_path):
     # Measured: 1.0% per pixel (0.56% over blocks: much of it Cycles' noise), bias +0.14%; edges
     # within a pixel (0.021) of each other and of the geometry (ours 0.002 from it: the pixels'
     # spacing bounds what this measures).
-    assert rel.mean() < 0.02 and block_rel.mean() < 0.011 and abs(bias) < 0.005
+    # The bias +0.14%, +0.14% and +0.13% with Cycles' seeds 1, 2 and 3.
+    assert rel.mean() < 0.02 and block_rel.mean() < 0.011 and abs(bias) < 0.003
     assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.025 and abs(edges[1] - edge) < 0.04
 
 
@@ -236,7 +237,8 @@ def test_floor_under_a_sky_texture_matches_cycles(context, tmp_path):
     # Cycles, in the shadow 3% darker in red, 0.4% in blue (the hemisphere nodes cutting the
     # wall's edge, where the reddish sky near the sun is); the sun's small disc gives a sharp edge
     # that the spline (32 coefficients, a span of 0.069) places 0.037 off, Cycles' pixels 0.016.
-    assert rel.mean() < 0.023 and block_rel.mean() < 0.02 and abs(bias) < 0.005
+    # The bias +0.19%, +0.19% and +0.20% with Cycles' seeds 1, 2 and 3.
+    assert rel.mean() < 0.023 and block_rel.mean() < 0.02 and abs(bias) < 0.004
     assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.06 and abs(edges[1] - edge) < 0.03
 
 
