@@ -320,6 +320,32 @@ def colour_source(material):
     return node, colour, weight, tuple(solved.specular)
 
 
+def tint_source(material):
+    """How the bake can show a textured glossy colour's own nodes (sharp, at their own resolution)
+    instead of its baked f0 texture: (node, colour input, 1.0, (0, 0, 0)), as colour_source gives
+    it, when the material's output takes a Glossy BSDF whose Color, or a Principled BSDF of
+    Metallic 1 (not node-driven) whose Base Color, is driven by nodes, and the solve made it GGX
+    with a specular texture: Cycles' glossy-colour pass, the solve's f0 texture, is then that colour
+    itself. Else None: a Mix or Add Shader, a partly metallic Principled BSDF (its pass mixes the
+    dielectric lobe in) show the baked texture."""
+    if material is None or material.node_tree is None:
+        return None
+    output = active_output(material.node_tree, "OUTPUT_MATERIAL")
+    node = linked_node(output.inputs["Surface"]) if output is not None else None
+    colour = {"BSDF_PRINCIPLED": "Base Color", "BSDF_GLOSSY": "Color", "BSDF_ANISOTROPIC": "Color"}.get(
+        getattr(node, "type", None))
+    # Inside a node group the shader's colour is the group's, which the material's copy cannot link.
+    if colour is None or node.id_data != material.node_tree or not any(
+            link.is_valid and not link.is_muted for link in node.inputs[colour].links):
+        return None
+    if node.type == "BSDF_PRINCIPLED" and (node.inputs["Metallic"].is_linked or socket_value(node, "Metallic") != 1):
+        return None
+    solved = solver_material(material, describe_material(material, []), [])
+    if solved.kind != "ggx" or not solved.specular_textured:
+        return None
+    return node, colour, 1.0, (0.0, 0.0, 0.0)
+
+
 MEAN_TEXELS = 8  # per face side, for the mean of a node-driven roughness or metallic
 
 

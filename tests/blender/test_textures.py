@@ -506,10 +506,10 @@ def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):
 METAL_ROUGHNESS = 0.5
 
 
-def checker_metal(name, shader="principled"):
-    """A metal whose colour is the checker: a Principled BSDF (Metallic 1, its Base Color) or a
-    Glossy BSDF (its Color), single-scattering GGX (the solver's lobe; Cycles' default multiscatter
-    GGX reflects a few percent more at this roughness)."""
+def checker_metal(name, shader="principled", colour_node=None):
+    """A metal whose colour is the checker (or the node colour_node(tree) makes): a Principled
+    BSDF (Metallic 1, its Base Color) or a Glossy BSDF (its Color), single-scattering GGX (the
+    solver's lobe; Cycles' default multiscatter GGX reflects a few percent more at this roughness)."""
     if shader == "principled":
         m = scenes.metal_material(name, METAL_ROUGHNESS, (0.5, 0.5, 0.5))  # the socket's own value: grey
         node = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
@@ -524,7 +524,7 @@ def checker_metal(name, shader="principled"):
         tree.links.new(node.outputs[0], out.inputs["Surface"])
         colour = "Color"
     node.distribution = "GGX"
-    m.node_tree.links.new(checker(m.node_tree).outputs["Color"], node.inputs[colour])
+    m.node_tree.links.new((colour_node or checker)(m.node_tree).outputs["Color"], node.inputs[colour])
     return m
 
 
@@ -626,3 +626,124 @@ def test_textured_metal_bake_survives_rebake_and_solution_files(context, tmp_pat
     solution_file.import_solution(context.scene, path)
     loaded = bake.stored_faces(floor)[0][1][0]
     np.testing.assert_allclose(loaded.evaluate(uv, d), solved.evaluate(uv, d), rtol=1e-6)
+
+
+LINES_SIZE = 512  # texels per side of the fine-lines image, over the 2 x 2 floor
+LINE_PERIOD = 8  # texels from a line to the next, each one texel wide
+GOLD, LINE = (0.9, 0.7, 0.3), (0.08, 0.08, 0.08)
+
+
+def fine_lines(tree):
+    """A packed float image of one-texel-wide dark lines across a gold background, every
+    LINE_PERIOD texels along u: 16 lines per texel of the default Texture Texels (32 per face)."""
+    image = bpy.data.images.get("Fine lines")
+    if image is None:
+        image = bpy.data.images.new("Fine lines", LINES_SIZE, LINES_SIZE, alpha=False, float_buffer=True)
+        pixels = np.ones((LINES_SIZE, LINES_SIZE, 4), np.float32)
+        pixels[..., :3] = GOLD
+        pixels[:, ::LINE_PERIOD, :3] = LINE
+        image.pixels.foreach_set(pixels.ravel())
+        image.pack()
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.image = image
+    return node
+
+
+LINES_VIEW = 24  # image texels across the close-up view, four pixels each
+
+
+def lines_close_up(context, shader):
+    """A metal floor coloured by the fine lines under an area light, seen straight from above by
+    an orthographic camera over LINES_VIEW texels around its centre (texel edges on pixel edges):
+    per pixel column, whether it is one of the two middle pixels of a line texel or lies between
+    lines (texels 3 to 5 after one). The image's linear lookup is linear over each of these
+    pixels: the pixel's mean (Cycles' samples) is its value at the centre (EEVEE's one sample)."""
+    add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
+                checker_metal("Lined metal", shader, fine_lines))
+    scenes.add_area_light(location=(0, 0, 1.0), size=1.0, energy=60.0).visible_camera = False
+    scene = context.scene
+    scene.world = None
+    cam = bpy.data.cameras.new("Top")
+    cam.type, cam.ortho_scale = "ORTHO", 2 * LINES_VIEW / LINES_SIZE
+    camera = bpy.data.objects.new("Top", cam)
+    camera.location = (0, 0, 2)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.filter_size = 0.0
+    n = 4 * LINES_VIEW
+    texel = LINES_SIZE // 2 - LINES_VIEW // 2 + np.arange(n) // 4
+    middle = np.isin(np.arange(n) % 4, (1, 2))
+    return (texel % LINE_PERIOD == 0) & middle, np.isin(texel % LINE_PERIOD, (3, 4, 5))
+
+
+def line_contrast(image, line, between):
+    """Luminance between the lines over luminance on them, over the whole close-up."""
+    lum = image.sum(axis=2).mean(axis=0)
+    return lum[between].mean() / lum[line].mean()
+
+
+def render_small(scene, path, samples, bounces):
+    out = render_exr(scene, path, samples, bounces)
+    assert out.shape[:2] == (96, 96)
+    return out
+
+
+EEVEE_RENDER = """\
+import sys
+import bpy
+bpy.ops.wm.open_mainfile(filepath=sys.argv[3])
+scene = bpy.context.scene
+engines = scene.render.bl_rna.properties["engine"].enum_items.keys()
+scene.render.engine = "BLENDER_EEVEE" if "BLENDER_EEVEE" in engines else "BLENDER_EEVEE_NEXT"
+scene.eevee.taa_render_samples = 1  # at the pixel centres (filter size 0)
+scene.render.image_settings.file_format = "OPEN_EXR"
+scene.render.image_settings.color_depth = "32"
+for path in sys.argv[4:]:  # the bake, then the user's own material (the slot's mesh link)
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+    bpy.data.objects["Floor"].material_slots[0].link = "DATA"
+result = scene.render.engine
+"""
+
+
+@pytest.mark.slow
+def test_fine_lines_on_a_metal_stay_sharp_in_the_bake(context, tmp_path, monkeypatch):
+    # The baked material takes f0 from the user's Image Texture itself (16 lines per texel of the
+    # solve's texture): the lines' contrast in Cycles' and EEVEE's renders of the bake is that of
+    # Cycles' render of the scene. The baked f0 texture (textures.tint_source declined) blurs them.
+    from bsgi_addon import bake, textures
+    from subprocess_render import run_bpy
+    from test_bake_view import read_exr
+
+    line, between = lines_close_up(context, "principled")
+    scene = context.scene
+    scene.bsgi.preset = "DRAFT"
+    reference = render_small(scene, tmp_path / "reference.exr", samples=64, bounces=0)
+    report = pipeline.solve_and_bake(context)
+    floor = bpy.data.objects["Floor"]
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    baked = render_small(scene, tmp_path / "baked.exr", samples=64, bounces=0)
+    blend = tmp_path / "baked.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    run = run_bpy(EEVEE_RENDER, args=[str(blend), str(tmp_path / "eevee.exr"), str(tmp_path / "eevee_user.exr")])
+    assert run.ok, run.log
+    eevee, eevee_user = read_exr(tmp_path / "eevee.exr"), read_exr(tmp_path / "eevee_user.exr")
+    monkeypatch.setattr(textures, "tint_source", lambda material: None)
+    bake.rebake(floor)
+    assert floor.material_slots[0].material.name == "BSGI Floor"
+    blurred = render_small(scene, tmp_path / "blurred.exr", samples=16, bounces=0)
+    want, got, shown, user, old = (line_contrast(i, line, between)
+                                   for i in (reference, baked, eevee, eevee_user, blurred))
+    mean, eevee_mean = baked.mean() / reference.mean(), eevee.mean() / reference.mean()
+    print(f"\nfine lines on a metal (512 texels, lines 1 texel wide every {LINE_PERIOD}), seen from above: contrast "
+          f"between and on the lines Cycles {want:.3f}, bake in Cycles {got:.3f} (ratio {got / want:.4f}), in EEVEE "
+          f"{shown:.3f} against EEVEE's of the scene {user:.3f} (ratio {shown / user:.4f}), the baked f0 texture {old:.3f}; mean bake / Cycles {mean:.4f}, "
+          f"EEVEE {eevee_mean:.4f}; solve {report['solve_seconds']:.2f} s, bake {report['bake_seconds']:.2f} s")
+    assert want > 2.5  # the lines show in Cycles (measured 2.744: a pixel's box over a texel's linear lookups)
+    assert abs(got / want - 1) <= 0.01  # measured 0.0001
+    # EEVEE's pixel filter, even at size 0, blends a little across a texel: its render of the user's
+    # material shows the same contrast (3.6% below Cycles').
+    assert abs(shown / user - 1) <= 0.006  # measured 0.0027
+    assert old < 1.5  # measured 1.007: the texel grid's blur, which the test must tell apart
+    # The draft solve's own error at the highlight (preset Preview: 0.031).
+    assert abs(mean - 1) <= 0.15  # measured 0.079
