@@ -305,7 +305,7 @@ def colour_source(material):
     output = active_output(material.node_tree, "OUTPUT_MATERIAL")
     node = linked_node(output.inputs["Surface"]) if output is not None else None
     colour = {"BSDF_PRINCIPLED": "Base Color", "BSDF_DIFFUSE": "Color"}.get(getattr(node, "type", None))
-    if colour is None or not node.inputs[colour].is_linked:
+    if colour is None or node.id_data != material.node_tree or not node.inputs[colour].is_linked:
         return None
     solved = solver_material(material, describe_material(material, []), [])
     if solved.kind != "lambert" or not solved.albedo_textured or solved.emission_textured:

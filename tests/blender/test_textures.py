@@ -747,3 +747,71 @@ def test_fine_lines_on_a_metal_stay_sharp_in_the_bake(context, tmp_path, monkeyp
     assert old < 1.5  # measured 1.007: the texel grid's blur, which the test must tell apart
     # The draft solve's own error at the highlight (preset Preview: 0.031).
     assert abs(mean - 1) <= 0.15  # measured 0.079
+
+
+def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context, tmp_path):
+    # A Glossy BSDF whose Color is the checker, four texels per face side (one per square: the
+    # baked f0 texture blurs the squares into each other). The baked material takes f0 = T from
+    # the Checker node: Cycles' render of the bake from straight above is the core's radiance
+    # at f0 = 0 plus T times its difference to the radiance at f0 = 1, along the normal.
+    from bsgi_addon import bake
+    from test_pipeline import render_floor_from_above
+
+    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
+                        checker_metal("Checker glossy", "glossy"))
+    scenes.add_area_light(location=(0, 0, 1.5), size=1.0, energy=60.0).visible_camera = False
+    context.scene.world = None
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 4
+    pipeline.solve_and_bake(context)
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=4)
+    uv = np.column_stack([(points[:, 0] + 1) / 2, (points[:, 1] + 1) / 2])
+    radiance = bake.stored_faces(floor)[0][1][0]
+    at_normal = np.column_stack([uv, np.zeros((len(uv), 2))])
+    white, black = radiance.upper.evaluate(at_normal), radiance.tint_zero.evaluate(at_normal)
+    colour, _ = checker_colour(uv)
+    want = black + colour * (white - black)
+    n = image.shape[0]
+    s = uv * SQUARES
+    away = np.all(np.abs(s - np.round(s)) > 2.5 * SQUARES / n, axis=1)  # the pixel filter's reach from an edge
+    got = image.reshape(-1, 3)
+    err = np.abs(got[away] - want[away]).sum(axis=1) / want[away].sum(axis=1)
+    texels = bake.texture_at(radiance.specular, uv)
+    blurred = black + texels * (white - black)
+    old = np.abs(blurred[away] - want[away]).sum(axis=1) / want[away].sum(axis=1)
+    print(f"\nbaked glossy checker from above, 4 texels per face: max relative difference {err.max():.4f} "
+          f"(mean {err.mean():.4f}) over {away.sum()} pixels away from the squares' edges; the 4 x 4 f0 texture "
+          f"would be {old.max():.3f} off")
+    assert away.sum() > 0.3 * len(away)
+    # The atlas's bilinear blend of the splines between its texels and angular samples.
+    assert err.max() <= 0.04 < old.max()  # measured 0.022; 0.66
+    assert err.mean() <= 0.008  # measured 0.0039
+
+
+def test_glossy_colours_the_bake_cannot_show_by_their_nodes_show_the_baked_texture(context):
+    # A partly metallic Principled BSDF (its glossy-colour pass mixes the dielectric lobe in) and a
+    # Glossy BSDF under a Mix Shader keep the baked f0 texture: the object's own baked material.
+    partly = checker_metal("Partly metallic")
+    next(n for n in partly.node_tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Metallic"].default_value = 0.9
+    mixed = checker_metal("Mixed glossy", "glossy")
+    tree = mixed.node_tree
+    out = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+    glossy = next(n for n in tree.nodes if n.type == "BSDF_GLOSSY")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.0
+    tree.links.new(glossy.outputs[0], mix.inputs[1])
+    tree.links.new(glossy.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    a = add_uv_quad("A", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], partly)
+    b = add_uv_quad("B", [(2, -1, 0), (4, -1, 0), (4, 1, 0), (2, 1, 0)], mixed)
+    scenes.add_area_light(location=(1.5, 0, 2), size=2.0)
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 4
+    pipeline.solve_and_bake(context)
+    from bsgi_addon import bake
+
+    for obj in (a, b):
+        assert bake.stored_faces(obj)[0][1][0].specular is not None
+        assert obj.material_slots[0].material.name == f"BSGI {obj.name}"
+    assert "BSGI A f0 1" not in bpy.data.images
