@@ -790,8 +790,9 @@ def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context,
 
 
 def test_glossy_colours_the_bake_cannot_show_by_their_nodes_show_the_baked_texture(context):
-    # A partly metallic Principled BSDF (its glossy-colour pass mixes the dielectric lobe in) and a
-    # Glossy BSDF under a Mix Shader keep the baked f0 texture: the object's own baked material.
+    # A partly metallic Principled BSDF (its glossy-colour pass mixes the dielectric lobe in), a
+    # Glossy BSDF under a Mix Shader and one inside a node group keep the baked f0 texture: the
+    # object's own baked material.
     partly = checker_metal("Partly metallic")
     next(n for n in partly.node_tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Metallic"].default_value = 0.9
     mixed = checker_metal("Mixed glossy", "glossy")
@@ -803,15 +804,31 @@ def test_glossy_colours_the_bake_cannot_show_by_their_nodes_show_the_baked_textu
     tree.links.new(glossy.outputs[0], mix.inputs[1])
     tree.links.new(glossy.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    grouped = bpy.data.materials.new("Grouped glossy")  # the Glossy BSDF inside a node group
+    group = bpy.data.node_groups.new("Glossy group", "ShaderNodeTree")
+    group.interface.new_socket("Color", in_out="INPUT", socket_type="NodeSocketColor")
+    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    inner = group.nodes.new("ShaderNodeBsdfGlossy")
+    inner.distribution = "GGX"
+    inner.inputs["Roughness"].default_value = METAL_ROUGHNESS
+    group.links.new(group.nodes.new("NodeGroupInput").outputs["Color"], inner.inputs["Color"])
+    group.links.new(inner.outputs[0], group.nodes.new("NodeGroupOutput").inputs["BSDF"])
+    tree = grouped.node_tree
+    tree.nodes.clear()
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    tree.links.new(checker(tree).outputs["Color"], node.inputs["Color"])
+    tree.links.new(node.outputs[0], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
     a = add_uv_quad("A", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], partly)
     b = add_uv_quad("B", [(2, -1, 0), (4, -1, 0), (4, 1, 0), (2, 1, 0)], mixed)
+    c = add_uv_quad("C", [(5, -1, 0), (7, -1, 0), (7, 1, 0), (5, 1, 0)], grouped)
     scenes.add_area_light(location=(1.5, 0, 2), size=2.0)
     context.scene.bsgi.preset = "DRAFT"
     context.scene.bsgi.texture_texels = 4
     pipeline.solve_and_bake(context)
     from bsgi_addon import bake
 
-    for obj in (a, b):
+    for obj in (a, b, c):
         assert bake.stored_faces(obj)[0][1][0].specular is not None
         assert obj.material_slots[0].material.name == f"BSGI {obj.name}"
     assert "BSGI A f0 1" not in bpy.data.images
