@@ -594,8 +594,9 @@ def test_checker_metal_floor_matches_cycles(context, tmp_path):
     # The glossy spline's own error dominates: a metal of one colour (the checker's mean) measured
     # 0.051 here. The contrast: with the textured f0 solved as its mean's reflection scaled by the
     # texture (Schlick's rise at grazing angles then following the mean), it was 1.067 (roughness 0.4).
-    assert median <= 0.08  # measured 0.056
-    assert abs(ratio - 1) <= 0.012  # measured 0.0055
+    assert median <= 0.08  # measured 0.050
+    # Measured 0.0014 with the Checker node itself in the bake (the baked f0 texture: 0.0055).
+    assert abs(ratio - 1) <= 0.004
 
 
 def test_textured_metal_bake_survives_rebake_and_solution_files(context, tmp_path):
