@@ -788,6 +788,10 @@ def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context,
     # The atlas's bilinear blend of the splines between its texels and angular samples.
     assert err.max() <= 0.04 < old.max()  # measured 0.022; 0.66
     assert err.mean() <= 0.008  # measured 0.0039
+    assert "BSGI Floor f0 1" in bpy.data.images
+    bake.clear_bake(floor)  # the second image goes with the bake's others
+    assert not [i.name for i in bpy.data.images if i.name.startswith("BSGI")]
+    assert floor.material_slots[0].material.name == "Checker glossy"
 
 
 def test_glossy_colours_the_bake_cannot_show_by_their_nodes_show_the_baked_texture(context):
