@@ -750,16 +750,21 @@ def test_fine_lines_on_a_metal_stay_sharp_in_the_bake(context, tmp_path, monkeyp
     assert abs(mean - 1) <= 0.15  # measured 0.079
 
 
-def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context, tmp_path):
-    # A Glossy BSDF whose Color is the checker, four texels per face side (one per square: the
-    # baked f0 texture blurs the squares into each other). The baked material takes f0 = T from
-    # the Checker node: Cycles' render of the bake from straight above is the core's radiance
-    # at f0 = 0 plus T times its difference to the radiance at f0 = 1, along the normal.
+@pytest.mark.parametrize("shader", ["glossy", "principled"])
+def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context, tmp_path, shader):
+    # A Glossy BSDF whose Color is the checker, or a Principled BSDF of Metallic 0.9 whose Base
+    # Color is (f0 = 0.9 checker + 0.1 f0 of its dielectric lobe, 0.04), four texels per face side
+    # (one per square: the baked f0 texture blurs the squares into each other). The baked
+    # material takes f0 = T from the Checker node: Cycles' render of the bake from straight above
+    # is the core's radiance at f0 = 0 plus T times its difference to the radiance at f0 = 1,
+    # along the normal.
     from bsgi_addon import bake
     from test_pipeline import render_floor_from_above
 
-    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
-                        checker_metal("Checker glossy", "glossy"))
+    material = checker_metal("Checker glossy", shader)
+    if shader == "principled":
+        next(n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Metallic"].default_value = 0.9
+    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material)
     scenes.add_area_light(location=(0, 0, 1.5), size=1.0, energy=60.0).visible_camera = False
     context.scene.world = None
     context.scene.bsgi.preset = "DRAFT"
@@ -772,6 +777,8 @@ def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context,
     at_normal = np.column_stack([uv, np.zeros((len(uv), 2))])
     white, black = radiance.upper.evaluate(at_normal), radiance.tint_zero.evaluate(at_normal)
     colour, _ = checker_colour(uv)
+    if shader == "principled":
+        colour = 0.9 * colour + 0.1 * 0.04
     want = black + colour * (white - black)
     n = image.shape[0]
     s = uv * SQUARES
@@ -795,11 +802,10 @@ def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context,
 
 
 def test_glossy_colours_the_bake_cannot_show_by_their_nodes_show_the_baked_texture(context):
-    # A partly metallic Principled BSDF (its glossy-colour pass mixes the dielectric lobe in), a
-    # Glossy BSDF under a Mix Shader and one inside a node group keep the baked f0 texture: the
-    # object's own baked material.
-    partly = checker_metal("Partly metallic")
-    next(n for n in partly.node_tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Metallic"].default_value = 0.9
+    # A coated metal (its glossy-colour pass adds the coat), a Glossy BSDF under a Mix Shader and
+    # one inside a node group keep the baked f0 texture: the object's own baked material.
+    partly = checker_metal("Coated metal")
+    next(n for n in partly.node_tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Coat Weight"].default_value = 0.5
     mixed = checker_metal("Mixed glossy", "glossy")
     tree = mixed.node_tree
     out = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
