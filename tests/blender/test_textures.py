@@ -776,9 +776,12 @@ def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context,
     radiance = bake.stored_faces(floor)[0][1][0]
     at_normal = np.column_stack([uv, np.zeros((len(uv), 2))])
     white, black = radiance.upper.evaluate(at_normal), radiance.tint_zero.evaluate(at_normal)
-    colour, _ = checker_colour(uv)
-    if shader == "principled":
-        colour = 0.9 * colour + 0.1 * 0.04
+    f0 = (lambda c: 0.9 * c + 0.1 * 0.04) if shader == "principled" else (lambda c: c)
+    # Cycles' glossy-colour pass, the solve's f0 texture: one texel per square, at its centre.
+    centres = (np.arange(4) + 0.5) / 4
+    texel_uv = np.column_stack([x.ravel() for x in np.meshgrid(centres, centres)])
+    np.testing.assert_allclose(radiance.specular.reshape(-1, 3), f0(checker_colour(texel_uv)[0]), atol=1e-3)
+    colour = f0(checker_colour(uv)[0])
     want = black + colour * (white - black)
     n = image.shape[0]
     s = uv * SQUARES
