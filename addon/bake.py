@@ -26,8 +26,9 @@ PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
 PROP_SPLINE_MATERIALS = "bsgi_spline_materials"  # SURFACE objects of several splines: a material per spline
 PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and solution export
-# Slots of textured diffuse materials: a baked material of their own that shows the user's colour
-# nodes times the irradiance spline, per slot ("" for the object's baked material).
+# Slots of textured materials: a baked material of their own that shows the user's colour nodes
+# times the irradiance spline (diffuse), or blending the radiance at f0 = 0 and 1 (a glossy colour),
+# per slot ("" for the object's baked material).
 PROP_SLOT_MATERIALS = "bsgi_slot_materials"
 PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay when it is cleared)
 # The splines of a SurfaceRadiance (bakes before two-sided surfaces stored the first three, before
