@@ -25,6 +25,9 @@ BUILD = ROOT / "build" / "sanitize"
 # tests/core under the sanitizers, without the slow reference comparisons (Mitsuba, Cycles), and
 # the fuzzing profile: every entry point of the core with random and broken input.
 DEFAULT_TESTS = ["tests/core", "tests/fuzz", "--skip-slow"]
+# -O1, as AddressSanitizer's documentation advises: the instrumented core compiles 4.5 times faster
+# than at -O2 (52 s against 235 s for bind_scene.cpp on this machine), most of `make test-sanitize`.
+OPTIMISATION = "-O1 -DNDEBUG"
 
 
 def build() -> Path:
@@ -32,7 +35,8 @@ def build() -> Path:
     import pybind11
 
     subprocess.run(["cmake", "-S", str(ROOT / "core_cpp"), "-B", str(BUILD), "-DBSGI_SANITIZE=ON",
-                    "-DCMAKE_BUILD_TYPE=RelWithDebInfo", f"-DPython_EXECUTABLE={sys.executable}",
+                    "-DCMAKE_BUILD_TYPE=RelWithDebInfo", f"-DCMAKE_CXX_FLAGS_RELWITHDEBINFO={OPTIMISATION}",
+                    f"-DPython_EXECUTABLE={sys.executable}",
                     f"-Dpybind11_DIR={pybind11.get_cmake_dir()}"], check=True, stdout=subprocess.DEVNULL)
     subprocess.run(["cmake", "--build", str(BUILD), "--target", "_core", "-j", str(os.cpu_count() or 2)], check=True)
     package = BUILD / "python" / "bsgi"

@@ -84,7 +84,7 @@ def test_chart_agrees_with_the_per_face_export_of_the_same_mesh(context):
     chart = solution.radiance[job.export.objects[0].patches[0][1]].evaluate(centres_uv)
     difference = np.abs(chart - per_face).max() / per_face.max()
     print(f"chart vs per-face floor: max difference {difference:.4f} of the maximum radiance")
-    assert difference < 0.02
+    assert difference < 0.02  # measured 0.0107
     assert wall.name == "Wall"
 
 

@@ -85,7 +85,7 @@ def test_radial_tangent_is_cycles_tangent_node(context):
     angle = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", got, expected)), 0, 1)))
     print(f"\nradial tangent vs Cycles' Tangent node: max {angle.max():.3f} deg, mean {angle.mean():.3f} deg")
     # Half-float-free float image, one sample of an emission: only rounding is left.
-    assert angle.max() < 0.5
+    assert angle.max() < 0.26  # measured 0.132 degrees (mean 0.015)
 
 
 def test_rotation_onto_tangents_in_the_frame():

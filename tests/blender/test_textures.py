@@ -103,16 +103,21 @@ def test_baked_albedo_is_blenders_evaluation(context):
     u, v = np.meshgrid(c, c)
     inside = (np.abs(u * SQUARES - np.round(u * SQUARES)) > 0.1) & (np.abs(v * SQUARES - np.round(v * SQUARES)) > 0.1)
     light = ((np.floor(u * SQUARES) + np.floor(v * SQUARES)) % 2 == 1)
-    print(f"\nchecker texels: light {albedo[inside & light].mean(axis=0)}, dark {albedo[inside & ~light].mean(axis=0)}")
-    np.testing.assert_allclose(albedo[inside & light], np.broadcast_to(LIGHT, albedo[inside & light].shape), atol=1e-3)
-    np.testing.assert_allclose(albedo[inside & ~light], np.broadcast_to(DARK, albedo[inside & ~light].shape), atol=1e-3)
-    np.testing.assert_allclose(albedo.reshape(-1, 3).mean(axis=0), np.add(LIGHT, DARK) / 2, atol=2e-3)
+    light_err = np.abs(albedo[inside & light] - LIGHT).max()
+    dark_err = np.abs(albedo[inside & ~light] - DARK).max()
+    mean_err = np.abs(albedo.reshape(-1, 3).mean(axis=0) - np.add(LIGHT, DARK) / 2).max()
+    print(f"\nchecker texels: light {light_err:.2e}, dark {dark_err:.2e} off at most, their mean {mean_err:.2e}")
+    # Measured: the squares' colours to 1.2e-8 (their float32 rounding), the mean to 7.7e-6.
+    assert light_err < 1e-6 and dark_err < 1e-6 and mean_err < 2e-5
     # The wall: the packed image over its UVs (the face's (u, v)); its mean is the image's.
     wall_albedo = solution.surfaces[wall_index].albedo
-    np.testing.assert_allclose(wall_albedo.reshape(-1, 3).mean(axis=0), STRIPES.mean(axis=0), atol=5e-3)
-    # Per column the stripes' colours (each stripe four texels wide at 32 texels).
     column = wall_albedo[16]
-    assert np.abs(column[1] - STRIPES[0]).max() < 0.02 and np.abs(column[5] - STRIPES[1]).max() < 0.02
+    print(f"wall texels: mean {np.abs(wall_albedo.reshape(-1, 3).mean(axis=0) - STRIPES.mean(axis=0)).max():.2e} off, "
+          f"stripes {np.abs(column[1] - STRIPES[0]).max():.2e} and {np.abs(column[5] - STRIPES[1]).max():.2e}")
+    # Measured: the mean 3.6e-5 off; per column the stripes' colours (each stripe four texels wide
+    # at 32 texels) to 6e-8.
+    np.testing.assert_allclose(wall_albedo.reshape(-1, 3).mean(axis=0), STRIPES.mean(axis=0), atol=8e-5)
+    assert np.abs(column[1] - STRIPES[0]).max() < 1e-6 and np.abs(column[5] - STRIPES[1]).max() < 1e-6
     print(f"texture bake: {export.textures['seconds']:.2f} s for {export.textures['texels']} texels")
 
 
@@ -164,7 +169,8 @@ def test_textured_emission_lights_with_its_pattern(context):
     job, solution = solved_textures(context)
     screen = solution.surfaces[exported_object(job.export, "Screen").patches[0][1]]
     shown = screen.evaluate(np.array([[0.125, 0.125], [0.375, 0.125]]), np.array([[0, 0, 1.0]] * 2))
-    np.testing.assert_allclose(sorted(shown[:, 0]), [0, 4], atol=0.05)
+    print(f"\nthe screen shows its squares' 0 and 4 to {np.abs(np.sort(shown[:, 0]) - [0, 4]).max():.2e}")
+    np.testing.assert_allclose(sorted(shown[:, 0]), [0, 4], atol=1e-6)  # measured exact
     # The floor's centre against the same screen emitting its mean (2) everywhere, by Lambert:
     # E = 2 * (form factor of a 1 x 1 square at height 1 seen from below its centre) * pi.
     floor = solution.surfaces[exported_object(job.export, "Floor").patches[0][1]]
@@ -172,8 +178,8 @@ def test_textured_emission_lights_with_its_pattern(context):
     a = 0.5  # half side over height
     form_factor = 4 * (a / math.sqrt(1 + a * a) * math.atan(a / math.sqrt(1 + a * a))) / (2 * math.pi) * 2
     want = 0.5 / math.pi * 2.0 * math.pi * form_factor
-    print(f"\nfloor under a checker screen: {got:.4f}, mean-emission closed form {want:.4f}")
-    assert abs(got / want - 1) <= 0.02
+    print(f"floor under a checker screen: {got:.4f}, mean-emission closed form {want:.4f}")
+    assert abs(got / want - 1) <= 0.02  # measured 1.17% (the screen's squares seen from the floor)
 
 
 def floor_pixels(scene, n):
@@ -234,8 +240,8 @@ def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
            scene_textured_floor_wall_rel_diff_vs_cycles=median)
     assert lit.sum() > 0.5 * lit.size
     assert light.sum() > 50 and dark.sum() > 50
-    assert median <= 0.015  # measured 0.0072
-    assert abs(ratio - 1) <= 0.005  # measured 0.9999: Cycles' noise rather
+    assert median <= 0.015  # measured 0.0072-0.0073 (Cycles' seeds 1-3)
+    assert abs(ratio - 1) <= 0.0006  # measured 0.9999, 1.0002 and 0.9997 with Cycles' seeds 1-3
 
 
 def test_bake_shows_the_users_colour_nodes_times_the_irradiance_spline(context, tmp_path):
@@ -271,7 +277,7 @@ def test_bake_shows_the_users_colour_nodes_times_the_irradiance_spline(context, 
           f"(mean {err.mean():.4f}) over {away.sum()} pixels away from the squares' edges; the 4 x 4 texture "
           f"would be {blurred.max():.3f} off")
     assert away.sum() > 0.3 * len(away)
-    assert err.max() <= 0.02 < blurred.max()
+    assert err.max() <= 0.02 < blurred.max()  # measured 0.0110 (and 0.661 for the 4 x 4 texture)
 
 
 def test_clearing_the_bake_leaves_the_users_materials_and_images(context):
@@ -322,8 +328,8 @@ def test_triangle_and_chart_textures_follow_their_parameters(context):
     triangle = solution.surfaces[next(o for o in export.objects if o.name == "Triangle").patches[0][1]]
     want, away = checker_colour(np.column_stack([u, u * v]))
     got = triangle.albedo.reshape(-1, 3)
-    print(f"\ntriangle texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5
+    print(f"\ntriangle texels: max difference {np.abs(got[away] - want[away]).max():.2e} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=1e-6)  # measured 1.2e-8: float32 rounding
     chart = next(o for o in export.objects if o.name == "Grid")
     assert chart.kind == "chart"
     albedo = solution.surfaces[chart.patches[0][1]].albedo
@@ -332,8 +338,8 @@ def test_triangle_and_chart_textures_follow_their_parameters(context):
     u, v = (x.ravel() for x in np.meshgrid(c, c))
     want, away = checker_colour(np.column_stack([u, v]))
     got = albedo.reshape(-1, 3)
-    print(f"chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5
+    print(f"chart texels: max difference {np.abs(got[away] - want[away]).max():.2e} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=1e-6)  # measured 1.2e-8: float32 rounding
 
 
 def test_node_driven_roughness_is_its_mean_named_in_a_warning(context):
@@ -354,9 +360,9 @@ def test_node_driven_roughness_is_its_mean_named_in_a_warning(context):
         warnings = []
         solved = materials.solver_material(m, materials.describe_material(m, warnings), warnings)
     # Fac is 0 or 1: its mean over the floor is a half.
-    print(f"\nchecker-driven roughness solved as alpha {solved.alpha:.4f}")
+    print(f"\nchecker-driven roughness solved as alpha {solved.alpha:.6f}")
     assert solved.kind == "ggx"
-    assert solved.alpha == pytest.approx(0.5 ** 2, abs=0.01)
+    assert solved.alpha == pytest.approx(0.5 ** 2, abs=1e-5)  # measured below 5e-7
     assert any("Worn metal" in w and "Roughness is driven by nodes and solved as its mean 0.50" in w for w in warnings)
     export = export_scene(context.evaluated_depsgraph_get())
     assert any("Roughness is driven by nodes and solved as its mean" in w for w in export.warnings), export.warnings
@@ -385,8 +391,8 @@ def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
     colour, away = checker_colour(np.column_stack([u, v]))
     shown = colour * weight + np.asarray(specular)
     err = np.abs(albedo[away] / shown[away] - 1).max()
-    print(f"\nlobe albedo {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + it, max relative difference {err:.4f}")
-    assert err <= 0.005
+    print(f"\nlobe albedo {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + it, max relative difference {err:.2e}")
+    assert err <= 0.0016  # measured 8e-4
 
 
 def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path):
@@ -429,8 +435,8 @@ def test_nurbs_surface_texture_is_over_its_parameters(context, tmp_path):
     u, v = (x.ravel() for x in np.meshgrid(c, c))
     want, away = checker_colour(np.column_stack([u, v]))
     got = albedo.reshape(-1, 3)
-    print(f"\nNURBS texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5
+    print(f"\nNURBS texels: max difference {np.abs(got[away] - want[away]).max():.2e} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=1e-6)  # measured 1.2e-8: float32 rounding
     pipeline.solve_and_bake(context)
     assert patch.material_slots[0].material.name == f"BSGI {patch.name} slot 0"
 
@@ -477,8 +483,10 @@ def test_checker_screen_lights_the_floor_as_cycles_does(context, tmp_path):
     record(scene_checker_screen_seconds=report["solve_seconds"] + report["bake_seconds"],
            scene_checker_screen_rel_diff_vs_cycles=median)
     assert ratio(reference) > 1.3  # the pattern shows (the screen's mean would give 1)
-    assert median <= 0.023  # measured 0.0115
-    assert abs(ratio(baked) / ratio(reference) - 1) <= 0.004  # measured 0.0019
+    assert median <= 0.023  # measured 0.0115-0.0118 (Cycles' seeds 1-3)
+    # Measured 0.0019, 0.0054 and 0.0031 with Cycles' seeds 1, 2 and 3 (its noise, and the
+    # emission texture's bake, also Cycles'): twice the worst.
+    assert abs(ratio(baked) / ratio(reference) - 1) <= 0.011
 
 
 def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):
@@ -499,8 +507,8 @@ def test_modified_mesh_chart_texture_is_over_its_carried_uvs(context):
     u, v = (x.ravel() for x in np.meshgrid(c, c))
     want, away = checker_colour(np.column_stack([u, v]))
     got = albedo.reshape(-1, 3)
-    print(f"\nsubdivided grid chart texels: max difference {np.abs(got[away] - want[away]).max():.4f} over {away.sum()}")
-    np.testing.assert_allclose(got[away], want[away], atol=1e-4)  # measured below 5e-5
+    print(f"\nsubdivided grid chart texels: max difference {np.abs(got[away] - want[away]).max():.2e} over {away.sum()}")
+    np.testing.assert_allclose(got[away], want[away], atol=1e-6)  # measured 1.2e-8: float32 rounding
 
 
 METAL_ROUGHNESS = 0.5
@@ -545,8 +553,8 @@ def test_glossy_colour_texture_is_blenders_evaluation(context):
         surface = solution.surfaces[exported_object(export, name).patches[0][1]]
         assert surface.kind == "glossy" and surface.albedo is None
         got = surface.specular.reshape(-1, 3)
-        print(f"\n{name}: glossy-colour texels, max difference {np.abs(got[away] - want[away]).max():.4f}")
-        np.testing.assert_allclose(got[away], want[away], atol=2e-3)
+        print(f"\n{name}: glossy-colour texels, max difference {np.abs(got[away] - want[away]).max():.2e}")
+        np.testing.assert_allclose(got[away], want[away], atol=1.5e-4)  # measured 6e-5 (Floor), 1e-8 (Tray)
 
 
 @pytest.mark.slow

@@ -154,14 +154,15 @@ def test_sun_through_the_pane_follows_the_glass_or_the_light_path_trick(context)
     open_sun = ALBEDO / math.pi * STRENGTH * math.cos(t)
     got = spline.evaluate(uv)[:, 0] / open_sun
     print(f"\nsun through a Glass BSDF pane: {np.round(got, 5)} of the open sun, closed form "
-          f"{sheet_transmittance(math.cos(t)):.5f}")
-    np.testing.assert_allclose(got, sheet_transmittance(math.cos(t)), rtol=2e-5)  # equal to 5 digits
+          f"{sheet_transmittance(math.cos(t)):.5f} ({np.abs(got / sheet_transmittance(math.cos(t)) - 1).max():.1e} off)")
+    # Measured 5.2e-7 (the sun's direction held in float32 by Blender).
+    np.testing.assert_allclose(got, sheet_transmittance(math.cos(t)), rtol=1e-6)
     assert "1 pane" in pipeline.summary_text(pipeline.report(job, solution, 0, 0))
     bpy.data.objects["Pane"].data.materials[0] = light_path_glass()
     spline, job, _ = solve_floor(context)
     got = spline.evaluate(uv)[:, 0] / open_sun
-    print(f"through the Light Path trick: {np.round(got, 5)}")
-    np.testing.assert_allclose(got, 1.0, rtol=2e-5)
+    print(f"through the Light Path trick: {np.round(got, 5)} ({np.abs(got - 1).max():.1e} off)")
+    np.testing.assert_allclose(got, 1.0, rtol=1e-8)  # measured 4.5e-9
     assert any("Light Path trick" in n for n in notes_on(job.export, "Pane"))
     assert not any("driven by nodes" in w for w in job.export.warnings)
 
@@ -195,8 +196,10 @@ def test_room_with_a_window_pane_against_cycles(context, tmp_path):
     patch_rel = ours[patch].mean() / image[patch].mean() - 1
     print(f"\nroom with a window pane vs Cycles (Light Path trick, 128 spp): mean {rel:+.4f}, "
           f"sun patch {patch_rel:+.4f}")
+    # Measured: mean -2.90%, -2.91% and -2.95%, the patch +0.02%, +0.08% and +0.02% with Cycles'
+    # seeds 1, 2 and 3.
     assert abs(rel) < 0.05
-    assert abs(patch_rel) < 0.05
+    assert abs(patch_rel) < 0.002
 
 
 def test_a_solve_and_bake_leaves_the_pane_its_glass(context):

@@ -102,8 +102,8 @@ def test_room_of_a_scaled_cube_matches_cycles(context, tmp_path):
     print(f"\nroom of a scaled cube, baked vs Cycles: mean {mean:+.4f}, 4x4 blocks "
           f"{np.abs(blocks).max():.4f} at most\n{np.round(blocks, 3)}")
     assert reference.mean() > 0.05  # the room is lit (one-sided it solved black)
-    assert abs(mean) < 0.03
-    assert np.abs(blocks).max() < 0.05
+    assert abs(mean) < 0.022  # measured -1.07%
+    assert np.abs(blocks).max() < 0.036  # measured 1.79%
 
 
 @pytest.mark.slow
@@ -119,7 +119,9 @@ def test_plane_lit_from_below_matches_cycles_from_both_sides(context, tmp_path, 
     print(f"\n{material} plane lit from below, seen from below, baked vs Cycles: mean {mean:+.4f} over "
           f"{lit.sum()} pixels, per-pixel {np.median(np.abs(baked[lit] / reference[lit] - 1)):.4f} median")
     assert lit.sum() > 0.2 * lit.size
-    assert abs(mean) < 0.03
+    # Measured +0.04% (diffuse) and +1.21% (metal) with Cycles' seed 1, +0.04% and +1.15% with
+    # seed 2: Cycles' noise in the mean is below 0.01% here.
+    assert abs(mean) < {"diffuse": 0.001, "metal": 0.025}[material]
     # Seen from above: black in both (the top sees no light).
     above = camera(context, (0, 0, 3), (0, 0, 0))
     del below, above

@@ -84,4 +84,4 @@ def test_world_light_convention_is_cycles(context, tmp_path):
     ratio = image.reshape(-1, 3) / closed_form(points)
     print(f"\nCycles / closed form over the floor: median {np.median(ratio):.4f}, "
           f"5-95% {np.percentile(ratio, 5):.4f}-{np.percentile(ratio, 95):.4f}")
-    assert abs(np.median(ratio) - 1) < 0.006  # measured 1.0003: Cycles' noise rather
+    assert abs(np.median(ratio) - 1) < 0.0006  # measured 1.0003, 1.0003 and 1.0002 with Cycles' seeds 1-3

@@ -86,7 +86,7 @@ def test_the_panorama_is_the_cores_layout(context):
     # A pixel's mean direction is its centre's shortened by under 0.2% (5.6 degree pixels).
     err = np.abs(got - want).max()
     print(f"\npanorama directions vs the documented layout: max difference {err:.4f}")
-    assert err < 0.01
+    assert err < 0.01  # measured 0.0067
 
 
 def test_hdri_world_becomes_the_hdri(context, tmp_path):
@@ -112,9 +112,10 @@ def test_hdri_world_becomes_the_hdri(context, tmp_path):
     energy = (image * solid_angles(256, 512)[..., None]).sum(axis=(0, 1))
     want = (ref * solid_angles(128, 256)[..., None]).sum(axis=(0, 1))
     print(f"map vs HDRI: median {np.median(rel):.2e}, max {rel.max():.2e} on the smooth pixels; "
-          f"light over the sphere {np.round(energy / want, 4)}")
-    assert np.median(rel) < 1e-6 and rel.max() < 1.5e-3
-    np.testing.assert_allclose(energy, want, rtol=1e-3)
+          f"light over the sphere {np.abs(energy / want - 1).max():.2e} off")
+    # Measured: median 1.6e-7, max 7.2e-4; the light over the sphere 2.3e-5 off.
+    assert np.median(rel) < 4e-7 and rel.max() < 1.4e-3
+    np.testing.assert_allclose(energy, want, rtol=5e-5)
 
 
 def test_strength_and_a_mapping_rotation_change_the_map_as_cycles_does(context, tmp_path):
@@ -128,7 +129,7 @@ def test_strength_and_a_mapping_rotation_change_the_map_as_cycles_does(context, 
     sky = base.max(axis=2) < 10
     rel = np.abs(turned / shifted - 1)[np.roll(sky, 32, axis=1)]
     print(f"\nstrength 3, turned 90 degrees vs the map x 3 rolled by a quarter: median {np.median(rel):.2e}")
-    assert np.median(rel) < 1e-4
+    assert np.median(rel) < 6e-5  # measured 2.7e-5
     assert np.unravel_index(turned.max(axis=2).argmax(), sky.shape)[1] == \
         np.unravel_index(base.max(axis=2).argmax(), sky.shape)[1] + 32
 
@@ -141,6 +142,7 @@ def test_sky_texture_world_has_its_sun_where_blender_puts_it(context):
     theta, phi = math.pi * (row + 0.5) / 128, math.pi * (1 - 2 * (col + 0.5) / 256)
     # Blender's sun rotation 90 degrees puts the sun towards +X (rotation 0: +Y).
     print(f"\nsky's brightest pixel at {math.degrees(theta):.1f} degrees from the zenith, azimuth {math.degrees(phi):.1f}")
+    # Measured 0.1 and 0.7 degrees off: within the pixels' half width (0.7 degrees).
     assert abs(math.degrees(theta) - 40) < 1.5 and abs(math.degrees(phi)) < 1.5
 
 
@@ -217,10 +219,12 @@ def test_floor_under_the_hdri_matches_cycles(context, tmp_path):
     hdri_world(context, tmp_path, strength=0.5, rotation_z=rotation)
     edge = 1 - math.tan(math.acos(sun[2]))
     rel, block_rel, bias, edges = compare_with_cycles(context, tmp_path, "world_hdri", edge, samples=256)
-    # Measured: 1.0% per pixel (0.6% over blocks: much of it Cycles' noise), bias +0.1%; edges
-    # within a pixel (0.021) of each other and of the geometry.
-    assert rel.mean() < 0.02 and block_rel.mean() < 0.012 and abs(bias) < 0.005
-    assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.04 and abs(edges[1] - edge) < 0.04
+    # Measured: 1.0% per pixel (0.56% over blocks: much of it Cycles' noise), bias +0.14%; edges
+    # within a pixel (0.021) of each other and of the geometry (ours 0.002 from it: the pixels'
+    # spacing bounds what this measures).
+    # The bias +0.14%, +0.14% and +0.13% with Cycles' seeds 1, 2 and 3.
+    assert rel.mean() < 0.02 and block_rel.mean() < 0.011 and abs(bias) < 0.003
+    assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.025 and abs(edges[1] - edge) < 0.04
 
 
 @pytest.mark.slow
@@ -233,7 +237,8 @@ def test_floor_under_a_sky_texture_matches_cycles(context, tmp_path):
     # Cycles, in the shadow 3% darker in red, 0.4% in blue (the hemisphere nodes cutting the
     # wall's edge, where the reddish sky near the sun is); the sun's small disc gives a sharp edge
     # that the spline (32 coefficients, a span of 0.069) places 0.037 off, Cycles' pixels 0.016.
-    assert rel.mean() < 0.025 and block_rel.mean() < 0.02 and abs(bias) < 0.005
+    # The bias +0.19%, +0.19% and +0.20% with Cycles' seeds 1, 2 and 3.
+    assert rel.mean() < 0.023 and block_rel.mean() < 0.02 and abs(bias) < 0.004
     assert abs(edges[0] - edges[1]) < 0.04 and abs(edges[0] - edge) < 0.06 and abs(edges[1] - edge) < 0.03
 
 
@@ -271,8 +276,9 @@ def test_baked_box_on_a_floor_matches_cycles_path_tracing(context, tmp_path, kin
           f"{rel.mean():.4f} over {lit.sum()} lit pixels, median {np.median(rel):.4f}; export (with the world's "
           f"render), solve and bake {seconds:.2f} s")
     record(**{f"scene_world_{kind}_seconds": seconds, f"scene_world_{kind}_rel_diff_vs_cycles": rel.mean()})
-    # Measured: 2.3% (median 0.4%) under the HDRI, 2.5% (0.3%) under the sky: the shadow's
+    # Measured: 2.3% (median 0.39%) under the HDRI, 2.5% (0.29%) under the sky: the shadow's
     # outline, which the floor's spline softens, and the edges of the floor and box; 16
     # coefficients gave 4.3% under the HDRI.
     assert lit.sum() > 0.5 * lit.size
-    assert rel.mean() < 0.045 and np.median(rel) < 0.01
+    mean_bound, median_bound = {"hdri": (0.045, 0.008), "sky": (0.045, 0.006)}[kind]
+    assert rel.mean() < mean_bound and np.median(rel) < median_bound

@@ -130,7 +130,8 @@ def test_sun_through_a_pane_lights_the_patch_with_the_pass_through_factor(tilt):
     edges = x[np.nonzero(np.diff(half & near))[0]]
     print(f"  edges at {edges}, window's projection {-shift - A:.4f}, {-shift + A:.4f} (knot span {span:.4f})")
     assert len(edges) == 2
-    assert abs(edges[0] - (-shift - A)) < span and abs(edges[1] - (-shift + A)) < span
+    # Measured: 0.36 of a span at most (0.019, at 70 degrees).
+    assert abs(edges[0] - (-shift - A)) < 0.7 * span and abs(edges[1] - (-shift + A)) < 0.7 * span
 
 
 def test_a_thin_slab_passes_each_face_once():
@@ -249,7 +250,7 @@ def test_form_factor_rows_see_through_panes():
     print(f"\nreflector seen through the pane: {seen:.4f} of the floor's peak; rows vs gathering "
           f"{np.abs(rows - gathered).max() / np.abs(gathered).max():.2e}")
     assert seen > 1e-3
-    np.testing.assert_allclose(rows, gathered, rtol=0, atol=1e-5 * np.abs(gathered).max())
+    np.testing.assert_allclose(rows, gathered, rtol=0, atol=1e-8 * np.abs(gathered).max())  # measured 4.1e-9
 
 
 UV_GRID = np.stack(np.meshgrid(np.linspace(0.05, 0.95, 7), np.linspace(0.05, 0.95, 7)), -1).reshape(-1, 2)

@@ -126,12 +126,13 @@ def test_open_floor_under_sky_and_sun_matches_the_closed_form():
     t0, t1, t2 = (math.pi * (r + k) / H for k in range(3))
     sun_cos = 2 * (2 * math.pi / W) * (math.sin(t2) ** 2 - math.sin(t0) ** 2) / 2
     E = (a * math.pi + b * 2 * math.pi / 3) * np.array([0.6, 0.8, 1.0]) + SUN_RADIANCE * sun_cos
-    for preset in ("draft", "preview"):
+    # Measured: 5.6e-4 (draft), 2.7e-4 (preview).
+    for preset, bound in (("draft", 1.1e-3), ("preview", 5.5e-4)):
         s = bsgi.SolverSettings.preset(preset)
         got = bsgi.solve(floor_scene(image), s).radiance[0].evaluate(UV)
         err = np.abs(got / (ALBEDO / math.pi * E) - 1).max()
         print(f"\nopen floor under sky and sun ({preset}): max relative error {err:.2e}")
-        assert err < 1.2e-3
+        assert err < bound
 
 
 def test_sun_shadow_of_the_ceiling_lies_where_the_sun_casts_it():
@@ -150,7 +151,7 @@ def test_sun_shadow_of_the_ceiling_lies_where_the_sun_casts_it():
     edges = xs[dark][[0, -1]]
     want = centre[0] + np.array([-0.4, 0.4])
     print(f"\nsun shadow along y = {centre[1]:.3f}: edges {np.round(edges, 3)}, want {np.round(want, 3)}")
-    assert np.abs(edges - want).max() < 0.02
+    assert np.abs(edges - want).max() < 0.02  # measured 0.015 (a knot span is 0.043)
 
 
 def error_vs_brute_force(image, nodes, spatial=32, factor_points=None):
@@ -182,7 +183,7 @@ def test_floor_under_a_ceiling_matches_the_brute_force_integral():
     # Measured: max 0.8% at every node count (the spline's fit of the sky's shadow), mean 0.17%
     # at 8 nodes, 0.05% at 32.
     assert max(e[0] for e in errors.values()) < 0.015
-    assert errors[8][1] < 0.004
+    assert errors[8][1] < 0.0035
     assert errors[32][1] < 0.001
 
 

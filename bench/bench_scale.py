@@ -1,0 +1,68 @@
+"""Scale (issue 16): the furnished interior (bench/interior_core.py) solved at the preview preset
+with the core API, each size in a process of its own: wall time, the process's peak resident
+memory, the solve's own memory estimate before it starts (bsgi.estimate_solve_bytes), and the
+growth exponent of time and memory between sizes. 100 and 1,000 objects by default;
+BSGI_BENCH_SCALE=100,1000,10000 sets the sizes (10,000 objects take hours today).
+
+    python bench/run.py scale
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SIZES = [int(n) for n in os.environ.get("BSGI_BENCH_SCALE", "100,1000").split(",")]
+
+
+def measure(objects: int) -> dict:
+    """In this process (a fresh one): build, estimate, solve."""
+    import resource
+    import time
+
+    sys.path.insert(0, str(HERE))
+    import interior_core
+
+    import bsgi
+
+    settings = bsgi.SolverSettings.preset("preview")
+    start = time.perf_counter()
+    scene, _ = interior_core.build_scene(objects)
+    estimate = bsgi.estimate_solve_bytes(scene, settings)
+    solution = bsgi.solve(scene, settings)
+    seconds = time.perf_counter() - start
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+    stats = solution.stats
+    return {"objects": objects, "surfaces": len(scene), "seconds": seconds, "peak_mb": peak,
+            "estimate_mb": estimate / 2**20, "coefficients": stats["coefficients"], "rays": stats["rays"],
+            "bounces": stats["bounces"]}
+
+
+def run() -> dict:
+    figures, rows = {}, []
+    for objects in SIZES:
+        out = subprocess.run([sys.executable, __file__, "--one", str(objects)], capture_output=True, text=True, check=True)
+        row = json.loads(out.stdout.strip().splitlines()[-1])
+        rows.append(row)
+        print(f"  {objects} objects, {row['surfaces']} surfaces: {row['seconds']:.1f} s, peak {row['peak_mb']:.0f} MB, "
+              f"estimate {row['estimate_mb']:.0f} MB", flush=True)
+        figures[f"scale_{objects}_seconds"] = row["seconds"]
+        figures[f"scale_{objects}_peak_mb"] = row["peak_mb"]
+        figures[f"scale_{objects}_estimate_mb"] = row["estimate_mb"]
+        figures[f"scale_{objects}_surfaces"] = row["surfaces"]
+        figures[f"scale_{objects}_rays_per_surface"] = row["rays"] / row["surfaces"]
+    for a, b in zip(rows, rows[1:]):
+        ratio = math.log(b["objects"] / a["objects"])
+        figures[f"scale_growth_exponent_{a['objects']}_{b['objects']}"] = math.log(b["seconds"] / a["seconds"]) / ratio
+    return figures
+
+
+if __name__ == "__main__":
+    if sys.argv[1:2] == ["--one"]:
+        print(json.dumps(measure(int(sys.argv[2]))))
+    else:
+        print(json.dumps(run(), indent=2))
