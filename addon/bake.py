@@ -26,8 +26,9 @@ PROP_ADDED_SLOT = "bsgi_added_slot"
 PROP_MATERIAL = "bsgi_baked_material"
 PROP_SPLINE_MATERIALS = "bsgi_spline_materials"  # SURFACE objects of several splines: a material per spline
 PROP_RADIANCE = "bsgi_radiance"  # the faces' radiance, for re-baking and solution export
-# Slots of textured diffuse materials: a baked material of their own that shows the user's colour
-# nodes times the irradiance spline, per slot ("" for the object's baked material).
+# Slots of textured materials: a baked material of their own that shows the user's colour nodes
+# times the irradiance spline (diffuse), or blending the radiance at f0 = 0 and 1 (a glossy colour),
+# per slot ("" for the object's baked material).
 PROP_SLOT_MATERIALS = "bsgi_slot_materials"
 PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay when it is cleared)
 # The splines of a SurfaceRadiance (bakes before two-sided surfaces stored the first three, before
@@ -104,19 +105,21 @@ def _sides(faces) -> int:
     return 2 if any(r is not None and r.lower is not None for _, radiances in faces for r in radiances) else 1
 
 
-def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth: bool = False) -> np.ndarray:
+def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth: bool = False,
+                 f0: float = 0.0) -> np.ndarray:
     """(len(disc), len(uv), 3): the radiance leaving the (u, v) rows of uv at each disc point
     (alpha, beta), on the upper or the lower side, as SurfaceRadiance::evaluate gives it along
     the direction that the map (20)-(22) sends (alpha, beta) to, mirrored below the surface
     (the lower spline's directions are those of the upper one with z turned over). No lower
     spline: black. With smooth, a textured surface's smooth factor (irradiance / pi), which its
-    material multiplies by the user's own colour nodes."""
+    material multiplies by the user's own colour nodes, and a textured glossy colour's radiance at
+    the constant f0 (0 or 1), which its material blends by the user's own colour nodes."""
     out = np.zeros((len(disc), len(uv), 3))
     if radiance is None:
         return out
     # A textured GGX f0 blends the radiance at f0 = 1 (upper, lower) and at f0 = 0 (tint_zero).
     specular = getattr(radiance, "specular", None)
-    tint = None if specular is None else texture_at(specular, uv)[None]
+    tint = None if specular is None else np.full((1, len(uv), 3), f0) if smooth else texture_at(specular, uv)[None]
     black = getattr(radiance, "lower_tint_zero" if lower else "tint_zero", None)
     splines = [radiance.lower, radiance.lower_diffuse] if lower else [radiance.upper, radiance.diffuse]
     for spline, weight in zip(splines + [black], [tint, None, None if tint is None else 1 - tint]):
@@ -301,12 +304,14 @@ def frame_pixels(layout: Layout):
     return tangent, normal
 
 
-def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int, smooth=frozenset()) -> np.ndarray:
+def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int, smooth=frozenset(),
+                 f0: float = 0.0) -> np.ndarray:
     """(sides * A * height, A * width, 4): the spatial atlas once per angular sample, tile (i, j)
     at the disc point (alpha_i, beta_j) = -R + 2R (i, j) / (A - 1) (the centre for A = 1); the
     lower hemisphere's tiles in the rows above the upper ones'. Samples outside the disc hold
     the spline's own values there (its domain is the square [-R, R]^2), so blending towards
-    the rim stays smooth."""
+    the rim stays smooth. The faces in smooth hold their smooth factors (_radiance_at), a
+    textured glossy colour's at f0."""
     grid = np.linspace(-radius, radius, samples) if samples > 1 else np.zeros(1)
     beta, alpha = np.meshgrid(grid, grid, indexing="ij")
     disc = np.stack([alpha.ravel(), beta.ravel()], axis=1)  # row j * A + i
@@ -317,8 +322,8 @@ def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int,
         mask = layout.face == index
         uv = layout.uv[mask]
         for side in range(sides):
-            values[side][:, mask] = np.mean([_radiance_at(r, uv, disc, side == 1, index in smooth) for r in radiances],
-                                            axis=0)
+            values[side][:, mask] = np.mean([_radiance_at(r, uv, disc, side == 1, index in smooth, f0)
+                                             for r in radiances], axis=0)
     values = values.reshape(sides, samples, samples, h, w, 3).transpose(0, 1, 3, 2, 4, 5)
     pixels = np.ones((sides * samples * h, samples * w, 4), np.float32)
     pixels[..., :3] = values.reshape(sides * samples * h, samples * w, 3)
@@ -342,14 +347,25 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
     tangent, normal = frame_pixels(layout)
     sources, face_slots = detail or ({}, [])
     smooth = {i for i, slot in enumerate(face_slots) if slot in sources}
+    # Textured glossy colours: this atlas holds their radiance at f0 = 0, a second one at f0 = 1
+    # (black elsewhere), which their material blends by the user's colour nodes.
+    tinted = {i for i in smooth if sources[face_slots[i]][0] == "specular"}
     atlas = atlas_pixels(layout, faces, samples, radius, sides, smooth)
     check_cancelled()
     images = (_radiance_image(name, atlas), _radiance_image(f"{name} tangent", tangent),
               _radiance_image(f"{name} normal", normal))
+    white = None
+    if tinted:
+        only = [(kind, radiances if i in tinted else [None]) for i, (kind, radiances) in enumerate(faces)]
+        white = _radiance_image(f"{name} f0 1", atlas_pixels(layout, only, samples, radius, sides, tinted, 1.0))
+    elif bpy.data.images.get(f"{name} f0 1") is not None:  # an earlier bake's
+        bpy.data.images.remove(bpy.data.images[f"{name} f0 1"])
 
     def made(material_name, with_detail=None):
+        tint = white if with_detail is not None and with_detail[1][0] == "specular" else None
         return view_radiance.material(material_name, layout.uv_map, *images, spatial_size=(w, h), disc_radius=radius,
-                                      angular_samples=samples, sides=sides, detail=with_detail)
+                                      angular_samples=samples, sides=sides,
+                                      detail=with_detail and (with_detail[0], with_detail[1][1]), tint=tint)
 
     material = made(name)
     slots = user_slots(obj)
@@ -362,9 +378,10 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
 
 
 def _detail_slots(obj, faces):
-    """({slot: colour source}, slot per face) for the slots of a mesh whose material's colour
-    nodes the bake can show (textures.colour_source) and whose faces all carry an albedo
-    texture; ({}, []) otherwise."""
+    """({slot: ("albedo" or "specular", colour source)}, slot per face) for the slots of a mesh
+    whose material's colour nodes the bake can show (textures.colour_source, tint_source) and
+    whose faces all carry that texture (and, for an albedo, no emission texture); ({}, [])
+    otherwise."""
     if not faces or obj.type not in {"MESH", "SURFACE"} or (obj.type == "SURFACE" and len(faces) != 1):
         return {}, []
     slots = user_slots(obj)
@@ -377,11 +394,14 @@ def _detail_slots(obj, faces):
         return {}, []
     sources = {}
     for k, material in enumerate(slots):
+        mine = [r for (_, radiances), slot in zip(faces, face_slots) if slot == k for r in radiances]
         source = textures.colour_source(material)
-        mine = [radiances for (_, radiances), slot in zip(faces, face_slots) if slot == k]
         if source is not None and mine and all(r is not None and r.albedo is not None and r.emission is None
-                                               for radiances in mine for r in radiances):
-            sources[k] = source
+                                               for r in mine):
+            sources[k] = ("albedo", source)
+        source = textures.tint_source(material)
+        if source is not None and mine and all(r is not None and r.specular is not None for r in mine):
+            sources[k] = ("specular", source)
     return sources, face_slots
 
 

@@ -70,6 +70,13 @@ def _add(a, b):
     return tuple(x + y for x, y in zip(a, b))
 
 
+def dielectric_f0(node) -> float:
+    """A Principled BSDF's dielectric specular reflectance at normal incidence, ((ior-1)/(ior+1))^2,
+    scaled by the specular level (0.5 is the physical value)."""
+    ior = socket_value(node, "IOR", 1.5)
+    return ((ior - 1) / (ior + 1)) ** 2 * 2 * socket_value(node, "Specular IOR Level", 0.5)
+
+
 def socket_color(node, name, default=(0.0, 0.0, 0.0)):
     sock = node.inputs.get(name)
     if sock is None:
@@ -163,11 +170,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         transmission = socket_value(node, "Transmission Weight", socket_value(node, "Transmission")) * (1 - metallic)
         if transmission > 0.5:
             _warn_tint(base, node, material, warnings)
-        specular_level = socket_value(node, "Specular IOR Level", 0.5)
         ior = socket_value(node, "IOR", 1.5)
-        # Dielectric specular reflectance at normal incidence, ((ior-1)/(ior+1))^2, scaled by
-        # the specular level (0.5 is the physical value); metals reflect their base colour.
-        f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * specular_level
+        f0 = dielectric_f0(node)  # metals reflect their base colour
         diffuse_weight = 1 - metallic - transmission
         specular = tuple(metallic * c + (1 - metallic) * f0 for c in base)
         emission = _scale(socket_color(node, "Emission Color"), socket_value(node, "Emission Strength"))

@@ -21,8 +21,8 @@ import bpy
 import numpy as np
 
 from .errors import ExportError
-from .materials import (AVERAGED_INPUTS, active_output, describe_material, linked_node, socket_value, solver_material,
-                        user_slots)
+from .materials import (AVERAGED_INPUTS, active_output, describe_material, dielectric_f0, linked_node, socket_value,
+                        solver_material, user_slots)
 
 BAKE_UV = "BSGI Texture Bake"
 NURBS_UV = "UVMap"  # Blender's UV map of a NURBS surface's mesh: the normalized (u, v)
@@ -305,7 +305,7 @@ def colour_source(material):
     output = active_output(material.node_tree, "OUTPUT_MATERIAL")
     node = linked_node(output.inputs["Surface"]) if output is not None else None
     colour = {"BSDF_PRINCIPLED": "Base Color", "BSDF_DIFFUSE": "Color"}.get(getattr(node, "type", None))
-    if colour is None or not node.inputs[colour].is_linked:
+    if colour is None or node.id_data != material.node_tree or not node.inputs[colour].is_linked:
         return None
     solved = solver_material(material, describe_material(material, []), [])
     if solved.kind != "lambert" or not solved.albedo_textured or solved.emission_textured:
@@ -318,6 +318,41 @@ def colour_source(material):
             return None
         weight = 1 - max(solved.specular)
     return node, colour, weight, tuple(solved.specular)
+
+
+def tint_source(material):
+    """How the bake can show a textured glossy colour's own nodes (sharp, at their own resolution)
+    instead of its baked f0 texture: (node, colour input, weight, offset), f0 = colour x weight +
+    offset, when the material's output takes a Glossy BSDF whose Color, or a Principled BSDF whose
+    Base Color, is driven by nodes, and the solve made it GGX with a specular texture: Cycles'
+    glossy-colour pass, the solve's f0 texture, is then the Glossy BSDF's colour, and a Principled
+    BSDF's metallic blend m colour + (1 - m) f0 of its dielectric lobe (checked against the pass
+    to 3e-4), where Metallic, IOR, Specular IOR Level and Specular Tint are not node-driven, there
+    is no coat, and below Metallic 1 the tint is white and nothing transmits. Else None: the
+    baked texture is shown."""
+    if material is None or material.node_tree is None:
+        return None
+    output = active_output(material.node_tree, "OUTPUT_MATERIAL")
+    node = linked_node(output.inputs["Surface"]) if output is not None else None
+    colour = {"BSDF_PRINCIPLED": "Base Color", "BSDF_GLOSSY": "Color", "BSDF_ANISOTROPIC": "Color"}.get(
+        getattr(node, "type", None))
+    # Inside a node group the shader's colour is the group's, which the material's copy cannot link.
+    if colour is None or node.id_data != material.node_tree or not any(
+            link.is_valid and not link.is_muted for link in node.inputs[colour].links):
+        return None
+    solved = solver_material(material, describe_material(material, []), [])
+    if solved.kind != "ggx" or not solved.specular_textured:
+        return None
+    if node.type != "BSDF_PRINCIPLED":
+        return node, colour, 1.0, (0.0, 0.0, 0.0)
+    metallic = socket_value(node, "Metallic")
+    fixed = ("Metallic", "IOR", "Specular IOR Level", "Specular Tint", "Coat Weight")
+    if any(node.inputs[name].is_linked for name in fixed if name in node.inputs) or socket_value(node, "Coat Weight") > 0:
+        return None
+    if metallic < 1 and (tuple(node.inputs["Specular Tint"].default_value)[:3] != (1.0, 1.0, 1.0)
+                         or node.inputs["Transmission Weight"].is_linked or socket_value(node, "Transmission Weight") > 0):
+        return None
+    return node, colour, metallic, ((1 - metallic) * dielectric_f0(node),) * 3
 
 
 MEAN_TEXELS = 8  # per face side, for the mean of a node-driven roughness or metallic

@@ -215,7 +215,7 @@ class _MaterialBuilder:
 
 
 def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, disc_radius: float,
-             angular_samples: int, sides: int, detail=None):
+             angular_samples: int, sides: int, detail=None, tint=None):
     """The baked emission material of one object: the frame images and the radiance atlas
     looked up through the groups, at the coordinates of the UV map `uv_map` in the spatial
     atlas of spatial_size = (width, height) texels.
@@ -224,7 +224,12 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     atlas holds irradiance / pi (the smooth factor) and the material is a copy of the user's,
     whose own colour nodes (image textures at their own resolution and UV maps, procedurals,
     vertex colours) give the albedo it is multiplied by: the decomposition (38) with the
-    texture as the detail factor. The copy's shader is left unconnected."""
+    texture as the detail factor. The copy's shader is left unconnected.
+
+    With tint, the atlas of a textured glossy colour's radiance at f0 = 1 (the atlas holding it at
+    f0 = 0), the user's colour nodes give f0 = T instead and the material shows
+    atlas + T (tint - atlas): Schlick's Fresnel is affine in f0, so this is the radiance at f0 = T,
+    with T at the colour nodes' own resolution."""
     old = bpy.data.materials.get(name)
     if detail is not None:
         if old is not None:
@@ -275,14 +280,32 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     if detail is not None:
         # albedo = the user's colour x diffuse weight + specular, as the solve's albedo texture.
         node, colour, weight, specular = detail[1]
-        source = tree.nodes[node.name].inputs[colour].links[0].from_socket
+        source = next(link.from_socket for link in tree.nodes[node.name].inputs[colour].links
+                      if link.is_valid and not link.is_muted)
         albedo = m.node("ShaderNodeVectorMath", 9, operation="MULTIPLY_ADD")
         link(source, albedo.inputs[0])
         albedo.inputs[1].default_value = (weight,) * 3
         albedo.inputs[2].default_value = specular
-        shown = m.node("ShaderNodeVectorMath", 10, operation="MULTIPLY")
-        link(total, shown.inputs[0])
-        link(albedo.outputs["Vector"], shown.inputs[1])
+        if tint is None:
+            shown = m.node("ShaderNodeVectorMath", 10, operation="MULTIPLY")
+            link(total, shown.inputs[0])
+            link(albedo.outputs["Vector"], shown.inputs[1])
+        else:
+            # f0 clamped to [0, 1] as the solve's specular texture.
+            low = m.node("ShaderNodeVectorMath", 9, operation="MAXIMUM")
+            link(albedo.outputs["Vector"], low.inputs[0])
+            low.inputs[1].default_value = (0.0, 0.0, 0.0)
+            f0 = m.node("ShaderNodeVectorMath", 9, operation="MINIMUM")
+            link(low.outputs["Vector"], f0.inputs[0])
+            f0.inputs[1].default_value = (1.0, 1.0, 1.0)
+            m.row = 16
+            difference = m.node("ShaderNodeVectorMath", 10, operation="SUBTRACT")
+            link(m.blend(tint, lookups, 8), difference.inputs[0])
+            link(total, difference.inputs[1])
+            shown = m.node("ShaderNodeVectorMath", 10, operation="MULTIPLY_ADD")
+            link(difference.outputs["Vector"], shown.inputs[0])
+            link(f0.outputs["Vector"], shown.inputs[1])
+            link(total, shown.inputs[2])
         total = shown.outputs["Vector"]
     link(total, emission.inputs["Color"])
     out = m.node("ShaderNodeOutputMaterial", 12)
