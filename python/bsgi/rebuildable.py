@@ -32,7 +32,16 @@ def _rebuild(cls: type, args: tuple, kwargs: dict, calls: tuple = ()) -> Any:
     return obj
 
 
-class _Rebuildable:
+class _OfCompiledKind(type(_core.Scene)):
+    """isinstance(x, bsgi.BilinearPatch) holds for the compiled class's objects too (the patches
+    Scene.add_bilinear_patch makes, which the scene's own calls rebuild)."""
+
+    def __instancecheck__(cls, obj: Any) -> bool:
+        compiled = next(b for b in cls.__mro__ if b.__module__ == _core.__name__)
+        return isinstance(obj, compiled)
+
+
+class _Rebuildable(metaclass=_OfCompiledKind):
     """Keeps its constructor's arguments for pickle."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
