@@ -40,14 +40,11 @@ class SolveWorker:
     def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int) -> tuple:
         progress = _core.Progress()
         progress.begin_stage(phase, 0, 1, nodes)
-        self.progress = progress  # what done() and cancel() see, from Ray's second actor thread
+        self.progress = progress  # what cancel() sees, from Ray's second actor thread
         return self.steps.gather(phase, begin, end, coefficients, progress)
 
-    def done(self) -> float:
-        """Fraction of the current group gathered."""
-        return self.progress.fraction
-
     def cancel(self) -> None:
+        """Stops the running gather (it raises SolveCancelled)."""
         self.progress.cancel()
 
 
@@ -72,7 +69,7 @@ class RayExecutor:
     ``threads_per_worker``), each reserving ``threads_per_worker`` CPUs and gathering on as many
     threads. A phase is split into ``groups_per_worker`` groups per worker, handed to whichever
     worker is free. A worker lost mid-solve is restarted by Ray (``max_retries`` times) and its
-    group gathered again. ``actors`` holds the workers of the running solve.
+    group gathered again; one lost for good (its machine gone) leaves its groups to the others. ``actors`` holds the workers of the running solve.
     """
 
     def __init__(self, address: Optional[str] = None, workers: Optional[int] = None, threads_per_worker: int = 1,
@@ -88,6 +85,7 @@ class RayExecutor:
         self.actors: list = []
         self.bytes_sent: list = []  # of each phase's coefficients put into the object store
         self.keep_groups = False  # each group stays on its worker (which keeps its form-factor rows)
+        self.lost: set = set()  # workers gone for good (their groups went to the others)
 
     def connect(self) -> Any:
         ray = import_ray()
@@ -105,6 +103,7 @@ class RayExecutor:
         scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
         self.actors = [actor.remote(scene_ref, fields) for _ in range(count)]
         self.bytes_sent = []
+        self.lost = set()
         self.keep_groups = settings.form_factors
         try:
             return _core.solve(scene, settings, progress, lambda *args: self.run_phase(ray, progress, *args))
@@ -120,21 +119,23 @@ class RayExecutor:
         # Group g goes to worker g mod n, the same every phase: a worker casts the form-factor rows of
         # its groups once. A free worker takes another's group when its own are done, unless
         # it would cast that group's rows again.
-        count = len(self.actors)
-        queues = [deque() for _ in range(count)]
-        for g, group in enumerate(receiver_groups(nodes, count * self.groups_per_worker)):
-            queues[g % count].append(group)
-        idle = list(range(count))
+        alive = [w for w in range(len(self.actors)) if w not in self.lost]
+        queues = {w: deque() for w in alive}
+        for g, group in enumerate(receiver_groups(nodes, len(alive) * self.groups_per_worker)):
+            queues[alive[g % len(alive)]].append(group)
+        idle = list(alive)
         running: dict = {}
         parts: dict = {}
         rays = 0
-        while any(queues) or running:
+        while any(queues.values()) or running:
             if progress.cancelled:
                 for w, _ in running.values():
                     self.actors[w].cancel.remote()
                 raise _core.SolveCancelled("solve cancelled")
+            if not queues:
+                raise RuntimeError("the distributed solve lost all its Ray workers")
             for w in list(idle):
-                queue = queues[w] or (None if self.keep_groups else max(queues, key=len))
+                queue = queues[w] or (None if self.keep_groups else max(queues.values(), key=len))
                 if queue:
                     idle.remove(w)
                     group = queue.popleft()
@@ -143,7 +144,15 @@ class RayExecutor:
             ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_seconds)
             for ref in ready:
                 w, group = running.pop(ref)
-                part, group_rays = ray.get(ref)
+                try:
+                    part, group_rays = ray.get(ref)
+                except ray.exceptions.RayActorError:
+                    # Gone beyond Ray's restarts (its machine left the cluster): its groups go to the others.
+                    self.lost.add(w)
+                    left = [group, *queues.pop(w)]
+                    if queues:
+                        min(queues.values(), key=len).extend(left)
+                    continue
                 parts[group[0]] = part
                 rays += group_rays
                 progress.advance(group[2])

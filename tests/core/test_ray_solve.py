@@ -148,3 +148,19 @@ def test_worker_killed_mid_solve_is_retried(cluster):
     solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)
     assert killed
     assert_same_coefficients(local, solution)
+
+
+def test_worker_lost_for_good_leaves_its_groups_to_the_others(cluster):
+    scene, s = room(), settings()
+    local = bsgi.solve(scene, s)
+    executor = bsgi.RayExecutor(workers=2, max_retries=0)  # Ray does not restart it
+    killed = []
+
+    def on_progress(fraction, stage):
+        if stage == "indirect bounce 1" and not killed and executor.actors:
+            ray.kill(executor.actors[0])
+            killed.append(stage)
+
+    solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)
+    assert killed and executor.lost == {0}
+    assert_same_coefficients(local, solution)

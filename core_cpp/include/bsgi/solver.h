@@ -126,7 +126,7 @@ public:
                                                      const std::vector<size_t>& nodes, size_t& rays)>;
 
     // Validates, plans the receivers and places their knots (the final gather's when first
-    // needed). Throws as solve() does.
+    // needed). Throws as solve() does. The scene must outlive the steps.
     SolveSteps(const Scene& scene, const SolverSettings& settings, Progress& progress);
     ~SolveSteps();
     SolveSteps(const SolveSteps&) = delete;
@@ -140,7 +140,8 @@ public:
     std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                Progress& progress, size_t& rays);
     // The whole solve, each phase's gather run by `run` (here, on all threads, if empty), the
-    // bounces' bookkeeping (the sums, when to stop, the extrapolated tail) here.
+    // bounces' bookkeeping (the sums, when to stop, the extrapolated tail) here. Once: the
+    // solution takes the splines.
     Solution solve(Progress& progress, const Runner& run = {});
 
 private:
