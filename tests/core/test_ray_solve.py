@@ -1,8 +1,8 @@
 """The solve on Ray (bsgi.RayExecutor, issue 16): the gathers of each phase split over 2 local
 workers give every coefficient the local solve gives; a cancel returns at once; a worker killed
 mid-solve costs a retry, not the solve. Scenes pickle for the workers (bsgi.rebuildable)."""
+import os
 import pickle
-import threading
 import time
 
 import numpy as np
@@ -136,17 +136,24 @@ def test_worker_killed_mid_solve_is_retried(cluster):
     scene, s = room(), settings()
     local = bsgi.solve(scene, s)
     executor = bsgi.RayExecutor(workers=2)
-    killed = []
+    killed, pids = [], []
+
+    def pid_of_worker_0():
+        return ray.get(executor.actors[0].__ray_call__.remote(lambda worker: os.getpid()))
 
     def on_progress(fraction, stage):
         # Kill a worker while the first bounce's groups are being gathered: Ray restarts it (the
         # scene rebuilt from the object store) and gathers its group again.
+        if stage == "direct light" and not pids and executor.actors:
+            pids.append(pid_of_worker_0())
         if stage == "indirect bounce 1" and not killed and executor.actors:
             ray.kill(executor.actors[0], no_restart=False)
             killed.append(stage)
+        if stage == "final gather" and len(pids) == 1:
+            pids.append(pid_of_worker_0())
 
     solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)
-    assert killed
+    assert killed and len(pids) == 2 and pids[0] != pids[1]  # a new process took over
     assert_same_coefficients(local, solution)
 
 
