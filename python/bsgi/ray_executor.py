@@ -90,12 +90,19 @@ class RayExecutor:
     def connect(self) -> Any:
         ray = import_ray()
         if not ray.is_initialized():
-            ray.init(address=self.address, log_to_driver=False)
+            try:
+                ray.init(address=self.address, log_to_driver=False)
+            except (ConnectionError, RuntimeError, ValueError, SystemExit) as error:  # Ray exits when no cluster answers
+                raise RuntimeError(f"cannot connect to the Ray cluster at '{self.address}' ({error!r})") from None
         return ray
 
     def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> _core.Solution:
         ray = self.connect()
-        count = self.workers or max(1, int(ray.cluster_resources().get("CPU", 1) // self.threads_per_worker))
+        cpus = int(ray.cluster_resources().get("CPU", 0))
+        count = self.workers or max(1, cpus // self.threads_per_worker)
+        if count * self.threads_per_worker > cpus:  # the workers that do not fit would never start
+            raise ValueError(f"RayExecutor: {count} workers of {self.threads_per_worker} threads need "
+                             f"{count * self.threads_per_worker} CPUs; the Ray cluster has {cpus}")
         fields = settings_fields(settings)
         fields["threads"] = self.threads_per_worker
         actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
