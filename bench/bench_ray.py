@@ -3,6 +3,7 @@ on a floor under one light (issue 16's boxes scene; the furnished 1,000-object i
 does not exist yet): ray_2workers_speedup is 1 single-threaded worker's time over 2 single-threaded
 workers', ray_overhead_fraction 2 workers' time over the local solve on 2 threads, minus 1. Ray runs
 locally (ray.init(num_cpus=2)); worker start-up (process, scene, BVH) counts in its times.
+ray_cpu_overhead_fraction compares CPU time (the driver's and the workers' processes) instead.
 ray_bounce_mb is what one bounce puts into the object store (the increment L of all receivers,
 float64), which a cluster sends once to each machine; the workers send as much back.
 
@@ -47,9 +48,11 @@ def boxes_scene(boxes: int, seed: int = 1) -> bsgi.Scene:
 
 
 def timed(scene, settings, executor=None):
-    start = time.perf_counter()
+    """Wall-clock seconds, CPU seconds (this process's and the workers') and the solution."""
+    start, cpu = time.perf_counter(), time.process_time()
     solution = bsgi.solve(scene, settings, executor=executor)
-    return time.perf_counter() - start, solution
+    cpu = time.process_time() - cpu + (sum(executor.worker_cpu_seconds) if executor else 0)
+    return time.perf_counter() - start, cpu, solution
 
 
 def run(boxes: int = 100, preset: str = "preview") -> dict:
@@ -61,18 +64,19 @@ def run(boxes: int = 100, preset: str = "preview") -> dict:
     scene = boxes_scene(boxes)
     settings = bsgi.SolverSettings.preset(preset)
     settings.threads = 2
-    local_seconds, local = timed(scene, settings)
+    local_seconds, local_cpu, local = timed(scene, settings)
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
-        one_seconds, _ = timed(scene, settings, bsgi.RayExecutor(workers=1))
+        one_seconds, one_cpu, _ = timed(scene, settings, bsgi.RayExecutor(workers=1))
         two = bsgi.RayExecutor(workers=2)
-        two_seconds, solution = timed(scene, settings, two)
+        two_seconds, two_cpu, solution = timed(scene, settings, two)
     finally:
         ray.shutdown()
     same = all(np.array_equal(a.coefficients, b.coefficients)
                for a, b in zip(local.radiance, solution.radiance) if a is not None)
     print(f"  {len(scene)} surfaces ({boxes} boxes), {preset}: local on 2 threads {local_seconds:.1f} s, "
-          f"Ray 1 worker {one_seconds:.1f} s, 2 workers {two_seconds:.1f} s; "
+          f"Ray 1 worker {one_seconds:.1f} s, 2 workers {two_seconds:.1f} s (CPU: {local_cpu:.1f}, {one_cpu:.1f}, "
+          f"{two_cpu:.1f} s); "
           f"{local.stats['bounces']} bounces; coefficients equal: {same}")
     return {
         "ray_boxes_surfaces": len(scene),
@@ -81,6 +85,11 @@ def run(boxes: int = 100, preset: str = "preview") -> dict:
         "ray_2workers_seconds": two_seconds,
         "ray_2workers_speedup": one_seconds / two_seconds,
         "ray_overhead_fraction": two_seconds / local_seconds - 1,
+        # The same in CPU time (the driver's and the workers' processes): what Ray costs in work,
+        # which the shared machine's load does not blur as it blurs the wall clock.
+        "ray_local_cpu_seconds": local_cpu,
+        "ray_2workers_cpu_seconds": two_cpu,
+        "ray_cpu_overhead_fraction": two_cpu / local_cpu - 1,
         "ray_bounce_mb": two.bytes_sent[1] / 2**20,
         "ray_final_gather_mb": two.bytes_sent[-1] / 2**20 if settings.final_gather else 0.0,
         "ray_equal_to_local": float(same),

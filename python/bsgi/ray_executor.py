@@ -47,6 +47,10 @@ class SolveWorker:
         """Stops the running gather (it raises SolveCancelled)."""
         self.progress.cancel()
 
+    def cpu_seconds(self) -> float:
+        """CPU time of this worker's process so far (set-up and gathers, all threads)."""
+        return time.process_time()
+
 
 def receiver_groups(nodes: list, count: int) -> list:
     """Consecutive receivers in `count` groups of about equal nodes: (begin, end, nodes) each."""
@@ -86,6 +90,7 @@ class RayExecutor:
         self.bytes_sent: list = []  # of each phase's coefficients put into the object store
         self.keep_groups = False  # each group stays on its worker (which keeps its form-factor rows)
         self.lost: set = set()  # workers gone for good (their groups went to the others)
+        self.worker_cpu_seconds: list = []  # of each worker's process, at the end of the last solve
 
     def connect(self) -> Any:
         ray = import_ray()
@@ -113,7 +118,10 @@ class RayExecutor:
         self.lost = set()
         self.keep_groups = settings.form_factors
         try:
-            return _core.solve(scene, settings, progress, lambda *args: self.run_phase(ray, progress, *args))
+            solution = _core.solve(scene, settings, progress, lambda *args: self.run_phase(ray, progress, *args))
+            alive = [a for w, a in enumerate(self.actors) if w not in self.lost]
+            self.worker_cpu_seconds = ray.get([a.cpu_seconds.remote() for a in alive])
+            return solution
         finally:
             for a in self.actors:
                 ray.kill(a)  # also ends a gather still running after a cancel
