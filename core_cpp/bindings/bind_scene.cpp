@@ -4,6 +4,7 @@
 #include "bindings.h"
 #include "bsgi/disk_patch.h"
 #include "bsgi/radiance.h"
+#include "bsgi/sides.h"
 #include "bsgi/solver.h"
 
 namespace py = pybind11;
@@ -427,40 +428,65 @@ void bind_scene(py::module_& m) {
     m.def("estimate_solve_bytes", &estimate_solve_bytes, py::arg("scene"), py::arg("settings"));
     m.def(
         "solve",
-        [](const Scene& scene, const SolverSettings& settings, Progress& progress, std::optional<py::function> runner) {
-            if (!runner) {
-                py::gil_scoped_release release;
-                return solve(scene, settings, progress);
-            }
-            // The runner gathers each phase wherever it likes (a Ray cluster): called with the GIL.
-            SolveSteps::Runner run = [&runner](SolveSteps::Phase phase, const std::vector<double>& input,
-                                               const std::vector<size_t>& nodes, size_t& rays) {
-                py::gil_scoped_acquire acquire;
-                py::tuple result = (*runner)(phase_name(phase), py::array_t<double>(input.size(), input.data()), nodes);
-                if (result.size() != 2) throw std::invalid_argument("solve runner: must return (coefficients, rays)");
-                rays += result[1].cast<size_t>();
-                const Array out = Array::ensure(result[0]);
-                if (!out || out.ndim() != 1) throw std::invalid_argument("solve runner: coefficients must be a 1D array");
-                return std::vector<double>(out.data(), out.data() + out.size());
-            };
+        [](const Scene& scene, const SolverSettings& settings, Progress& progress) {
             py::gil_scoped_release release;
-            SolveSteps steps(scene, settings, progress);
-            return steps.solve(progress, run);
+            return solve(scene, settings, progress);
         },
-        py::arg("scene"), py::arg("settings"), py::arg("progress"), py::arg("runner") = py::none(),
-        "Algorithm 1: direct light by the surface integral, indirect bounces by gathering. Releases the GIL. "
-        "runner(phase, input, nodes) -> (coefficients, rays), if given, gathers each phase ('direct', 'bounce', "
-        "'final') for all receivers (see SolveSteps), called with the GIL.");
+        py::arg("scene"), py::arg("settings"), py::arg("progress"),
+        "Algorithm 1: direct light by the surface integral, indirect bounces by gathering. Releases the GIL.");
 
     py::class_<SolveSteps>(m, "SolveSteps",
                            "Algorithm 1 in phases for a solve split over workers: each worker holds SolveSteps of the "
                            "same scene and settings (the same receivers and knots) and gathers groups of receivers.")
-        .def(py::init([](const Scene& scene, const SolverSettings& settings, Progress& progress) {
+        .def(py::init([](const Scene& scene, const SolverSettings& settings, Progress& progress, std::optional<py::list> sides) {
+                 std::optional<std::vector<SurfaceSides>> probed;
+                 if (sides) {
+                     probed.emplace();
+                     for (const auto& item : *sides) {
+                         const auto t = item.cast<std::tuple<bool, bool, std::string, std::string, bool>>();
+                         probed->push_back({{std::get<0>(t), std::get<1>(t)}, {std::get<2>(t), std::get<3>(t)}, std::get<4>(t)});
+                     }
+                 }
                  py::gil_scoped_release release;
-                 return std::make_unique<SolveSteps>(scene, settings, progress);
+                 return std::make_unique<SolveSteps>(scene, settings, progress, probed ? &*probed : nullptr);
              }),
-             py::arg("scene"), py::arg("settings"), py::arg("progress"), py::keep_alive<1, 2>(),
-             "Plans the receivers and places their knots (the scene is kept alive with the steps). Releases the GIL.")
+             py::arg("scene"), py::arg("settings"), py::arg("progress"), py::arg("sides") = py::none(), py::keep_alive<1, 2>(),
+             "Probes the sides (or takes `sides`, another SolveSteps' of the scene and settings), plans the receivers "
+             "and places their knots (the scene is kept alive with the steps). Releases the GIL.")
+        .def_property_readonly(
+            "sides",
+            [](const SolveSteps& steps) {
+                py::list out;
+                for (const SurfaceSides& s : steps.sides())
+                    out.append(py::make_tuple(s.live[0], s.live[1], s.why[0], s.why[1], s.encloses_emission));
+                return out;
+            },
+            "Per surface: (front solved, back solved, why, why, encloses its emission), as the constructor takes them.")
+        .def(
+            "solve",
+            [](SolveSteps& steps, Progress& progress, std::optional<py::function> runner) {
+                if (!runner) {
+                    py::gil_scoped_release release;
+                    return steps.solve(progress);
+                }
+                // The runner gathers each phase wherever it likes (a Ray cluster): called with the GIL.
+                SolveSteps::Runner run = [&runner](SolveSteps::Phase phase, const std::vector<double>& input,
+                                                   const std::vector<size_t>& nodes, size_t& rays) {
+                    py::gil_scoped_acquire acquire;
+                    py::tuple result = (*runner)(phase_name(phase), py::array_t<double>(input.size(), input.data()), nodes);
+                    if (result.size() != 2) throw std::invalid_argument("solve runner: must return (coefficients, rays)");
+                    rays += result[1].cast<size_t>();
+                    const Array out = Array::ensure(result[0]);
+                    if (!out || out.ndim() != 1) throw std::invalid_argument("solve runner: coefficients must be a 1D array");
+                    return std::vector<double>(out.data(), out.data() + out.size());
+                };
+                py::gil_scoped_release release;
+                return steps.solve(progress, run);
+            },
+            py::arg("progress"), py::arg("runner") = py::none(),
+            "The whole solve, once. runner(phase, input, nodes) -> (coefficients, rays), if given, gathers each phase "
+            "('direct', 'bounce', 'final') for all receivers, wherever it likes (called with the GIL); the bookkeeping "
+            "between phases stays here. Releases the GIL.")
         .def(
             "nodes",
             [](SolveSteps& steps, const std::string& phase, Progress& progress) {

@@ -579,11 +579,16 @@ struct SolveSteps::State {
     std::vector<std::vector<std::vector<TransportTerm>>> rows;
     std::vector<char> rows_done;
 
-    State(const Scene& scene_, const SolverSettings& settings_, Progress& progress)
+    bool solved = false;
+
+    State(const Scene& scene_, const SolverSettings& settings_, Progress& progress, const std::vector<SurfaceSides>* probed)
         : scene(scene_), settings(settings_), stages(begin_solve(scene_, settings_, progress)), caster(ray_caster_of(scene_)) {
         rows_possible = settings.form_factors && !scene.has_albedo_textures();
         ff_stage = rows_possible && settings.max_bounces > 0 ? 1 : 0;
-        sides = probe_sides(scene, caster, settings);
+        if (probed && probed->size() != scene.size())
+            throw std::invalid_argument("solve steps: sides of " + std::to_string(probed->size()) + " surfaces given for a scene of " +
+                                        std::to_string(scene.size()));
+        sides = probed ? *probed : probe_sides(scene, caster, settings);
         plans = plan_scene(scene, settings, 1, sides);
         if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides);
         bytes = estimate_bytes(scene, settings, sides);
@@ -658,10 +663,13 @@ struct SolveSteps::State {
     }
 };
 
-SolveSteps::SolveSteps(const Scene& scene, const SolverSettings& settings, Progress& progress)
-    : state_(std::make_unique<State>(scene, settings, progress)) {}
+SolveSteps::SolveSteps(const Scene& scene, const SolverSettings& settings, Progress& progress,
+                       const std::vector<SurfaceSides>* sides)
+    : state_(std::make_unique<State>(scene, settings, progress, sides)) {}
 
 SolveSteps::~SolveSteps() = default;
+
+const std::vector<SurfaceSides>& SolveSteps::sides() const { return state_->sides; }
 
 std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
     if (phase != Phase::Final) return nodes_of(state_->receivers);
@@ -733,6 +741,8 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
 
 Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     State& st = *state_;
+    if (st.solved) throw std::logic_error("solve steps: solve() runs once (the solution takes the splines)");
+    st.solved = true;
     const Scene& scene = st.scene;
     const SolverSettings& settings = st.settings;
     const int stages = st.stages;

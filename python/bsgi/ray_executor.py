@@ -33,8 +33,8 @@ def import_ray() -> Any:
 class SolveWorker:
     """A Ray actor's state: the scene and its SolveSteps, built once (and again if Ray restarts it)."""
 
-    def __init__(self, scene: _core.Scene, fields: dict) -> None:
-        self.steps = _core.SolveSteps(scene, settings_from(fields), _core.Progress())
+    def __init__(self, scene: _core.Scene, fields: dict, sides: list) -> None:
+        self.steps = _core.SolveSteps(scene, settings_from(fields), _core.Progress(), sides)
         self.progress = _core.Progress()
 
     def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int) -> tuple:
@@ -112,13 +112,15 @@ class RayExecutor:
         fields["threads"] = self.threads_per_worker
         actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
                            max_task_retries=self.max_retries, max_concurrency=2)(SolveWorker)
+        # The driver probes the sides once; the workers take them (and place the same knots).
+        steps = _core.SolveSteps(scene, settings, progress)
         scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
-        self.actors = [actor.remote(scene_ref, fields) for _ in range(count)]
+        self.actors = [actor.remote(scene_ref, fields, steps.sides) for _ in range(count)]
         self.bytes_sent = []
         self.lost = set()
         self.keep_groups = settings.form_factors
         try:
-            solution = _core.solve(scene, settings, progress, lambda *args: self.run_phase(ray, progress, *args))
+            solution = steps.solve(progress, lambda *args: self.run_phase(ray, progress, *args))
             alive = [a for w, a in enumerate(self.actors) if w not in self.lost]
             self.worker_cpu_seconds = ray.get([a.cpu_seconds.remote() for a in alive])
             return solution

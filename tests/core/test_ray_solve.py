@@ -171,3 +171,18 @@ def test_worker_lost_for_good_leaves_its_groups_to_the_others(cluster):
     solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)
     assert killed and executor.lost == {0}
     assert_same_coefficients(local, solution)
+
+
+def test_solve_steps_check_what_they_are_given():
+    scene, s = room(), settings(max_bounces=1, final_gather=False)
+    steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
+    assert len(steps.sides) == len(scene)
+    with pytest.raises(ValueError, match="sides of 0 surfaces given for a scene of 9"):
+        bsgi.SolveSteps(scene, s, bsgi.Progress(), [])
+    with pytest.raises(ValueError, match="coefficients given for receivers"):
+        steps.gather("bounce", 0, 1, np.zeros(5), bsgi.Progress())
+    with pytest.raises(ValueError, match="phase must be"):
+        steps.gather("indirect", 0, 1, np.zeros(0), bsgi.Progress())
+    steps.solve(bsgi.Progress())
+    with pytest.raises(RuntimeError, match="runs once"):
+        steps.solve(bsgi.Progress())

@@ -13,6 +13,8 @@
 
 namespace bsgi {
 
+struct SurfaceSides;
+
 struct SolverSettings {
     // Spatial representation: knots (19) on [eps, 1 - eps]. A surface as large as the scene gets
     // spatial_coeffs per direction; with coeffs_from_size smaller ones get fewer, in proportion
@@ -126,12 +128,16 @@ public:
                                                      const std::vector<size_t>& nodes, size_t& rays)>;
 
     // Validates, plans the receivers and places their knots (the final gather's when first
-    // needed). Throws as solve() does. The scene must outlive the steps.
-    SolveSteps(const Scene& scene, const SolverSettings& settings, Progress& progress);
+    // needed). Throws as solve() does. The scene must outlive the steps. `sides`: the sides
+    // another SolveSteps of the scene and settings probed (sides()), not probed again.
+    SolveSteps(const Scene& scene, const SolverSettings& settings, Progress& progress,
+               const std::vector<SurfaceSides>* sides = nullptr);
     ~SolveSteps();
     SolveSteps(const SolveSteps&) = delete;
     SolveSteps& operator=(const SolveSteps&) = delete;
 
+    // Which sides of each surface are solved (the probe of sides.h).
+    const std::vector<SurfaceSides>& sides() const;
     // Spatial nodes of each receiver of a phase.
     std::vector<size_t> nodes(Phase phase, Progress& progress);
     // The gather of a phase for receivers [begin, end), given the previous step's coefficients
