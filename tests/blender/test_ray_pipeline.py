@@ -18,6 +18,7 @@ def cluster():
     ray.shutdown()
 
 
+@pytest.mark.slow  # starts Ray workers
 def test_exported_scene_solves_on_ray_as_here(context, cluster):
     scenes.cornell_box()
     bpy_scene = context.scene

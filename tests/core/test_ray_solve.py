@@ -99,6 +99,7 @@ def test_every_scene_member_that_changes_it_is_kept():
     assert public == readers | set(SCENE_CALLS) | set(SCENE_PROPERTIES)
 
 
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
 def test_ray_solve_equals_the_local_solve(cluster):
     scene, s = room(), settings()
     local = bsgi.solve(scene, s)
@@ -110,6 +111,7 @@ def test_ray_solve_equals_the_local_solve(cluster):
     assert len(executor.bytes_sent) == 5 and executor.bytes_sent[0] == 0
 
 
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
 def test_ray_solve_with_form_factors_equals_the_local_solve(cluster):
     scene, s = room(), settings(form_factors=True, final_gather=False)
     local = bsgi.solve(scene, s)
@@ -117,6 +119,7 @@ def test_ray_solve_with_form_factors_equals_the_local_solve(cluster):
     assert_same_coefficients(local, bsgi.solve(scene, s, executor=bsgi.RayExecutor(workers=2)))
 
 
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
 def test_cancelled_ray_solve_returns_within_a_second(cluster):
     scene = room()
     s = settings(spatial_coeffs=10, max_bounces=20, hemisphere_nodes_theta=12, hemisphere_nodes_phi=24)
@@ -132,6 +135,7 @@ def test_cancelled_ray_solve_returns_within_a_second(cluster):
     assert cancel_at and time.monotonic() - cancel_at[0] < 1.0
 
 
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
 def test_worker_killed_mid_solve_is_retried(cluster):
     scene, s = room(), settings()
     local = bsgi.solve(scene, s)
@@ -157,6 +161,7 @@ def test_worker_killed_mid_solve_is_retried(cluster):
     assert_same_coefficients(local, solution)
 
 
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
 def test_worker_lost_for_good_leaves_its_groups_to_the_others(cluster):
     scene, s = room(), settings()
     local = bsgi.solve(scene, s)
