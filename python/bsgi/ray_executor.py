@@ -73,7 +73,8 @@ class RayExecutor:
     ``threads_per_worker``), each reserving ``threads_per_worker`` CPUs and gathering on as many
     threads. A phase is split into ``groups_per_worker`` groups per worker, handed to whichever
     worker is free. A worker lost mid-solve is restarted by Ray (``max_retries`` times) and its
-    group gathered again; one lost for good (its machine gone) leaves its groups to the others. ``actors`` holds the workers of the running solve.
+    group gathered again; one lost for good (its machine gone) leaves its groups to the others.
+    ``actors`` holds the workers of the running solve.
     """
 
     def __init__(self, address: Optional[str] = None, workers: Optional[int] = None, threads_per_worker: int = 1,
