@@ -6,9 +6,9 @@ and lights.py), pipeline.py runs the solve, bake.py writes images and materials 
 its record of the user's materials, which the export reads too), operators.py/ui.py/properties.py
 are the interface."""
 
-from . import operators, properties, ui
+from . import operators, preferences, properties, ui
 
-_modules = (properties, operators, ui)
+_modules = (preferences, properties, operators, ui)
 
 
 def register():

@@ -59,6 +59,9 @@ def main(argv=None) -> int:
     parser.add_argument("--resolution", type=int, nargs=2, default=(512, 512))
     parser.add_argument("--preset", choices=["draft", "preview", "final", "custom"],
                         help="quality preset (default: the scene's setting)")
+    parser.add_argument("--ray-address", metavar="ADDRESS",
+                        help="solve on a Ray cluster: 'auto' (the cluster this machine joined with `ray start`), "
+                             "'ray://host:10001' or host:port (needs `pip install ray`, and bsgi on every node)")
     args = parser.parse_args(argv)
 
     import bpy
@@ -85,8 +88,8 @@ def main(argv=None) -> int:
         print(f"bsgi: {fraction * 100:5.1f}% {stage}", flush=True)
 
     try:
-        rep = pipeline.solve_and_bake(context, on_progress=on_progress)
-    except (ExportError, ValueError, RuntimeError, MemoryError) as error:
+        rep = pipeline.solve_and_bake(context, on_progress=on_progress, ray_address=args.ray_address or "")
+    except (ExportError, ValueError, RuntimeError, MemoryError, ImportError) as error:
         print(f"bsgi: error: {error}", file=sys.stderr)
         return 1
     for line in pipeline.report_lines(rep):

@@ -34,7 +34,7 @@ class BSGI_OT_solve(bpy.types.Operator):
 
         try:
             rep = pipeline.solve_and_bake(context, on_progress=on_progress)
-        except (ExportError, ValueError, RuntimeError, MemoryError) as error:  # MemoryError: bsgi.MemoryBudgetError
+        except (ExportError, ValueError, RuntimeError, MemoryError, ImportError) as error:  # MemoryError: bsgi.MemoryBudgetError
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self._report_done(rep)
@@ -50,7 +50,7 @@ class BSGI_OT_solve(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             self._job = pipeline.prepare(context)
-        except (ExportError, ValueError, MemoryError) as error:
+        except (ExportError, ValueError, MemoryError, ImportError) as error:
             pipeline.release()
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

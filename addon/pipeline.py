@@ -12,7 +12,7 @@ import bpy
 
 import bsgi
 
-from . import bake
+from . import bake, preferences
 from .export import Export, export_scene
 
 
@@ -21,6 +21,7 @@ class Job:
     export: Export
     settings: bsgi.SolverSettings
     progress: bsgi.Progress
+    executor: bsgi.RayExecutor | None = None  # None: solve on this machine
 
 
 # One solve at a time per Blender process: two would bake into the same scene data at once.
@@ -48,18 +49,29 @@ def one_solve():
         release()
 
 
-def prepare(context, progress: bsgi.Progress | None = None) -> Job:
-    """Main thread: read the scene. Raises ExportError naming the object on bad input."""
+def executor_for(address: str) -> bsgi.RayExecutor | None:
+    """Where the solve runs: a Ray cluster at `address` ('auto': the one this machine joined), or
+    here (''). ImportError saying so when Ray is not installed."""
+    if not address:
+        return None
+    bsgi.ray_executor.import_ray()
+    return bsgi.RayExecutor(address)
+
+
+def prepare(context, progress: bsgi.Progress | None = None, ray_address: str | None = None) -> Job:
+    """Main thread: read the scene. Raises ExportError naming the object on bad input.
+    ray_address: a Ray cluster to solve on (None: the add-on's preferences say)."""
+    executor = executor_for(preferences.ray_address(context) if ray_address is None else ray_address)
     depsgraph = context.evaluated_depsgraph_get()
     # Objects that cannot be baked (curves, texts, metaballs; meshes whose modifiers carry no
     # chart) are solved but left out of export.objects, with a warning each.
     export = export_scene(depsgraph)
-    return Job(export, context.scene.bsgi.solver_settings(), progress or bsgi.Progress())
+    return Job(export, context.scene.bsgi.solver_settings(), progress or bsgi.Progress(), executor)
 
 
 def run(job: Job) -> bsgi.Solution:
     """Any thread: the solve itself (the core releases the GIL)."""
-    return bsgi.solve(job.export.scene, job.settings, job.progress)
+    return bsgi.solve(job.export.scene, job.settings, job.progress, executor=job.executor)
 
 
 def finish(context, job: Job, solution: bsgi.Solution) -> None:
@@ -76,14 +88,15 @@ def finish(context, job: Job, solution: bsgi.Solution) -> None:
     context.scene.bsgi.show_baked = True
 
 
-def solve_and_bake(context, on_progress=None, progress: bsgi.Progress | None = None) -> dict:
+def solve_and_bake(context, on_progress=None, progress: bsgi.Progress | None = None, ray_address: str | None = None) -> dict:
     """The whole job on the calling thread; returns a report of what was done. progress.cancel()
     from another thread stops the solve or the bake (bsgi.SolveCancelled), leaving the scene as
-    it was; a second solve while one runs raises RuntimeError (BUSY_MESSAGE)."""
+    it was; a second solve while one runs raises RuntimeError (BUSY_MESSAGE). ray_address: as
+    for prepare()."""
     with one_solve():
         t0 = time.perf_counter()
-        job = prepare(context, progress)
-        solution = bsgi.solve(job.export.scene, job.settings, job.progress, on_progress=on_progress)
+        job = prepare(context, progress, ray_address)
+        solution = bsgi.solve(job.export.scene, job.settings, job.progress, on_progress=on_progress, executor=job.executor)
         t1 = time.perf_counter()
         finish(context, job, solution)
         return report(job, solution, solve_seconds=t1 - t0, bake_seconds=time.perf_counter() - t1)

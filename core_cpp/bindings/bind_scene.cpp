@@ -4,6 +4,7 @@
 #include "bindings.h"
 #include "bsgi/disk_patch.h"
 #include "bsgi/radiance.h"
+#include "bsgi/sides.h"
 #include "bsgi/solver.h"
 
 namespace py = pybind11;
@@ -60,6 +61,17 @@ SurfaceOptions options(const std::string& name, const std::string& representatio
     o.spatial_coeffs = spatial;
     o.angular_coeffs = angular;
     return o;
+}
+
+const char* phase_name(SolveSteps::Phase p) {
+    return p == SolveSteps::Phase::Direct ? "direct" : (p == SolveSteps::Phase::Bounce ? "bounce" : "final");
+}
+
+SolveSteps::Phase phase_of(const std::string& name) {
+    if (name == "direct") return SolveSteps::Phase::Direct;
+    if (name == "bounce") return SolveSteps::Phase::Bounce;
+    if (name == "final") return SolveSteps::Phase::Final;
+    throw std::invalid_argument("solve phase must be 'direct', 'bounce' or 'final', got '" + name + "'");
 }
 
 const char* kind_name(Representation r) {
@@ -307,7 +319,10 @@ void bind_scene(py::module_& m) {
         .def_property_readonly("fraction", &Progress::fraction)
         .def_property_readonly("stage", &Progress::stage)
         .def_property_readonly("cancelled", &Progress::cancelled)
-        .def("cancel", &Progress::cancel);
+        .def("cancel", &Progress::cancel)
+        .def("begin_stage", &Progress::begin_stage, py::arg("name"), py::arg("index"), py::arg("count"), py::arg("total"),
+             "Starts stage `index` of `count` equal parts of the whole, with `total` units of work.")
+        .def("advance", &Progress::advance, py::arg("units"), "Counts `units` of the stage's work as done.");
 
     py::class_<SurfaceRadiance>(m, "SurfaceRadiance",
                                 "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "
@@ -449,6 +464,83 @@ void bind_scene(py::module_& m) {
         },
         py::arg("scene"), py::arg("settings"), py::arg("progress"),
         "Algorithm 1: direct light by the surface integral, indirect bounces by gathering. Releases the GIL.");
+
+    py::class_<SolveSteps>(m, "SolveSteps",
+                           "Algorithm 1 in phases for a solve split over workers: each worker holds SolveSteps of the "
+                           "same scene and settings (the same receivers and knots) and gathers groups of receivers.")
+        .def(py::init([](const Scene& scene, const SolverSettings& settings, Progress& progress, std::optional<py::list> sides) {
+                 std::optional<std::vector<SurfaceSides>> probed;
+                 if (sides) {
+                     probed.emplace();
+                     for (const auto& item : *sides) {
+                         const auto t = item.cast<std::tuple<bool, bool, std::string, std::string, bool>>();
+                         probed->push_back({{std::get<0>(t), std::get<1>(t)}, {std::get<2>(t), std::get<3>(t)}, std::get<4>(t)});
+                     }
+                 }
+                 py::gil_scoped_release release;
+                 return std::make_unique<SolveSteps>(scene, settings, progress, probed ? &*probed : nullptr);
+             }),
+             py::arg("scene"), py::arg("settings"), py::arg("progress"), py::arg("sides") = py::none(), py::keep_alive<1, 2>(),
+             "Probes the sides (or takes `sides`, another SolveSteps' of the scene and settings), plans the receivers "
+             "and places their knots (the scene is kept alive with the steps). Releases the GIL.")
+        .def_property_readonly(
+            "sides",
+            [](const SolveSteps& steps) {
+                py::list out;
+                for (const SurfaceSides& s : steps.sides())
+                    out.append(py::make_tuple(s.live[0], s.live[1], s.why[0], s.why[1], s.encloses_emission));
+                return out;
+            },
+            "Per surface: (front solved, back solved, why, why, encloses its emission), as the constructor takes them.")
+        .def(
+            "solve",
+            [](SolveSteps& steps, Progress& progress, std::optional<py::function> runner) {
+                if (!runner) {
+                    py::gil_scoped_release release;
+                    return steps.solve(progress);
+                }
+                // The runner gathers each phase wherever it likes (a Ray cluster): called with the GIL.
+                SolveSteps::Runner run = [&runner](SolveSteps::Phase phase, const std::vector<double>& input,
+                                                   const std::vector<size_t>& nodes, size_t& rays) {
+                    py::gil_scoped_acquire acquire;
+                    py::tuple result = (*runner)(phase_name(phase), py::array_t<double>(input.size(), input.data()), nodes);
+                    if (result.size() != 2) throw std::invalid_argument("solve runner: must return (coefficients, rays)");
+                    rays += result[1].cast<size_t>();
+                    const Array out = Array::ensure(result[0]);
+                    if (!out || out.ndim() != 1) throw std::invalid_argument("solve runner: coefficients must be a 1D array");
+                    return std::vector<double>(out.data(), out.data() + out.size());
+                };
+                py::gil_scoped_release release;
+                return steps.solve(progress, run);
+            },
+            py::arg("progress"), py::arg("runner") = py::none(),
+            "The whole solve, once. runner(phase, input, nodes) -> (coefficients, rays), if given, gathers each phase "
+            "('direct', 'bounce', 'final') for all receivers, wherever it likes (called with the GIL); the bookkeeping "
+            "between phases stays here. Releases the GIL.")
+        .def(
+            "nodes",
+            [](SolveSteps& steps, const std::string& phase, Progress& progress) {
+                py::gil_scoped_release release;
+                return steps.nodes(phase_of(phase), progress);
+            },
+            py::arg("phase"), py::arg("progress"), "Spatial nodes of each receiver of phase 'direct', 'bounce' or 'final'.")
+        .def(
+            "gather",
+            [](SolveSteps& steps, const std::string& phase, size_t begin, size_t end, const Array& input, Progress& progress) {
+                const SolveSteps::Phase p = phase_of(phase);
+                std::vector<double> in(input.data(), input.data() + input.size());
+                size_t rays = 0;
+                std::vector<double> out;
+                {
+                    py::gil_scoped_release release;
+                    out = steps.gather(p, begin, end, in, progress, rays);
+                }
+                return py::make_tuple(py::array_t<double>(out.size(), out.data()), rays);
+            },
+            py::arg("phase"), py::arg("begin"), py::arg("end"), py::arg("input"), py::arg("progress"),
+            "The gather of a phase for receivers [begin, end) given all receivers' coefficients of the previous step "
+            "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final'): (their new "
+            "coefficients, rays cast). Releases the GIL; raises SolveCancelled if progress is cancelled.");
 }
 
 }  // namespace bsgi::bindings

@@ -298,13 +298,13 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     return r;
 }
 
-// Runs `work(receiver, node, values)` for every node of every receiver on all threads and
-// writes the values into the receivers' spline set `target`.
+// Runs `work(receiver, node, values)` for every node of receivers [begin, end) on all threads
+// and writes the values into the receivers' spline set `target`.
 template <typename Work>
-size_t gather_all(std::vector<Receiver>& receivers, Receiver::Splines target, const SolverSettings& settings,
-                  Progress& progress, Work&& work) {
+size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines target,
+                  const SolverSettings& settings, Progress& progress, Work&& work) {
     std::vector<std::pair<int, int>> items;
-    for (size_t k = 0; k < receivers.size(); ++k)
+    for (size_t k = begin; k < end; ++k)
         for (size_t j = 0; j < receivers[k].nodes.size(); ++j) items.emplace_back(int(k), int(j));
     std::atomic<size_t> rays{0};
     parallel_for(items.size(), 4, settings.threads, [&](size_t begin, size_t end) {
@@ -528,65 +528,259 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) 
     return estimate_bytes(scene, settings, probe_sides(scene, caster, settings));
 }
 
-Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress) {
+namespace {
+
+// Coefficients of a spline set of receivers [begin, end), flat: receiver after receiver, sides in order.
+std::vector<double> pack(const std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
+    std::vector<double> flat;
+    for (size_t k = begin; k < end; ++k)
+        for (const TensorSpline& side : receivers[k].*which) flat.insert(flat.end(), side.coeffs().begin(), side.coeffs().end());
+    return flat;
+}
+
+void unpack(const std::vector<double>& flat, std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
+    size_t size = 0;
+    for (size_t k = begin; k < end; ++k)
+        for (const TensorSpline& side : receivers[k].*which) size += side.coeffs().size();
+    if (flat.size() != size)
+        throw std::invalid_argument("solve step: " + std::to_string(flat.size()) + " coefficients given for receivers " +
+                                    std::to_string(begin) + " to " + std::to_string(end) + ", which have " + std::to_string(size));
+    const double* from = flat.data();
+    for (size_t k = begin; k < end; ++k)
+        for (TensorSpline& side : receivers[k].*which) {
+            std::copy(from, from + side.coeffs().size(), side.coeffs().begin());
+            from += side.coeffs().size();
+        }
+}
+
+std::vector<size_t> nodes_of(const std::vector<Receiver>& receivers) {
+    std::vector<size_t> n;
+    for (const auto& r : receivers) n.push_back(r.nodes.size());
+    return n;
+}
+
+// Checks the inputs and begins the first of the solve's stages: their count.
+int begin_solve(const Scene& scene, const SolverSettings& settings, Progress& progress) {
     validate(settings);
     bool any_emitter = false;
     for (const auto& s : scene.surfaces()) any_emitter |= s.material.emits();
     if (!any_emitter && !scene.has_world() && scene.distant_lights().empty())
         throw std::invalid_argument("scene has no emitter: add a light, an emissive material or world light");
-
     // Form factors carry one scalar weight per coefficient: not the colour of albedo textures.
     const int ff_stage = settings.form_factors && !scene.has_albedo_textures() && settings.max_bounces > 0 ? 1 : 0;
     const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? 1 : 0);
     progress.begin_stage("building ray scene", 0, stages, 1);
-    const RayCaster caster = ray_caster_of(scene);
-    const std::vector<SurfaceSides> sides = probe_sides(scene, caster, settings);
-    std::vector<Plan> plans = plan_scene(scene, settings, 1, sides);
-    std::vector<Plan> final_plans;
-    if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides);
-    const size_t bytes = estimate_bytes(scene, settings, sides);
-    if (bytes > settings.memory_budget_mb * 1024 * 1024) {
-        const Plan* largest = nullptr;
+    return stages;
+}
+
+}  // namespace
+
+struct SolveSteps::State {
+    const Scene& scene;
+    const SolverSettings settings;
+    const int stages;
+    int ff_stage = 0;
+    const RayCaster caster;
+    std::vector<SurfaceSides> sides;
+    std::vector<Plan> plans, final_plans;
+    size_t bytes = 0;
+    Scene lit_scene;
+    std::optional<Gatherer> gather;
+    size_t knot_rays = 0;  // of placing the knots, counted once by the solve however many steps place them
+    std::vector<Receiver> receivers, finals;
+    bool finals_built = false;
+    std::vector<const Receiver*> receiver_of;
+    // With form factors, Lambertian receivers keep their rows of the transport operator. A row's
+    // weights are scalars: they cannot carry the colour of a textured surface its rays hit.
+    bool rows_possible = false;
+    std::vector<std::vector<std::vector<TransportTerm>>> rows;
+    std::vector<char> rows_done;
+
+    bool solved = false;
+
+    State(const Scene& scene_, const SolverSettings& settings_, Progress& progress, const std::vector<SurfaceSides>* probed)
+        : scene(scene_), settings(settings_), stages(begin_solve(scene_, settings_, progress)), caster(ray_caster_of(scene_)) {
+        rows_possible = settings.form_factors && !scene.has_albedo_textures();
+        ff_stage = rows_possible && settings.max_bounces > 0 ? 1 : 0;
+        if (probed && probed->size() != scene.size())
+            throw std::invalid_argument("solve steps: sides of " + std::to_string(probed->size()) + " surfaces given for a scene of " +
+                                        std::to_string(scene.size()));
+        sides = probed ? *probed : probe_sides(scene, caster, settings);
+        plans = plan_scene(scene, settings, 1, sides);
+        if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides);
+        bytes = estimate_bytes(scene, settings, sides);
+        if (bytes > settings.memory_budget_mb * 1024 * 1024) {
+            const Plan* largest = nullptr;
+            for (const Plan& p : plans)
+                if (!largest || plan_bytes(p) > plan_bytes(*largest)) largest = &p;
+            std::ostringstream msg;
+            msg << "solve needs about " << bytes / (1024 * 1024) << " MB, over the budget of " << settings.memory_budget_mb << " MB";
+            if (largest)
+                msg << "; the largest is surface '" << scene[largest->surface].surface->name() << "' with "
+                    << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest) / (1024 * 1024) << " MB: "
+                    << largest->reason << ")";
+            throw std::runtime_error(msg.str());
+        }
         for (const Plan& p : plans)
-            if (!largest || plan_bytes(p) > plan_bytes(*largest)) largest = &p;
-        std::ostringstream msg;
-        msg << "solve needs about " << bytes / (1024 * 1024) << " MB, over the budget of " << settings.memory_budget_mb << " MB";
-        if (largest)
-            msg << "; the largest is surface '" << scene[largest->surface].surface->name() << "' with "
-                << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest) / (1024 * 1024) << " MB: "
-                << largest->reason << ")";
-        throw std::runtime_error(msg.str());
+            if (p.kind != Representation::Diffuse && p.bsdf->lobe_width() <= 0)
+                throw std::invalid_argument("surface '" + scene[p.surface].surface->name() +
+                                            "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
+                                            "give it a roughness");
+
+        // The scene as the gathering sees it: emitters whose back side encloses its light emit
+        // from their front only.
+        lit_scene = scene;
+        for (size_t i = 0; i < scene.size(); ++i)
+            if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
+        gather.emplace(lit_scene, settings, caster);
+
+        progress.begin_stage("placing knots", 0, stages, 1);
+        receivers = build_receivers(scene, plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
+        receiver_of = index_by_surface(scene, receivers);
+        rows.resize(receivers.size());
+        rows_done.assign(receivers.size(), 0);
     }
-    for (const Plan& p : plans)
-        if (p.kind != Representation::Diffuse && p.bsdf->lobe_width() <= 0)
-            throw std::invalid_argument("surface '" + scene[p.surface].surface->name() +
-                                        "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
-                                        "give it a roughness");
 
-    // The scene as the gathering sees it: emitters whose back side encloses its light emit
-    // from their front only.
-    Scene lit_scene = scene;
-    for (size_t i = 0; i < scene.size(); ++i)
-        if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
-    const Gatherer gather(lit_scene, settings, caster);
+    bool uses_rows(const Receiver& r) const {
+        return rows_possible && r.kind == Representation::Diffuse && !r.bsdf->transmits();
+    }
 
+    // The final gather's finer receivers, with their own knots.
+    void build_finals(Progress& progress) {
+        if (finals_built || !settings.final_gather) return;
+        finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
+        finals_built = true;
+    }
+
+    // The rows of the transport operator of receivers [begin, end) that use them, cast once.
+    void build_rows(size_t begin, size_t end, Progress& progress, size_t& rays) {
+        std::vector<std::pair<int, int>> items;
+        for (size_t k = begin; k < end; ++k) {
+            if (!uses_rows(receivers[k]) || rows_done[k]) continue;
+            // Row side * nodes + j: node j of a side.
+            const size_t nodes = receivers[k].nodes.size();
+            rows[k].assign(receivers[k].sides * nodes, {});
+            for (int side = 0; side < receivers[k].sides; ++side)
+                for (size_t j = 0; j < nodes && receivers[k].solves(side); ++j) items.emplace_back(int(k), int(side * nodes + j));
+        }
+        std::atomic<size_t> row_rays{0};
+        parallel_for(items.size(), 4, settings.threads, [&](size_t b, size_t e) {
+            size_t local = 0;
+            for (size_t w = b; w < e; ++w) {
+                const auto [k, row] = items[w];
+                const size_t nodes = receivers[k].nodes.size();
+                gather->transport_row(receivers[k], int(row / nodes), row % nodes, receiver_of, rows[k][row], local);
+            }
+            row_rays += local;
+            progress.advance(e - b);
+        }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        rays += row_rays;
+        for (size_t k = begin; k < end; ++k) rows_done[k] = 1;
+    }
+};
+
+SolveSteps::SolveSteps(const Scene& scene, const SolverSettings& settings, Progress& progress,
+                       const std::vector<SurfaceSides>* sides)
+    : state_(std::make_unique<State>(scene, settings, progress, sides)) {}
+
+SolveSteps::~SolveSteps() = default;
+
+const std::vector<SurfaceSides>& SolveSteps::sides() const { return state_->sides; }
+
+std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
+    if (phase != Phase::Final) return nodes_of(state_->receivers);
+    state_->build_finals(progress);
+    return nodes_of(state_->finals);
+}
+
+std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
+                                       Progress& progress, size_t& rays) {
+    State& s = *state_;
+    if (phase == Phase::Final && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
+    if (phase == Phase::Final) s.build_finals(progress);
+    std::vector<Receiver>& targets = phase == Phase::Final ? s.finals : s.receivers;
+    if (begin > end || end > targets.size())
+        throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
+                                    " out of " + std::to_string(targets.size()));
+    const Gatherer& gather = *s.gather;
+    const Scene& scene = s.scene;
+    const SolverSettings& settings = s.settings;
+    if (phase == Phase::Direct) {
+        // Gather from every emitter (and the world) into L.
+        rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
+            gather.direct(r, j, out, n);
+            if (!scene.has_world()) return;
+            std::vector<Vec3> world(r.sides * r.per_node);
+            gather.world(r, j, world.data(), n);
+            for (size_t k = 0; k < world.size(); ++k) out[k] += world[k];
+        });
+        return pack(targets, begin, end, &Receiver::L);
+    }
+    if (phase == Phase::Bounce) {
+        // Gather the incremental radiance L of all surfaces into Ltmp.
+        unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::L);
+        s.build_rows(begin, end, progress, rays);
+        rays += gather_all(targets, begin, end, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
+            const size_t k = size_t(r.index);
+            if (!s.uses_rows(r)) {
+                gather.indirect(r, j, s.receiver_of, &Receiver::L, 1, false, out, n);
+                return;
+            }
+            for (int side = 0; side < r.sides; ++side) {
+                if (!r.solves(side)) continue;
+                Vec3 sum{0, 0, 0};
+                for (const TransportTerm& t : s.rows[k][side * r.nodes.size() + j]) {
+                    const double* c = &s.receivers[t.receiver].L[t.side].coeffs()[3 * size_t(t.index)];
+                    sum += Vec3{c[0], c[1], c[2]} * double(t.weight);
+                }
+                out[side] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * sum;
+            }
+        });
+        return pack(targets, begin, end, &Receiver::Ltmp);
+    }
+    // Final gather: finer receivers gather direct light from the emitters, and indirect light
+    // from the cumulative radiance Le of the others (emitters count as non-emissive there) with
+    // the world's light along the same rays.
+    unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::Le);
+    rays += gather_all(targets, begin, end, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
+        std::vector<Vec3> direct(r.sides * r.per_node);
+        gather.direct(r, j, direct.data(), n);
+        gather.indirect(r, j, s.receiver_of, &Receiver::Le, settings.final_integration_factor, true, out, n);
+        for (size_t k = 0; k < direct.size(); ++k) out[k] += direct[k];
+    });
+    return pack(targets, begin, end, &Receiver::Le);
+}
+
+Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress) {
+    return SolveSteps(scene, settings, progress).solve(progress);
+}
+
+Solution SolveSteps::solve(Progress& progress, const Runner& run) {
+    State& st = *state_;
+    if (st.solved) throw std::logic_error("solve steps: solve() runs once (the solution takes the splines)");
+    st.solved = true;
+    const Scene& scene = st.scene;
+    const SolverSettings& settings = st.settings;
+    const int stages = st.stages;
+    std::vector<Receiver>& receivers = st.receivers;
+    const size_t all = receivers.size();
     Solution solution;
-    solution.stats.bytes = bytes;
+    solution.stats.bytes = st.bytes;
     size_t rays = 0;
-    progress.begin_stage("placing knots", 0, stages, 1);
-    std::vector<Receiver> receivers = build_receivers(scene, plans, gather, settings, settings.adaptive_knots, progress, rays);
-    const std::vector<const Receiver*> receiver_of = index_by_surface(scene, receivers);
+    // One phase's gather for all receivers: here, or wherever `run` sends its groups.
+    auto phase = [&](Phase p, const std::vector<double>& input) {
+        const std::vector<size_t> n = nodes(p, progress);
+        if (!run) return gather(p, 0, n.size(), input, progress, rays);
+        std::vector<double> out = run(p, input, n, rays);
+        progress.throw_if_cancelled();
+        return out;
+    };
 
     // Direct lighting phase: gather from every emitter (and the world) into S.L; S.Le <- S.L.
     const auto t0 = std::chrono::steady_clock::now();
     progress.begin_stage("direct light", 1, stages, node_count(receivers));
-    rays += gather_all(receivers, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-        gather.direct(r, j, out, n);
-        if (!scene.has_world()) return;
-        std::vector<Vec3> world(r.sides * r.per_node);
-        gather.world(r, j, world.data(), n);
-        for (size_t k = 0; k < world.size(); ++k) out[k] += world[k];
-    });
+    unpack(phase(Phase::Direct, {}), receivers, 0, all, &Receiver::L);
     for (auto& r : receivers)
         for (int side = 0; side < r.sides; ++side) r.Le[side].coeffs() = r.L[side].coeffs();
     solution.stats.seconds_direct = seconds_since(t0);
@@ -596,59 +790,17 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     const auto t1 = std::chrono::steady_clock::now();
     BounceConvergence convergence(receivers);
     bool converged = false;
-    // With form factors, Lambertian receivers keep their rows of the transport operator.
-    std::vector<std::vector<std::vector<TransportTerm>>> rows(receivers.size());
-    // A row's weights are scalars: they cannot carry the colour of a textured surface its rays hit.
-    const bool rows_possible = settings.form_factors && !scene.has_albedo_textures();
-    auto uses_rows = [&](const Receiver& r) {
-        return rows_possible && r.kind == Representation::Diffuse && !r.bsdf->transmits();
-    };
-    if (rows_possible && settings.max_bounces > 0) {
+    if (st.ff_stage && !run) {
+        // Here the rows are cast in a stage of their own; a runner's steps cast them with their group's first bounce.
         progress.begin_stage("form factors", 2, stages, node_count(receivers));
-        std::vector<std::pair<int, int>> items;
-        for (size_t k = 0; k < receivers.size(); ++k) {
-            if (!uses_rows(receivers[k])) continue;
-            // Row side * nodes + j: node j of a side.
-            const size_t nodes = receivers[k].nodes.size();
-            rows[k].resize(receivers[k].sides * nodes);
-            for (int side = 0; side < receivers[k].sides; ++side)
-                for (size_t j = 0; j < nodes && receivers[k].solves(side); ++j) items.emplace_back(int(k), int(side * nodes + j));
-        }
-        std::atomic<size_t> row_rays{0};
-        parallel_for(items.size(), 4, settings.threads, [&](size_t begin, size_t end) {
-            size_t local = 0;
-            for (size_t w = begin; w < end; ++w) {
-                const auto [k, row] = items[w];
-                const size_t nodes = receivers[k].nodes.size();
-                gather.transport_row(receivers[k], int(row / nodes), row % nodes, receiver_of, rows[k][row], local);
-            }
-            row_rays += local;
-            progress.advance(end - begin);
-        }, progress.cancel_flag());
-        progress.throw_if_cancelled();
-        rays += row_rays;
-        for (const auto& per_receiver : rows)
+        st.build_rows(0, all, progress, rays);
+        for (const auto& per_receiver : st.rows)
             for (const auto& row : per_receiver) solution.stats.transport_terms += row.size();
     }
     for (int bounce = 0; bounce < settings.max_bounces; ++bounce) {
-        progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + ff_stage + bounce, stages,
+        progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + st.ff_stage + bounce, stages,
                              node_count(receivers));
-        rays += gather_all(receivers, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-            const size_t k = size_t(r.index);
-            if (!uses_rows(r)) {
-                gather.indirect(r, j, receiver_of, &Receiver::L, 1, false, out, n);
-                return;
-            }
-            for (int side = 0; side < r.sides; ++side) {
-                if (!r.solves(side)) continue;
-                Vec3 sum{0, 0, 0};
-                for (const TransportTerm& t : rows[k][side * r.nodes.size() + j]) {
-                    const double* c = &receivers[t.receiver].L[t.side].coeffs()[3 * size_t(t.index)];
-                    sum += Vec3{c[0], c[1], c[2]} * double(t.weight);
-                }
-                out[side] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * sum;
-            }
-        });
+        unpack(phase(Phase::Bounce, pack(receivers, 0, all, &Receiver::L)), receivers, 0, all, &Receiver::Ltmp);
         for (auto& r : receivers)
             for (int side = 0; side < r.sides; ++side) {
                 auto& le = r.Le[side].coeffs();
@@ -680,24 +832,18 @@ Solution solve(const Scene& scene, const SolverSettings& settings, Progress& pro
     }
     solution.stats.seconds_indirect = seconds_since(t1);
 
-    // Final gather: finer receivers gather direct light from the emitters, and indirect light
-    // from the cumulative radiance Le of the others (emitters count as non-emissive there) with
-    // the world's light along the same rays.
-    std::vector<Receiver> finals;
+    // Final gather (Algorithm 1's last phase), from the cumulative radiance Le.
     if (settings.final_gather) {
         const auto t2 = std::chrono::steady_clock::now();
-        finals = build_receivers(scene, final_plans, gather, settings, settings.adaptive_knots, progress, rays);
-        progress.begin_stage("final gather", stages - 1, stages, node_count(finals));
-        rays += gather_all(finals, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-            std::vector<Vec3> direct(r.sides * r.per_node);
-            gather.direct(r, j, direct.data(), n);
-            gather.indirect(r, j, receiver_of, &Receiver::Le, settings.final_integration_factor, true, out, n);
-            for (size_t k = 0; k < direct.size(); ++k) out[k] += direct[k];
-        });
+        st.build_finals(progress);
+        progress.begin_stage("final gather", stages - 1, stages, node_count(st.finals));
+        unpack(phase(Phase::Final, pack(receivers, 0, all, &Receiver::Le)), st.finals, 0, st.finals.size(), &Receiver::Le);
         solution.stats.seconds_final = seconds_since(t2);
     }
-    std::vector<Receiver>& result = settings.final_gather ? finals : receivers;
-    solution.stats.rays = rays;
+    std::vector<Receiver>& result = settings.final_gather ? st.finals : receivers;
+    solution.stats.rays = rays + st.knot_rays;
+    const std::vector<Plan>& plans = st.plans;
+    const std::vector<Plan>& final_plans = st.final_plans;
 
     // Outgoing radiance = emission (front side, and back side where two-sided; the same in every
     // direction: constants are reproduced exactly by the partition of unity) + the cumulative

@@ -28,36 +28,28 @@ point and frame; BSDFs ``Lambert``, ``NormalizedPhong``, ``AshikhminShirley``, `
 Errors are Python exceptions: ValueError for invalid input (knots, shapes, degrees, geometry,
 naming the surface), bsgi.MemoryBudgetError (a MemoryError) for splines over the memory budget,
 RuntimeError for a solve over its memory budget, bsgi.SolveCancelled for a cancelled solve.
+
+On a Ray cluster: ``bsgi.solve(scene, settings, executor=bsgi.RayExecutor("auto"))`` (Ray is
+optional, imported then); scenes pickle, for its workers.
 """
 from __future__ import annotations
 
 from ._core import (
-    AshikhminShirley,
-    BilinearPatch,
     Bsdf,
-    DiffuseGgx,
     Emission,
     FitRule,
-    GgxReflection,
     HemisphereMap,
     KnotVector,
-    Lambert,
     MemoryBudgetError,
-    MeshChart,
-    NormalizedPhong,
-    NurbsSurface,
     Progress,
     RayCaster,
-    RoughDielectric,
-    Scene,
-    SmoothDielectric,
     SolveCancelled,
+    SolveSteps,
     Solution,
     SolverSettings,
     Surface,
     SurfaceRadiance,
     TensorSpline,
-    TrianglePatch,
     blender_knots,
     blender_nurbs_problem,
     estimate_solve_bytes,
@@ -67,6 +59,21 @@ from ._core import (
     set_memory_budget,
 )
 from .fitting import fit
+from .ray_executor import RayExecutor
+from .rebuildable import (  # the compiled classes, keeping what they were built from (a scene pickles)
+    AshikhminShirley,
+    BilinearPatch,
+    DiffuseGgx,
+    GgxReflection,
+    Lambert,
+    MeshChart,
+    NormalizedPhong,
+    NurbsSurface,
+    RoughDielectric,
+    Scene,
+    SmoothDielectric,
+    TrianglePatch,
+)
 from .solution_io import StoredSolution, load_solution, save_solution, spline_from_arrays, spline_to_arrays
 from .solve import solve
 
@@ -87,10 +94,12 @@ __all__ = [
     "NurbsSurface",
     "Progress",
     "RayCaster",
+    "RayExecutor",
     "RoughDielectric",
     "Scene",
     "SmoothDielectric",
     "SolveCancelled",
+    "SolveSteps",
     "Solution",
     "SolverSettings",
     "StoredSolution",

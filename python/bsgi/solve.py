@@ -2,11 +2,17 @@
 from __future__ import annotations
 
 import threading
-from typing import Callable, Optional
+from typing import Callable, Optional, Protocol
 
 from . import _core
 
 ProgressCallback = Callable[[float, str], Optional[bool]]
+
+
+class Executor(Protocol):
+    """Runs a solve's gathers elsewhere (bsgi.RayExecutor): solve() as _core.solve does."""
+
+    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> _core.Solution: ...
 
 
 def solve(
@@ -15,23 +21,31 @@ def solve(
     progress: Optional[_core.Progress] = None,
     on_progress: Optional[ProgressCallback] = None,
     poll_seconds: float = 0.1,
+    executor: Optional[Executor] = None,
 ) -> _core.Solution:
     """Solve the scene's light transport (paper Algorithm 1).
 
     The core releases the GIL and uses all threads. ``progress`` can be polled and cancelled from
     another thread. ``on_progress(fraction, stage)`` is called on this thread while the solve runs;
     returning False cancels it. A cancelled solve raises :class:`bsgi.SolveCancelled`.
+    ``executor``: where the gathers run, e.g. :class:`bsgi.RayExecutor` (a Ray cluster); None: here.
     """
     settings = settings if settings is not None else _core.SolverSettings()
     progress = progress if progress is not None else _core.Progress()
+
+    def solve_here() -> _core.Solution:
+        if executor is None:
+            return _core.solve(scene, settings, progress)
+        return executor.solve(scene, settings, progress)
+
     if on_progress is None:
-        return _core.solve(scene, settings, progress)
+        return solve_here()
 
     result: dict = {}
 
     def run() -> None:
         try:
-            result["solution"] = _core.solve(scene, settings, progress)
+            result["solution"] = solve_here()
         except BaseException as error:  # carried to the calling thread
             result["error"] = error
 

@@ -1,6 +1,8 @@
 // The gathering solver of paper section 4.2 (Algorithm 1), for diffuse, glossy and transmitting
 // surfaces.
 #pragma once
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -10,6 +12,8 @@
 #include "bsgi/scene.h"
 
 namespace bsgi {
+
+struct SurfaceSides;
 
 struct SolverSettings {
     // Spatial representation: knots (19) on [eps, 1 - eps]. A surface as large as the scene gets
@@ -107,6 +111,49 @@ struct Solution {
 
 // Bytes the solve will allocate for the given scene and settings.
 size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings);
+
+// Algorithm 1 in its phases, each a gather that every receiving surface does on its own from
+// the previous step's coefficients of all receivers: the direct light, each indirect bounce
+// (from the last increment L) and the final gather (from the cumulative Le). A phase can thus
+// be split over groups of receivers gathered elsewhere (other processes, other machines), each
+// holding SolveSteps of the same scene and settings, which plan the same receivers with the same
+// knots. Coefficients travel flat: receiver after receiver, each one's spline sides in order.
+class SolveSteps {
+public:
+    enum class Phase { Direct = 0, Bounce = 1, Final = 2 };
+    // Gathers a phase for every receiver (in groups wherever it likes): the coefficients of all
+    // receivers of the phase, given `input` (empty, L or Le) and the nodes of each receiver (the
+    // work); adds the rays cast to `rays`.
+    using Runner = std::function<std::vector<double>(Phase, const std::vector<double>& input,
+                                                     const std::vector<size_t>& nodes, size_t& rays)>;
+
+    // Validates, plans the receivers and places their knots (the final gather's when first
+    // needed). Throws as solve() does. The scene must outlive the steps. `sides`: the sides
+    // another SolveSteps of the scene and settings probed (sides()), not probed again.
+    SolveSteps(const Scene& scene, const SolverSettings& settings, Progress& progress,
+               const std::vector<SurfaceSides>* sides = nullptr);
+    ~SolveSteps();
+    SolveSteps(const SolveSteps&) = delete;
+    SolveSteps& operator=(const SolveSteps&) = delete;
+
+    // Which sides of each surface are solved (the probe of sides.h).
+    const std::vector<SurfaceSides>& sides() const;
+    // Spatial nodes of each receiver of a phase.
+    std::vector<size_t> nodes(Phase phase, Progress& progress);
+    // The gather of a phase for receivers [begin, end), given the previous step's coefficients
+    // of all receivers (none for the direct light; L for a bounce; Le for the final gather):
+    // their new coefficients. Advances `progress` by nodes; throws Cancelled if it is cancelled.
+    std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
+                               Progress& progress, size_t& rays);
+    // The whole solve, each phase's gather run by `run` (here, on all threads, if empty), the
+    // bounces' bookkeeping (the sums, when to stop, the extrapolated tail) here. Once: the
+    // solution takes the splines.
+    Solution solve(Progress& progress, const Runner& run = {});
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
 
 // Throws std::invalid_argument on unusable input (naming the surface), Cancelled if progress is
 // cancelled, std::runtime_error when the memory estimate exceeds the budget (naming the surface

@@ -1,0 +1,178 @@
+"""The solve on a Ray cluster (https://docs.ray.io): each phase's gather split over workers.
+
+Every phase of the solve (the direct light, each bounce, the final gather) is a gather each
+receiving surface does on its own from the previous step's coefficients of all receivers
+(bsgi.SolveSteps). Here the driver keeps the bookkeeping between phases (the sums, when to stop,
+the extrapolated tail) and sends each phase's gather out in groups of receivers to Ray actors.
+Each actor holds the scene, its BVH and its receivers once (rebuilt from the pickled scene) and
+gets the previous step's coefficients from Ray's object store, put there once per phase. The
+result equals the local solve's: the same code gathers the same nodes.
+
+Ray is optional: it is imported when a RayExecutor first solves.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from typing import Any, Optional
+
+import numpy as np
+
+from . import _core
+from .rebuildable import settings_fields, settings_from
+
+
+def import_ray() -> Any:
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError("the distributed solve needs Ray: pip install ray (into the Python that runs bsgi)") from error
+    return ray
+
+
+class SolveWorker:
+    """A Ray actor's state: the scene and its SolveSteps, built once (and again if Ray restarts it)."""
+
+    def __init__(self, scene: _core.Scene, fields: dict, sides: list) -> None:
+        self.steps = _core.SolveSteps(scene, settings_from(fields), _core.Progress(), sides)
+        self.progress = _core.Progress()
+
+    def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int) -> tuple:
+        progress = _core.Progress()
+        progress.begin_stage(phase, 0, 1, nodes)
+        self.progress = progress  # what cancel() sees, from Ray's second actor thread
+        return self.steps.gather(phase, begin, end, coefficients, progress)
+
+    def cancel(self) -> None:
+        """Stops the running gather (it raises SolveCancelled)."""
+        self.progress.cancel()
+
+    def cpu_seconds(self) -> float:
+        """CPU time of this worker's process so far (set-up and gathers, all threads)."""
+        return time.process_time()
+
+
+def receiver_groups(nodes: list, count: int) -> list:
+    """Consecutive receivers in `count` groups of about equal nodes: (begin, end, nodes) each."""
+    total = sum(nodes)
+    groups, begin, within, share = [], 0, 0, max(total / max(count, 1), 1)
+    for k, n in enumerate(nodes):
+        within += n
+        if within >= share or k + 1 == len(nodes):
+            groups.append((begin, k + 1, within))
+            begin, within = k + 1, 0
+    return groups
+
+
+class RayExecutor:
+    """Runs bsgi.solve's phases on Ray actors.
+
+    ``address``: the Ray cluster (``"auto"``: the one running here, started by ``ray start
+    --head``; ``"ray://host:10001"``: a remote one; None: a running ray.init(), or else a local
+    Ray of this machine's cores). ``workers``: actors (default: the cluster's CPUs /
+    ``threads_per_worker``), each reserving ``threads_per_worker`` CPUs and gathering on as many
+    threads. A phase is split into ``groups_per_worker`` groups per worker, handed to whichever
+    worker is free. A worker lost mid-solve is restarted by Ray (``max_retries`` times) and its
+    group gathered again; one lost for good (its machine gone) leaves its groups to the others.
+    ``actors`` holds the workers of the running solve.
+    """
+
+    def __init__(self, address: Optional[str] = None, workers: Optional[int] = None, threads_per_worker: int = 1,
+                 groups_per_worker: int = 4, max_retries: int = 3, poll_seconds: float = 0.05) -> None:
+        if threads_per_worker < 1 or (workers is not None and workers < 1) or groups_per_worker < 1:
+            raise ValueError("RayExecutor: workers, threads_per_worker and groups_per_worker must be >= 1")
+        self.address = address
+        self.workers = workers
+        self.threads_per_worker = threads_per_worker
+        self.groups_per_worker = groups_per_worker
+        self.max_retries = max_retries
+        self.poll_seconds = poll_seconds
+        self.actors: list = []
+        self.bytes_sent: list = []  # of each phase's coefficients put into the object store
+        self.keep_groups = False  # each group stays on its worker (which keeps its form-factor rows)
+        self.lost: set = set()  # workers gone for good (their groups went to the others)
+        self.worker_cpu_seconds: list = []  # of each worker's process, at the end of the last solve
+
+    def connect(self) -> Any:
+        ray = import_ray()
+        if not ray.is_initialized():
+            try:
+                ray.init(address=self.address, log_to_driver=False)
+            except (ConnectionError, RuntimeError, ValueError, SystemExit) as error:  # Ray exits when no cluster answers
+                raise RuntimeError(f"cannot connect to the Ray cluster at '{self.address}' ({error!r})") from None
+        return ray
+
+    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> _core.Solution:
+        ray = self.connect()
+        cpus = int(ray.cluster_resources().get("CPU", 0))
+        count = self.workers or max(1, cpus // self.threads_per_worker)
+        if count * self.threads_per_worker > cpus:  # the workers that do not fit would never start
+            raise ValueError(f"RayExecutor: {count} workers of {self.threads_per_worker} threads need "
+                             f"{count * self.threads_per_worker} CPUs; the Ray cluster has {cpus}")
+        fields = settings_fields(settings)
+        fields["threads"] = self.threads_per_worker
+        actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
+                           max_task_retries=self.max_retries, max_concurrency=2)(SolveWorker)
+        # The driver probes the sides once; the workers take them (and place the same knots).
+        steps = _core.SolveSteps(scene, settings, progress)
+        scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
+        self.actors = [actor.remote(scene_ref, fields, steps.sides) for _ in range(count)]
+        self.bytes_sent = []
+        self.lost = set()
+        self.keep_groups = settings.form_factors
+        try:
+            solution = steps.solve(progress, lambda *args: self.run_phase(ray, progress, *args))
+            alive = [a for w, a in enumerate(self.actors) if w not in self.lost]
+            self.worker_cpu_seconds = ray.get([a.cpu_seconds.remote() for a in alive])
+            return solution
+        finally:
+            for a in self.actors:
+                ray.kill(a)  # also ends a gather still running after a cancel
+            self.actors = []
+
+    def run_phase(self, ray: Any, progress: _core.Progress, phase: str, coefficients: np.ndarray, nodes: list) -> tuple:
+        """One phase's gather for all receivers, group by group on the free workers."""
+        coefficients_ref = ray.put(coefficients)  # once per phase, fetched once per machine
+        self.bytes_sent.append(coefficients.nbytes)
+        # Group g goes to worker g mod n, the same every phase: a worker casts the form-factor rows of
+        # its groups once. A free worker takes another's group when its own are done, unless
+        # it would cast that group's rows again.
+        alive = [w for w in range(len(self.actors)) if w not in self.lost]
+        queues = {w: deque() for w in alive}
+        for g, group in enumerate(receiver_groups(nodes, len(alive) * self.groups_per_worker)):
+            queues[alive[g % len(alive)]].append(group)
+        idle = list(alive)
+        running: dict = {}
+        parts: dict = {}
+        rays = 0
+        while any(queues.values()) or running:
+            if progress.cancelled:
+                for w, _ in running.values():
+                    self.actors[w].cancel.remote()
+                raise _core.SolveCancelled("solve cancelled")
+            if not queues:
+                raise RuntimeError("the distributed solve lost all its Ray workers")
+            for w in list(idle):
+                queue = queues[w] or (None if self.keep_groups else max(queues.values(), key=len))
+                if queue:
+                    idle.remove(w)
+                    group = queue.popleft()
+                    ref = self.actors[w].gather.remote(phase, group[0], group[1], coefficients_ref, group[2])
+                    running[ref] = (w, group)
+            ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_seconds)
+            for ref in ready:
+                w, group = running.pop(ref)
+                try:
+                    part, group_rays = ray.get(ref)
+                except ray.exceptions.RayActorError:
+                    # Gone beyond Ray's restarts (its machine left the cluster): its groups go to the others.
+                    self.lost.add(w)
+                    left = [group, *queues.pop(w)]
+                    if queues:
+                        min(queues.values(), key=len).extend(left)
+                    continue
+                parts[group[0]] = part
+                rays += group_rays
+                progress.advance(group[2])
+                idle.append(w)
+        return np.concatenate([parts[b] for b in sorted(parts)]) if parts else np.zeros(0), rays

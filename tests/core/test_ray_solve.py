@@ -1,0 +1,193 @@
+"""The solve on Ray (bsgi.RayExecutor, issue 16): the gathers of each phase split over 2 local
+workers give every coefficient the local solve gives; a cancel returns at once; a worker killed
+mid-solve costs a retry, not the solve. Scenes pickle for the workers (bsgi.rebuildable)."""
+import os
+import pickle
+import time
+
+import numpy as np
+import pytest
+
+import bsgi
+from bsgi import _core
+from bsgi.rebuildable import SCENE_CALLS, SCENE_PROPERTIES
+
+ray = pytest.importorskip("ray", reason="Ray is not installed (pip install ray): the distributed solve is not tested")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    # One local Ray per module: its start-up costs seconds.
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield
+    ray.shutdown()
+
+
+def room():
+    """A closed box lit by a ceiling lamp, with a rough metal plate (glossy 4D) and a coated
+    block face (decomposed D + S) in it: several surfaces, light bouncing between them."""
+    scene = bsgi.Scene()
+    w = [0.7, 0.7, 0.7]
+    quads = {
+        "floor": [[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]],
+        "ceiling": [[0, 0, 2], [0, 2, 2], [2, 2, 2], [2, 0, 2]],
+        "left": [[0, 0, 0], [0, 2, 0], [0, 2, 2], [0, 0, 2]],
+        "right": [[2, 0, 0], [2, 0, 2], [2, 2, 2], [2, 2, 0]],
+        "back": [[0, 2, 0], [2, 2, 0], [2, 2, 2], [0, 2, 2]],
+        "front": [[0, 0, 0], [0, 0, 2], [2, 0, 2], [2, 0, 0]],
+    }
+    for name, corners in quads.items():
+        scene.add_bilinear_patch(name, np.array(corners, float), albedo=[0.8, 0.3, 0.3] if name == "left" else w,
+                                 emission=[0, 0, 0])
+    scene.add_bilinear_patch("lamp", np.array([[0.7, 0.7, 1.99], [0.7, 1.3, 1.99], [1.3, 1.3, 1.99], [1.3, 0.7, 1.99]]),
+                             albedo=[0, 0, 0], emission=[8, 8, 8], receiver=False, occluder=False)
+    plate = bsgi.BilinearPatch("plate", np.array([[0.3, 1.2, 0.4], [1.0, 1.2, 0.4], [1.0, 1.8, 0.6], [0.3, 1.8, 0.6]]))
+    scene.add_surface(plate, albedo=[0.9, 0.9, 0.9], emission=[0, 0, 0],
+                      bsdf=bsgi.GgxReflection(0.3, 0.3, np.array([0.9, 0.6, 0.3])))
+    scene.add_triangle("block", np.array([[1.2, 0.3, 0.0], [1.8, 0.3, 0.0], [1.5, 0.3, 0.7]]), albedo=[0.5] * 3,
+                       emission=[0, 0, 0], bsdf=bsgi.DiffuseGgx(np.array([0.5, 0.6, 0.5]), 0.4, 0.4, np.array([0.04] * 3)))
+    return scene
+
+
+def settings(**kw):
+    s = bsgi.SolverSettings()
+    s.spatial_coeffs = 6
+    s.hemisphere_nodes_theta, s.hemisphere_nodes_phi = 6, 12
+    s.angular_coeffs_max = 7
+    s.bsdf_samples = 4
+    s.max_bounces, s.tolerance = 3, 0  # all three bounces
+    s.final_gather, s.final_spatial_factor = True, 1
+    s.threads = 1
+    for k, v in kw.items():
+        setattr(s, k, v)
+    return s
+
+
+def splines(solution):
+    for surface in solution.surfaces:
+        if surface is None:
+            continue
+        for part in (surface.upper, surface.lower, surface.diffuse, surface.lower_diffuse):
+            if part is not None:
+                yield part.coefficients
+
+
+def assert_same_coefficients(a, b):
+    pairs = list(zip(splines(a), splines(b)))
+    assert len(pairs) == len(list(splines(a))) == len(list(splines(b))) > 8
+    for x, y in pairs:
+        assert x.shape == y.shape
+        np.testing.assert_allclose(y, x, rtol=1e-12, atol=0)
+    assert a.stats["bounces"] == b.stats["bounces"] == 3
+    assert a.stats["rays"] == b.stats["rays"]
+
+
+def test_scene_pickles_to_the_same_solve():
+    scene = room()
+    again = pickle.loads(pickle.dumps(scene))
+    assert type(again) is bsgi.Scene and len(again) == len(scene)
+    s = settings(max_bounces=1, final_gather=False)
+    for x, y in zip(splines(bsgi.solve(scene, s)), splines(bsgi.solve(again, s))):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_every_scene_member_that_changes_it_is_kept():
+    # A new mutating member of the compiled Scene must be kept by bsgi.Scene, or workers would
+    # solve another scene: every public member is either kept or known to only read.
+    readers = {"is_thin_glass", "distant_lights", "surface", "name", "area", "evaluate_surface"}
+    public = {n for n in dir(_core.Scene) if not n.startswith("_")}
+    assert public == readers | set(SCENE_CALLS) | set(SCENE_PROPERTIES)
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+def test_ray_solve_equals_the_local_solve(cluster):
+    scene, s = room(), settings()
+    local = bsgi.solve(scene, s)
+    kinds = {r["representation"].split(",")[0] for r in local.reports}
+    assert {"diffuse 2D", "glossy 4D", "decomposed 2D + 4D (38)"} <= kinds
+    executor = bsgi.RayExecutor(workers=2)
+    assert_same_coefficients(local, bsgi.solve(scene, s, executor=executor))
+    # Each phase sent once: the direct light (nothing), three bounces (L), the final gather (Le).
+    assert len(executor.bytes_sent) == 5 and executor.bytes_sent[0] == 0
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+def test_ray_solve_with_form_factors_equals_the_local_solve(cluster):
+    scene, s = room(), settings(form_factors=True, final_gather=False)
+    local = bsgi.solve(scene, s)
+    assert local.stats["transport_terms"] > 0
+    assert_same_coefficients(local, bsgi.solve(scene, s, executor=bsgi.RayExecutor(workers=2)))
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+def test_cancelled_ray_solve_returns_within_a_second(cluster):
+    scene = room()
+    s = settings(spatial_coeffs=10, max_bounces=20, hemisphere_nodes_theta=12, hemisphere_nodes_phi=24)
+    cancel_at = []
+
+    def on_progress(fraction, stage):
+        if stage.startswith("indirect bounce") and not cancel_at:
+            cancel_at.append(time.monotonic())
+        return not cancel_at
+
+    with pytest.raises(bsgi.SolveCancelled):
+        bsgi.solve(scene, s, on_progress=on_progress, executor=bsgi.RayExecutor(workers=2), poll_seconds=0.02)
+    assert cancel_at and time.monotonic() - cancel_at[0] < 1.0
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+def test_worker_killed_mid_solve_is_retried(cluster):
+    scene, s = room(), settings()
+    local = bsgi.solve(scene, s)
+    executor = bsgi.RayExecutor(workers=2)
+    killed, pids = [], []
+
+    def pid_of_worker_0():
+        return ray.get(executor.actors[0].__ray_call__.remote(lambda worker: os.getpid()))
+
+    def on_progress(fraction, stage):
+        # Kill a worker while the first bounce's groups are being gathered: Ray restarts it (the
+        # scene rebuilt from the object store) and gathers its group again.
+        if stage == "direct light" and not pids and executor.actors:
+            pids.append(pid_of_worker_0())
+        if stage == "indirect bounce 1" and not killed and executor.actors:
+            ray.kill(executor.actors[0], no_restart=False)
+            killed.append(stage)
+        if stage == "final gather" and len(pids) == 1:
+            pids.append(pid_of_worker_0())
+
+    solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)
+    assert killed and len(pids) == 2 and pids[0] != pids[1]  # a new process took over
+    assert_same_coefficients(local, solution)
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+def test_worker_lost_for_good_leaves_its_groups_to_the_others(cluster):
+    scene, s = room(), settings()
+    local = bsgi.solve(scene, s)
+    executor = bsgi.RayExecutor(workers=2, max_retries=0)  # Ray does not restart it
+    killed = []
+
+    def on_progress(fraction, stage):
+        if stage == "indirect bounce 1" and not killed and executor.actors:
+            ray.kill(executor.actors[0])
+            killed.append(stage)
+
+    solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)
+    assert killed and executor.lost == {0}
+    assert_same_coefficients(local, solution)
+
+
+def test_solve_steps_check_what_they_are_given():
+    scene, s = room(), settings(max_bounces=1, final_gather=False)
+    steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
+    assert len(steps.sides) == len(scene)
+    with pytest.raises(ValueError, match="sides of 0 surfaces given for a scene of 9"):
+        bsgi.SolveSteps(scene, s, bsgi.Progress(), [])
+    with pytest.raises(ValueError, match="coefficients given for receivers"):
+        steps.gather("bounce", 0, 1, np.zeros(5), bsgi.Progress())
+    with pytest.raises(ValueError, match="phase must be"):
+        steps.gather("indirect", 0, 1, np.zeros(0), bsgi.Progress())
+    steps.solve(bsgi.Progress())
+    with pytest.raises(RuntimeError, match="runs once"):
+        steps.solve(bsgi.Progress())
