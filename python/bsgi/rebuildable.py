@@ -109,6 +109,7 @@ SCENE_CALLS = (
     "set_spot_cone",
     "set_albedo_texture",
     "set_emission_texture",
+    "set_specular_texture",
 )
 SCENE_PROPERTIES = ("world_radiance", "world_map")
 
