@@ -20,6 +20,11 @@ struct SolverSettings {
     double epsilon = 1e-3;
     bool coeffs_from_size = false;
     int spatial_coeffs_min = 4;
+    // With coeffs_from_size, a surface whose direct light has detail gets more again: the light
+    // is probed on a (2 spatial_coeffs_min + 1)^2 grid and the knot spacing is chosen so that a
+    // quadratic's interpolation error, h^2 |f''| / 8, stays under detail_tolerance times the
+    // surface's brightest probe (a shadow edge asks for spatial_coeffs). 0: size alone.
+    double detail_tolerance = 0;
     // Knots clustered where the direct light has detail (shadow edges, contact lines) instead
     // of uniform: costs a probe of the direct light on a (2n+1)^2 grid per surface.
     bool adaptive_knots = false;
