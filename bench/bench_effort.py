@@ -3,19 +3,23 @@ quads each) scattered on a 20 m floor under one square light, solved at the prev
 the core API, with spatial coefficients from each surface's size and its direct light's detail
 (coeffs_from_size, detail_tolerance) against the preset's uniform 12 x 12. Figures: time, rays
 of the whole solve, and rays per box face, i.e. the solve's rays less those of the floor and
-light alone, over the box faces.
+light alone, over the box faces. The same for the furnished interior of bench/interior_core.py
+at 100 objects (books on shelves, a table, chairs; a sun and a sky): time and rays per surface.
 
     python bench/run.py effort
 """
 from __future__ import annotations
 
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 import bsgi
 
 BOXES = 40
+INTERIOR_OBJECTS = 100
 FLOOR = 20.0
 BOX = 0.4
 ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.02}
@@ -70,6 +74,15 @@ def run() -> dict:
                         f"effort_boxes_{name}_floor_rays": alone["rays"]})
     figures["effort_boxes_rays_per_box_face_reduction"] = (figures["effort_boxes_uniform_rays_per_box_face"] /
                                                           figures["effort_boxes_adaptive_rays_per_box_face"])
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import interior_core
+
+    scene, _ = interior_core.build_scene(INTERIOR_OBJECTS)
+    for name, overrides in (("uniform", {}), ("adaptive", ADAPTIVE)):
+        solved = solve(scene, overrides)
+        figures.update({f"effort_interior_{INTERIOR_OBJECTS}_{name}_seconds": solved["seconds"],
+                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_rays_per_surface": solved["rays"] / len(scene),
+                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_coefficients": solved["coefficients"]})
     return figures
 
 
