@@ -65,15 +65,42 @@ struct Plan {
     size_t coefficients() const { return size_t(nu) * nv * na * na * (live[0] + live[1]); }
 };
 
-// The longest side of a receiver, measured as plan_surface measures a surface's sides (its
-// parameter derivatives at the centre), so that the largest receiver gets spatial_coeffs.
+// A surface's shape along u and v for coeffs_from_size: the mean arc length of its parameter
+// lines, and the largest turning of its normal along one (radians), on a 9 x 9 grid.
+struct Shape {
+    std::array<double, 2> length{0, 0}, turning{0, 0};
+};
+
+Shape shape_of(const Surface& surface) {
+    constexpr int m = 9;
+    std::vector<SurfacePoint> g;
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) g.push_back(surface.evaluate((i + 0.5) / m, (j + 0.5) / m));
+    Shape shape;
+    for (int along = 0; along < 2; ++along)
+        for (int j = 0; j < m; ++j) {
+            double turning = 0;
+            for (int i = 0; i < m; ++i) {
+                const SurfacePoint& a = along == 0 ? g[size_t(i) * m + j] : g[size_t(j) * m + i];
+                shape.length[along] += length(along == 0 ? a.dpdu : a.dpdv) / (m * m);
+                if (i + 1 == m) continue;
+                const SurfacePoint& b = along == 0 ? g[size_t(i + 1) * m + j] : g[size_t(j) * m + i + 1];
+                turning += std::acos(std::clamp(dot(a.frame.z, b.frame.z), -1.0, 1.0));
+            }
+            // The ends of the grid lie half a cell inside: the turning over the whole line.
+            shape.turning[along] = std::max(shape.turning[along], turning * m / (m - 1));
+        }
+    return shape;
+}
+
+// The longest receiver, as shape_of measures it: the one that gets spatial_coeffs.
 double scene_extent(const Scene& scene) {
     double extent = 0;
-    for (const auto& s : scene.surfaces()) {
-        if (!s.receiver) continue;
-        const SurfacePoint c = s.surface->evaluate(0.5, 0.5);
-        extent = std::max({extent, length(c.dpdu), length(c.dpdv)});
-    }
+    for (const auto& s : scene.surfaces())
+        if (s.receiver) {
+            const Shape shape = shape_of(*s.surface);
+            extent = std::max({extent, shape.length[0], shape.length[1]});
+        }
     return extent;
 }
 
@@ -127,19 +154,27 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
             << (p.live[1] ? "" : "no spline, ") << lit.why[1];
     }
     // Spatial coefficients per direction.
-    auto spatial = [&](double length, int from_detail) {
+    // The probe of the light's detail sees irradiance, not the view-dependent detail of a glossy
+    // surface's reflections: those keep spatial_coeffs when the probe is on.
+    const bool from_size = s.coeffs_from_size && extent > 0 && !(s.detail_tolerance > 0 && p.kind != Representation::Diffuse);
+    const Shape shape = from_size ? shape_of(*ss.surface) : Shape{};
+    auto spatial = [&](int along, int from_detail) {
         if (ss.options.spatial_coeffs) return std::max(ss.options.spatial_coeffs, s.spatial_degree + 1) * spatial_scale;
         int n = s.spatial_coeffs;
-        if (s.coeffs_from_size && extent > 0)
-            n = std::clamp(int(std::ceil(s.spatial_coeffs * length / extent)), std::min(s.spatial_coeffs_min, s.spatial_coeffs),
-                           s.spatial_coeffs);
+        if (from_size) {
+            // Light that varies with the normal (any light but one from straight above) asks a
+            // curved surface for a span every kTurningPerSpan of its normal's turning.
+            constexpr double kTurningPerSpan = 0.5;  // radians, about 30 degrees
+            const double wanted = std::max(s.spatial_coeffs * shape.length[along] / extent,
+                                           shape.turning[along] / kTurningPerSpan + s.spatial_degree);
+            n = std::clamp(int(std::ceil(wanted)), std::min(s.spatial_coeffs_min, s.spatial_coeffs), s.spatial_coeffs);
+        }
         return std::max(n, std::min(from_detail, s.spatial_coeffs)) * spatial_scale;
     };
-    const SurfacePoint c = ss.surface->evaluate(0.5, 0.5);
-    p.nu = spatial(length(c.dpdu), detail[0]);
-    p.nv = spatial(length(c.dpdv), detail[1]);
+    p.nu = spatial(0, detail[0]);
+    p.nv = spatial(1, detail[1]);
     why << "; " << p.nu << " x " << p.nv << " spatial coefficients";
-    if (s.coeffs_from_size && !ss.options.spatial_coeffs)
+    if (from_size && !ss.options.spatial_coeffs)
         why << (detail[0] || detail[1] ? " (from its size and its direct light's detail)" : " (from its size)");
     if (p.kind != Representation::Diffuse) {
         if (ss.options.angular_coeffs) {
