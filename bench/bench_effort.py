@@ -22,7 +22,7 @@ BOXES = 40
 INTERIOR_OBJECTS = 100
 FLOOR = 20.0
 BOX = 0.4
-ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.02}
+ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}
 
 
 def boxes_scene(boxes: int, seed: int = 1) -> bsgi.Scene:

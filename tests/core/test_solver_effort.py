@@ -9,7 +9,7 @@ from closed_forms import polygon_irradiance
 
 FLOOR, BOX, ALBEDO = 6.0, 0.3, 0.6
 LIGHT = np.array([[-0.5, -0.5, 3], [-0.5, 0.5, 3], [0.5, 0.5, 3], [0.5, -0.5, 3]], float)  # facing down
-ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.02}
+ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}
 CENTRES = [(1.5, 1.5), (-1.5, 1.5), (-1.5, -1.5), (1.5, -1.5)]
 
 
