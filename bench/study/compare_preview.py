@@ -50,5 +50,6 @@ def compare(blend, overrides: dict, work: pathlib.Path) -> dict:
 if __name__ == "__main__":
     overrides = json.loads(sys.argv[1])
     figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / "study_compare")
-               for blend in run_study.scenes(sys.argv[2:] or None)}
+               for blend in run_study.scenes(sys.argv[2:] or None)
+               if (HERE / "references" / f"{blend.stem}.npz").exists()}  # the study's scenes
     print(json.dumps(figures))
