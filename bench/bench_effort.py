@@ -22,7 +22,8 @@ BOXES = 40
 INTERIOR_OBJECTS = 100
 FLOOR = 20.0
 BOX = 0.4
-ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}
+ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}  # opt-in (bench/study/compare_preview.py)
+UNIFORM = {"coeffs_from_size": False, "detail_tolerance": 0.0}  # the preview preset
 
 
 def boxes_scene(boxes: int, seed: int = 1) -> bsgi.Scene:
@@ -65,7 +66,7 @@ def solve(scene, overrides: dict) -> dict:
 
 def run() -> dict:
     figures = {}
-    for name, overrides in (("uniform", {}), ("adaptive", ADAPTIVE)):
+    for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE)):
         alone = solve(boxes_scene(0), overrides)
         full = solve(boxes_scene(BOXES), overrides)
         per_face = (full["rays"] - alone["rays"]) / (5 * BOXES)
@@ -78,7 +79,7 @@ def run() -> dict:
     import interior_core
 
     scene, _ = interior_core.build_scene(INTERIOR_OBJECTS)
-    for name, overrides in (("uniform", {}), ("adaptive", ADAPTIVE)):
+    for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE)):
         solved = solve(scene, overrides)
         figures.update({f"effort_interior_{INTERIOR_OBJECTS}_{name}_seconds": solved["seconds"],
                         f"effort_interior_{INTERIOR_OBJECTS}_{name}_rays_per_surface": solved["rays"] / len(scene),

@@ -8,6 +8,7 @@ and a JSON line of the figures at the end.
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -49,7 +50,7 @@ def compare(blend, overrides: dict, work: pathlib.Path) -> dict:
 
 if __name__ == "__main__":
     overrides = json.loads(sys.argv[1])
-    figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / "study_compare")
+    figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / f"study_compare_{os.getpid()}")  # runs side by side
                for blend in run_study.scenes(sys.argv[2:] or None)
                if (HERE / "references" / f"{blend.stem}.npz").exists()}  # the study's scenes
     print(json.dumps(figures))

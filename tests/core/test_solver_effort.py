@@ -9,7 +9,8 @@ from closed_forms import polygon_irradiance
 
 FLOOR, BOX, ALBEDO = 6.0, 0.3, 0.6
 LIGHT = np.array([[-0.5, -0.5, 3], [-0.5, 0.5, 3], [0.5, 0.5, 3], [0.5, -0.5, 3]], float)  # facing down
-ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}
+ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}  # opt-in (bench/study/compare_preview.py)
+UNIFORM = {"coeffs_from_size": False, "detail_tolerance": 0.0}  # the preview preset
 CENTRES = [(1.5, 1.5), (-1.5, 1.5), (-1.5, -1.5), (1.5, -1.5)]
 
 
@@ -49,7 +50,7 @@ def test_small_box_faces_cost_a_quarter_of_the_rays_of_uniform_coefficients():
     boxes = [(x, y, BOX, BOX) for x, y in CENTRES]
     faces = 5 * len(boxes)
     per_face = {}
-    for name, overrides in (("uniform", {}), ("adaptive", ADAPTIVE)):
+    for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE)):
         alone = solve(scene_of([]), **overrides).stats["rays"]
         sol = solve(scene_of(boxes), **overrides)
         per_face[name] = (sol.stats["rays"] - alone) / faces
@@ -67,7 +68,7 @@ def test_evenly_lit_box_tops_match_the_closed_form_with_few_coefficients():
     scene = scene_of(boxes)
     uv = np.random.default_rng(3).uniform(0, 1, (100, 2))
     errors = {}
-    for name, overrides in (("uniform", {}), ("adaptive", ADAPTIVE)):
+    for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE)):
         sol = solve(scene, **overrides)
         worst = 0.0
         for k in range(len(boxes)):
@@ -110,7 +111,7 @@ def test_a_small_sphere_keeps_its_coefficients_for_the_turning_of_its_normal():
     points = blender_sphere_points(r)
     points[:, 2] += 1.0
     errors, counts = {}, {}
-    for name, overrides in (("uniform", {}), ("adaptive", ADAPTIVE)):
+    for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE)):
         scene = bsgi.Scene()
         h = FLOOR / 2
         scene.add_bilinear_patch("floor", np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]], float),
