@@ -200,7 +200,7 @@ size_t plan_bytes(const Plan& p) {
 // `detail`: per scene surface, the coefficients its direct light asks for (empty: none probed).
 std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int spatial_scale,
                              const std::vector<SurfaceSides>& sides, const std::vector<std::array<int, 2>>& detail = {}) {
-    const double extent = scene_extent(scene);
+    const double extent = s.coeffs_from_size ? scene_extent(scene) : 0;  // 81 evaluations a surface: only if used
     std::vector<Plan> plans;
     for (size_t i = 0; i < scene.size(); ++i) {
         if (!scene[i].receiver) continue;
