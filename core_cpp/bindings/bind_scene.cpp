@@ -284,6 +284,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("epsilon", &SolverSettings::epsilon)
         .def_readwrite("coeffs_from_size", &SolverSettings::coeffs_from_size)
         .def_readwrite("spatial_coeffs_min", &SolverSettings::spatial_coeffs_min)
+        .def_readwrite("detail_tolerance", &SolverSettings::detail_tolerance)
         .def_readwrite("adaptive_knots", &SolverSettings::adaptive_knots)
         .def_readwrite("angular_degree", &SolverSettings::angular_degree)
         .def_readwrite("angular_delta", &SolverSettings::angular_delta)

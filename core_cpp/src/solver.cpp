@@ -26,6 +26,7 @@ void validate(const SolverSettings& s) {
     need(s.spatial_degree >= 0 && s.spatial_degree <= 5, "spatial_degree must be in 0..5");
     need(s.spatial_coeffs >= s.spatial_degree + 1, "spatial_coeffs must be at least spatial_degree + 1");
     need(s.spatial_coeffs_min >= s.spatial_degree + 1, "spatial_coeffs_min must be at least spatial_degree + 1");
+    need(s.detail_tolerance >= 0, "detail_tolerance must be >= 0");
     need(s.epsilon >= 0 && s.epsilon < 0.5, "epsilon must be in [0, 0.5)");
     need(s.angular_degree >= 0 && s.angular_degree <= 5, "angular_degree must be in 0..5");
     need(s.angular_coeffs_min >= s.angular_degree + 1 && s.angular_coeffs_max >= s.angular_coeffs_min,
@@ -64,16 +65,50 @@ struct Plan {
     size_t coefficients() const { return size_t(nu) * nv * na * na * (live[0] + live[1]); }
 };
 
+// A surface's shape along u and v for coeffs_from_size: the mean arc length of its parameter
+// lines, and the largest turning of its normal along one (radians), on a 9 x 9 grid.
+struct Shape {
+    std::array<double, 2> length{0, 0}, turning{0, 0};
+};
+
+Shape shape_of(const Surface& surface) {
+    constexpr int m = 9;
+    std::vector<SurfacePoint> g;
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) g.push_back(surface.evaluate((i + 0.5) / m, (j + 0.5) / m));
+    Shape shape;
+    for (int along = 0; along < 2; ++along)
+        for (int j = 0; j < m; ++j) {
+            double turning = 0;
+            for (int i = 0; i < m; ++i) {
+                const SurfacePoint& a = along == 0 ? g[size_t(i) * m + j] : g[size_t(j) * m + i];
+                shape.length[along] += length(along == 0 ? a.dpdu : a.dpdv) / (m * m);
+                if (i + 1 == m) continue;
+                const SurfacePoint& b = along == 0 ? g[size_t(i + 1) * m + j] : g[size_t(j) * m + i + 1];
+                turning += std::acos(std::clamp(dot(a.frame.z, b.frame.z), -1.0, 1.0));
+            }
+            // The ends of the grid lie half a cell inside: the turning over the whole line.
+            shape.turning[along] = std::max(shape.turning[along], turning * m / (m - 1));
+        }
+    return shape;
+}
+
+// The longest receiver, as shape_of measures it: the one that gets spatial_coeffs.
 double scene_extent(const Scene& scene) {
     double extent = 0;
-    for (const auto& s : scene.surfaces()) extent = std::max(extent, s.surface->size());
+    for (const auto& s : scene.surfaces())
+        if (s.receiver) {
+            const Shape shape = shape_of(*s.surface);
+            extent = std::max({extent, shape.length[0], shape.length[1]});
+        }
     return extent;
 }
 
 // "Model only what the scene requires": the representation from the material, the knots from
 // the BSDF's lobe and the surface's size, unless the surface's options say otherwise.
+// `detail`: the coefficients per direction the surface's direct light asks for (0: not probed).
 Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double extent, int spatial_scale,
-                  const SurfaceSides& lit) {
+                  const SurfaceSides& lit, std::array<int, 2> detail) {
     const SceneSurface& ss = scene[i];
     Plan p;
     p.surface = i;
@@ -119,18 +154,28 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
             << (p.live[1] ? "" : "no spline, ") << lit.why[1];
     }
     // Spatial coefficients per direction.
-    auto spatial = [&](double length) {
+    // The probe of the light's detail sees irradiance, not the view-dependent detail of a glossy
+    // surface's reflections: those keep spatial_coeffs when the probe is on.
+    const bool from_size = s.coeffs_from_size && extent > 0 && !(s.detail_tolerance > 0 && p.kind != Representation::Diffuse);
+    const Shape shape = from_size ? shape_of(*ss.surface) : Shape{};
+    auto spatial = [&](int along, int from_detail) {
         if (ss.options.spatial_coeffs) return std::max(ss.options.spatial_coeffs, s.spatial_degree + 1) * spatial_scale;
         int n = s.spatial_coeffs;
-        if (s.coeffs_from_size && extent > 0)
-            n = std::clamp(int(std::ceil(s.spatial_coeffs * length / extent)), s.spatial_coeffs_min, s.spatial_coeffs);
-        return n * spatial_scale;
+        if (from_size) {
+            // Light that varies with the normal (any light but one from straight above) asks a
+            // curved surface for a span every kTurningPerSpan of its normal's turning.
+            constexpr double kTurningPerSpan = 0.5;  // radians, about 30 degrees
+            const double wanted = std::max(s.spatial_coeffs * shape.length[along] / extent,
+                                           shape.turning[along] / kTurningPerSpan + s.spatial_degree);
+            n = std::clamp(int(std::ceil(wanted)), std::min(s.spatial_coeffs_min, s.spatial_coeffs), s.spatial_coeffs);
+        }
+        return std::max(n, std::min(from_detail, s.spatial_coeffs)) * spatial_scale;
     };
-    const SurfacePoint c = ss.surface->evaluate(0.5, 0.5);
-    p.nu = spatial(length(c.dpdu));
-    p.nv = spatial(length(c.dpdv));
+    p.nu = spatial(0, detail[0]);
+    p.nv = spatial(1, detail[1]);
     why << "; " << p.nu << " x " << p.nv << " spatial coefficients";
-    if (s.coeffs_from_size && !ss.options.spatial_coeffs) why << " (from its size)";
+    if (from_size && !ss.options.spatial_coeffs)
+        why << (detail[0] || detail[1] ? " (from its size and its direct light's detail)" : " (from its size)");
     if (p.kind != Representation::Diffuse) {
         if (ss.options.angular_coeffs) {
             p.na = std::max(ss.options.angular_coeffs, s.angular_degree + 1);
@@ -152,13 +197,14 @@ size_t plan_bytes(const Plan& p) {
     return 3 * p.coefficients() * 3 * sizeof(double) + size_t(p.nu) * p.nv * sizeof(SurfacePoint);
 }
 
+// `detail`: per scene surface, the coefficients its direct light asks for (empty: none probed).
 std::vector<Plan> plan_scene(const Scene& scene, const SolverSettings& s, int spatial_scale,
-                             const std::vector<SurfaceSides>& sides) {
-    const double extent = scene_extent(scene);
+                             const std::vector<SurfaceSides>& sides, const std::vector<std::array<int, 2>>& detail = {}) {
+    const double extent = s.coeffs_from_size ? scene_extent(scene) : 0;  // 81 evaluations a surface: only if used
     std::vector<Plan> plans;
     for (size_t i = 0; i < scene.size(); ++i) {
         if (!scene[i].receiver) continue;
-        Plan p = plan_surface(scene, int(i), s, extent, spatial_scale, sides[i]);
+        Plan p = plan_surface(scene, int(i), s, extent, spatial_scale, sides[i], detail.empty() ? std::array<int, 2>{} : detail[i]);
         if (scene[i].material.specular_texture) {
             // Schlick's Fresnel is affine in f0: the surface at f0 = 1 and, as its partner, at
             // f0 = 0, on the same knots; the texture blends them.
@@ -253,6 +299,60 @@ std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const S
     };
     return {p.nu > d + 1 ? equidistributed_knots(density_along(true), p.nu, d, a, b) : uniform_u,
             p.nv > d + 1 ? equidistributed_knots(density_along(false), p.nv, d, a, b) : uniform_v};
+}
+
+// The spatial coefficients per direction a surface's direct light asks for, where its size
+// alone gave it fewer than spatial_coeffs (paper 3.1: knots where there is detail): the
+// irradiance is probed on a (2 spatial_coeffs_min + 1)^2 grid; its largest second difference
+// along u (v), w = h_p^2 |f''|, sets the knot spacing h at which a quadratic's interpolation
+// error h^2 |f''| / 8 is detail_tolerance times the brightest probe. A shadow edge or a light
+// close by asks for many, a face evenly lit by a distant light for few.
+std::array<int, 2> coeffs_for_detail(const Gatherer& gather, const Scene& scene, const Plan& p,
+                                     const SolverSettings& s, size_t& rays) {
+    const int m = 2 * s.spatial_coeffs_min + 1;
+    const double a = s.epsilon, b = 1 - s.epsilon;
+    const Surface& surface = *scene[p.surface].surface;
+    std::vector<double> f(size_t(m) * m);
+    double fmax = 0;
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) {
+            const Vec3 e = gather.irradiance(p.surface, surface.evaluate(a + (b - a) * i / (m - 1), a + (b - a) * j / (m - 1)),
+                                             rays, p.live);
+            fmax = std::max(fmax, f[size_t(i) * m + j] = e.x + e.y + e.z);
+        }
+    if (!(fmax > 0)) return {0, 0};  // no direct light: its size decides
+    std::array<int, 2> n{0, 0};
+    for (int along = 0; along < 2; ++along) {
+        double w = 0;
+        for (int i = 1; i + 1 < m; ++i)
+            for (int j = 0; j < m; ++j) {
+                auto at = [&](int k) { return along == 0 ? f[size_t(k) * m + j] : f[size_t(j) * m + k]; };
+                w = std::max(w, std::abs(at(i - 1) - 2 * at(i) + at(i + 1)));
+            }
+        const double spans = (m - 1) * std::sqrt(w / (8 * s.detail_tolerance * fmax));
+        n[along] = int(std::min<double>(std::ceil(spans) + s.spatial_degree, s.spatial_coeffs));
+    }
+    return n;
+}
+
+// Per scene surface, coeffs_for_detail where the size-based plan gave fewer than spatial_coeffs.
+std::vector<std::array<int, 2>> detail_of_scene(const Gatherer& gather, const Scene& scene, const std::vector<Plan>& plans,
+                                                const SolverSettings& s, Progress& progress, size_t& rays) {
+    std::vector<std::array<int, 2>> detail(scene.size(), std::array<int, 2>{0, 0});
+    if (!s.coeffs_from_size || !(s.detail_tolerance > 0)) return detail;
+    std::vector<const Plan*> probed;
+    for (const Plan& p : plans)
+        if (p.partner_of < 0 && !scene[p.surface].options.spatial_coeffs && (p.nu < s.spatial_coeffs || p.nv < s.spatial_coeffs))
+            probed.push_back(&p);
+    std::atomic<size_t> probe_rays{0};
+    parallel_for(probed.size(), 1, s.threads, [&](size_t begin, size_t end) {
+        size_t local = 0;
+        for (size_t k = begin; k < end; ++k) detail[probed[k]->surface] = coeffs_for_detail(gather, scene, *probed[k], s, local);
+        probe_rays += local;
+    }, progress.cancel_flag());
+    progress.throw_if_cancelled();
+    rays += probe_rays;
+    return detail;
 }
 
 Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, const KnotVector& kv,
@@ -504,9 +604,10 @@ RayCaster ray_caster_of(const Scene& scene) {
     return RayCaster(occluders, panes);
 }
 
-size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<SurfaceSides>& sides) {
+size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<SurfaceSides>& sides,
+                      const std::vector<std::array<int, 2>>& detail = {}) {
     size_t bytes = 0, triangles = 0;
-    for (const Plan& p : plan_scene(scene, settings, 1, sides)) {
+    for (const Plan& p : plan_scene(scene, settings, 1, sides, detail)) {
         bytes += plan_bytes(p);
         // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
         if (settings.form_factors && p.kind == Representation::Diffuse)
@@ -514,7 +615,7 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
                      (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
     if (settings.final_gather)
-        for (const Plan& p : plan_scene(scene, settings, settings.final_spatial_factor, sides)) bytes += plan_bytes(p) / 3;
+        for (const Plan& p : plan_scene(scene, settings, settings.final_spatial_factor, sides, detail)) bytes += plan_bytes(p) / 3;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3;
     return bytes + triangles * 128;  // the ray caster: a 64-byte record and about as much BVH a triangle
@@ -525,7 +626,10 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
 size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
     validate(settings);  // the plan's arithmetic assumes valid settings (UBSan found an int overflow)
     const RayCaster caster = ray_caster_of(scene);
-    return estimate_bytes(scene, settings, probe_sides(scene, caster, settings));
+    // The direct light's detail is only known after probing it: at most spatial_coeffs each.
+    SolverSettings bound = settings;
+    if (settings.detail_tolerance > 0) bound.coeffs_from_size = false;
+    return estimate_bytes(scene, bound, probe_sides(scene, caster, bound));
 }
 
 namespace {
@@ -606,9 +710,18 @@ struct SolveSteps::State {
             throw std::invalid_argument("solve steps: sides of " + std::to_string(probed->size()) + " surfaces given for a scene of " +
                                         std::to_string(scene.size()));
         sides = probed ? *probed : probe_sides(scene, caster, settings);
-        plans = plan_scene(scene, settings, 1, sides);
-        if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides);
-        bytes = estimate_bytes(scene, settings, sides);
+        // The scene as the gathering sees it: emitters whose back side encloses its light emit
+        // from their front only. Built before the plans: the probe of the direct light's detail
+        // (detail_tolerance) gathers.
+        lit_scene = scene;
+        for (size_t i = 0; i < scene.size(); ++i)
+            if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
+        gather.emplace(lit_scene, settings, caster);
+        const std::vector<std::array<int, 2>> detail =
+            detail_of_scene(*gather, scene, plan_scene(scene, settings, 1, sides), settings, progress, knot_rays);
+        plans = plan_scene(scene, settings, 1, sides, detail);
+        if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides, detail);
+        bytes = estimate_bytes(scene, settings, sides, detail);
         if (bytes > settings.memory_budget_mb * 1024 * 1024) {
             const Plan* largest = nullptr;
             for (const Plan& p : plans)
@@ -626,13 +739,6 @@ struct SolveSteps::State {
                 throw std::invalid_argument("surface '" + scene[p.surface].surface->name() +
                                             "': a perfectly smooth (mirror or glass) BSDF has no spline representation; "
                                             "give it a roughness");
-
-        // The scene as the gathering sees it: emitters whose back side encloses its light emit
-        // from their front only.
-        lit_scene = scene;
-        for (size_t i = 0; i < scene.size(); ++i)
-            if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
-        gather.emplace(lit_scene, settings, caster);
 
         progress.begin_stage("placing knots", 0, stages, 1);
         receivers = build_receivers(scene, plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);

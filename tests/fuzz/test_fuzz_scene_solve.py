@@ -159,6 +159,7 @@ def test_random_scenes_solve_or_are_refused(scene_spec, bounces, form_factors, a
 FIELDS = {
     "spatial_coeffs": st.integers(-2, 6), "spatial_degree": st.integers(-1, 6), "epsilon": any_float,
     "coeffs_from_size": st.booleans(), "spatial_coeffs_min": st.integers(-1, 4), "adaptive_knots": st.booleans(),
+    "detail_tolerance": any_float,
     "angular_degree": st.integers(-1, 6), "angular_delta": any_float, "angular_resolution": any_float,
     "angular_coeffs_min": st.integers(-1, 4), "angular_coeffs_max": st.integers(-1, 5),
     "emitter_coeffs": st.integers(-1, 4), "emitter_degree": st.integers(-1, 4), "emitter_cell_ratio": any_float,

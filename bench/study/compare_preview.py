@@ -1,0 +1,56 @@
+"""The preview preset against the preview preset with some settings changed, on the study's
+scenes and their committed Mitsuba 3 references (no Cycles bakes, no knob sweep: a quick check
+that a change of the solver's defaults costs no accuracy). Prints one line per scene and solve,
+and a JSON line of the figures at the end.
+
+    python bench/study/compare_preview.py '{"coeffs_from_size": true, "detail_tolerance": 0.02}' [scene ...]
+"""
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import run_study  # noqa: E402
+from references import describe, load_cached  # noqa: E402
+
+
+def compare(blend, overrides: dict, work: pathlib.Path) -> dict:
+    data = load_cached(blend, False, HERE / "references")
+    if data is None:
+        # Stale (a source file or the .blend changed since): both solves still meet the same
+        # pairs and reference, which is what this comparison needs.
+        data = dict(np.load(HERE / "references" / f"{blend.stem}.npz", allow_pickle=False))
+    work.mkdir(parents=True, exist_ok=True)
+    pairs = work / "pairs.npz"
+    np.savez(pairs, **{k: data[k] for k in ("object", "polygon", "point", "eye")})
+    valid = ~np.isin(data["object"], run_study.emitting_objects(describe(blend)))
+    out = {}
+    for name, spec in (("preview", {"preset": "preview"}), ("changed", {"preset": "preview", "overrides": overrides})):
+        (work / "settings.json").write_text(json.dumps(spec))
+        result = subprocess.run([sys.executable, str(HERE / "solve_blend.py"), str(blend), str(work / "settings.json"),
+                                 str(pairs), str(work / "solve.npz")], capture_output=True, text=True, check=True)
+        figures = json.loads(result.stdout.strip().splitlines()[-1])
+        ours = np.load(work / "solve.npz")["radiance"]
+        ok = valid & np.isfinite(ours).all(axis=1)
+        out[name] = {"seconds": figures["seconds"], "cpu_seconds": figures["cpu_seconds"],
+                     "coefficients": figures["coefficients"], **run_study.errors(ours, data, ok)}
+        print(f"{blend.stem}: {name}: {out[name]['cpu_seconds']:.2f} s CPU, {out[name]['coefficients']} coefficients, "
+              f"error {out[name]['rel_rmse']:.4f} (diffuse {out[name]['rel_rmse_diffuse']:.4f}, "
+              f"glossy {out[name]['rel_rmse_glossy']:.4f})", flush=True)
+    return out
+
+
+if __name__ == "__main__":
+    overrides = json.loads(sys.argv[1])
+    figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / f"study_compare_{os.getpid()}")  # runs side by side
+               for blend in run_study.scenes(sys.argv[2:] or None)
+               if (HERE / "references" / f"{blend.stem}.npz").exists()}  # the study's scenes
+    print(json.dumps(figures))
