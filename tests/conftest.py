@@ -13,3 +13,13 @@ def pytest_collection_modifyitems(config, items):
         for item in items:
             if "slow" in item.keywords:
                 item.add_marker(skip)
+
+
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """A local Ray of 2 CPUs for the module's tests (its start-up costs seconds); skips them
+    without Ray installed."""
+    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install ray): the distributed solve is not tested")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield ray
+    ray.shutdown()

@@ -11,15 +11,8 @@ from bsgi_addon import pipeline
 ray = pytest.importorskip("ray", reason="Ray is not installed (pip install ray): the distributed solve is not tested")
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield
-    ray.shutdown()
-
-
 @pytest.mark.slow  # starts Ray workers
-def test_exported_scene_solves_on_ray_as_here(context, cluster):
+def test_exported_scene_solves_on_ray_as_here(context, ray_cluster):
     scenes.cornell_box()
     bpy_scene = context.scene
     bpy_scene.bsgi.preset = "DRAFT"

@@ -205,6 +205,22 @@ def floor_pixels(scene, n):
     return uv
 
 
+def checker_contrast(scene, n, where=True):
+    """(contrast(image), light, dark): the floor's pixels on light and on dark squares, away from
+    the squares' edges (where the pixel filter blends them) and within `where`; contrast is the
+    mean luminance over the light ones over the mean over the dark ones."""
+    s = floor_pixels(scene, n) * SQUARES
+    away = np.all(np.abs(s - np.round(s)) > 0.15, axis=2) & where
+    light = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 1) & away
+    dark = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 0) & away
+
+    def contrast(image):
+        lum = image.sum(axis=2)
+        return lum[light].mean() / lum[dark].mean()
+
+    return contrast, light, dark
+
+
 @pytest.mark.slow
 def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
     floor_and_wall(context)
@@ -219,17 +235,7 @@ def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
     baked = render_exr(scene, tmp_path / "baked.exr", samples=16, bounces=0)
     rel, lit = lit_relative_difference(baked, reference, 0.02)
     median = float(np.median(rel))
-    # The checker's contrast: mean over the light squares over the mean over the dark ones, on
-    # floor pixels away from the squares' edges (where the pixel filter blends them).
-    uv = floor_pixels(scene, reference.shape[0])
-    s = uv * SQUARES
-    away = np.all(np.abs(s - np.round(s)) > 0.15, axis=2)
-    light = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 1) & away
-    dark = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 0) & away
-
-    def contrast(image):
-        lum = image.sum(axis=2)
-        return lum[light].mean() / lum[dark].mean()
+    contrast, light, dark = checker_contrast(scene, reference.shape[0])
 
     ratio = contrast(baked) / contrast(reference)
     print(f"\nchecker floor and image wall, baked vs Cycles ({bounces} bounces, 1024 spp): median relative "
@@ -579,16 +585,7 @@ def test_checker_metal_floor_matches_cycles(context, tmp_path):
     baked = render_exr(scene, tmp_path / "baked.exr", samples=16, bounces=0)
     rel, lit = lit_relative_difference(baked, reference, 0.02)
     median = float(np.median(rel))
-    uv = floor_pixels(scene, reference.shape[0])
-    s = uv * SQUARES
-    away = np.all(np.abs(s - np.round(s)) > 0.15, axis=2)
-    floor_lit = lit & away
-    light = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 1) & floor_lit
-    dark = ((np.floor(s[..., 0]) + np.floor(s[..., 1])) % 2 == 0) & floor_lit
-
-    def contrast(image):
-        lum = image.sum(axis=2)
-        return lum[light].mean() / lum[dark].mean()
+    contrast, light, dark = checker_contrast(scene, reference.shape[0], lit)
 
     ratio = contrast(baked) / contrast(reference)
     print(f"\nchecker metal floor, baked vs Cycles ({bounces} bounces, 512 spp): median relative difference "

@@ -15,14 +15,6 @@ from bsgi.rebuildable import SCENE_CALLS, SCENE_PROPERTIES
 ray = pytest.importorskip("ray", reason="Ray is not installed (pip install ray): the distributed solve is not tested")
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    # One local Ray per module: its start-up costs seconds.
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield
-    ray.shutdown()
-
-
 def room():
     """A closed box lit by a ceiling lamp, with a rough metal plate (glossy 4D) and a coated
     block face (decomposed D + S) in it: several surfaces, light bouncing between them."""
@@ -100,7 +92,7 @@ def test_every_scene_member_that_changes_it_is_kept():
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-def test_ray_solve_equals_the_local_solve(cluster):
+def test_ray_solve_equals_the_local_solve(ray_cluster):
     scene, s = room(), settings()
     local = bsgi.solve(scene, s)
     kinds = {r["representation"].split(",")[0] for r in local.reports}
@@ -112,7 +104,7 @@ def test_ray_solve_equals_the_local_solve(cluster):
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-def test_ray_solve_with_form_factors_equals_the_local_solve(cluster):
+def test_ray_solve_with_form_factors_equals_the_local_solve(ray_cluster):
     scene, s = room(), settings(form_factors=True, final_gather=False)
     local = bsgi.solve(scene, s)
     assert local.stats["transport_terms"] > 0
@@ -120,7 +112,7 @@ def test_ray_solve_with_form_factors_equals_the_local_solve(cluster):
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-def test_cancelled_ray_solve_returns_within_a_second(cluster):
+def test_cancelled_ray_solve_returns_within_a_second(ray_cluster):
     scene = room()
     s = settings(spatial_coeffs=10, max_bounces=20, hemisphere_nodes_theta=12, hemisphere_nodes_phi=24)
     cancel_at = []
@@ -136,7 +128,7 @@ def test_cancelled_ray_solve_returns_within_a_second(cluster):
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-def test_worker_killed_mid_solve_is_retried(cluster):
+def test_worker_killed_mid_solve_is_retried(ray_cluster):
     scene, s = room(), settings()
     local = bsgi.solve(scene, s)
     executor = bsgi.RayExecutor(workers=2)
@@ -162,7 +154,7 @@ def test_worker_killed_mid_solve_is_retried(cluster):
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-def test_worker_lost_for_good_leaves_its_groups_to_the_others(cluster):
+def test_worker_lost_for_good_leaves_its_groups_to_the_others(ray_cluster):
     scene, s = room(), settings()
     local = bsgi.solve(scene, s)
     executor = bsgi.RayExecutor(workers=2, max_retries=0)  # Ray does not restart it
