@@ -75,17 +75,22 @@ RayBatch batch(const Array& origins, const Array& directions, const std::optiona
     RayBatch b;
     b.count = rows(origins, {3}, "origins");
     if (rows(directions, {3}, "directions") != b.count) throw std::invalid_argument("origins and directions differ in length");
+    // Embree takes single-precision rays and refuses components beyond about 1.8e18.
     for (size_t i = 0; i < 3 * b.count; ++i)
-        if (!std::isfinite(origins.data()[i]) || !std::isfinite(directions.data()[i]))
-            throw std::invalid_argument("ray origins and directions must be finite");
+        if (!(std::abs(origins.data()[i]) <= 1e18) || !(std::abs(directions.data()[i]) <= 1e18))
+            throw std::invalid_argument("ray origins and directions must be finite and at most 1e18 in magnitude");
     b.origins = origins.data();
     b.directions = directions.data();
     if (tnear) {
         if (size_t(tnear->size()) != b.count) throw std::invalid_argument("tnear must have one value per ray");
+        for (size_t i = 0; i < b.count; ++i)
+            if (std::isnan(tnear->data()[i])) throw std::invalid_argument("tnear must not be NaN");
         b.tnear = tnear->data();
     }
     if (tfar) {
         if (size_t(tfar->size()) != b.count) throw std::invalid_argument("tfar must have one value per ray");
+        for (size_t i = 0; i < b.count; ++i)
+            if (std::isnan(tfar->data()[i])) throw std::invalid_argument("tfar must not be NaN");
         b.tfar = tfar->data();
     }
     return b;

@@ -97,12 +97,26 @@ TriangleRecord make_record(const Tessellation& tess, size_t t) {
 }
 
 // Origins go to Embree relative to the scene's centre (see RayScene::commit).
+// Embree aborts on a ray whose origin or direction has a component beyond this (its FLT_LARGE,
+// checked by an assertion in Debian's build) or a NaN distance.
+constexpr double kLargestRayComponent = 1.8e18;
+
 void init_ray(RTCRay& ray, const Vec3& world_origin, const Vec3& centre, const Vec3& d, double tnear, double tfar) {
     const Vec3 o = world_origin - centre;
-    ray.org_x = float(o.x), ray.org_y = float(o.y), ray.org_z = float(o.z);
-    ray.dir_x = float(d.x), ray.dir_y = float(d.y), ray.dir_z = float(d.z);
-    ray.tnear = float(std::max(0.0, tnear));
-    ray.tfar = tfar >= double(std::numeric_limits<float>::max()) ? std::numeric_limits<float>::infinity() : float(tfar);
+    const bool representable = std::abs(o.x) <= kLargestRayComponent && std::abs(o.y) <= kLargestRayComponent &&
+                               std::abs(o.z) <= kLargestRayComponent && std::abs(d.x) <= kLargestRayComponent &&
+                               std::abs(d.y) <= kLargestRayComponent && std::abs(d.z) <= kLargestRayComponent &&
+                               !std::isnan(tnear) && !std::isnan(tfar);
+    if (!representable) {  // misses: an empty interval along a harmless ray
+        ray.org_x = ray.org_y = ray.org_z = 0.0f;
+        ray.dir_x = ray.dir_y = 0.0f, ray.dir_z = 1.0f;
+        ray.tnear = 1.0f, ray.tfar = 0.0f;
+    } else {
+        ray.org_x = float(o.x), ray.org_y = float(o.y), ray.org_z = float(o.z);
+        ray.dir_x = float(d.x), ray.dir_y = float(d.y), ray.dir_z = float(d.z);
+        ray.tnear = float(std::max(0.0, tnear));
+        ray.tfar = tfar >= double(std::numeric_limits<float>::max()) ? std::numeric_limits<float>::infinity() : float(tfar);
+    }
     ray.time = 0, ray.mask = 0xFFFFFFFFu, ray.id = 0, ray.flags = 0;
 }
 

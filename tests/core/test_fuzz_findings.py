@@ -108,3 +108,25 @@ def test_the_memory_estimate_refuses_invalid_settings():
     settings.angular_degree, settings.emitter_coeffs, settings.angular_resolution = -1, -1, -1.5e176
     with pytest.raises(ValueError, match="solver settings: angular_degree must be in 0..5"):
         bsgi.estimate_solve_bytes(scene, settings)
+
+
+def _unit_square():
+    return bsgi.BilinearPatch("S", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]))
+
+
+@pytest.mark.parametrize("origin, direction", [([1e300, 0, 0], [0, 0, 1]), ([0.5, 0.5, 1], [0, 0, -1e19])])
+def test_a_ray_beyond_single_precision_is_refused(origin, direction):
+    # The sanitizer run's fuzzing found it: Embree takes float rays and aborted the process (an
+    # assertion in Debian's build) on an origin of 1e300, a finite double.
+    caster = bsgi.RayCaster([_unit_square()])
+    with pytest.raises(ValueError, match="ray origins and directions must be finite and at most 1e18"):
+        caster.closest_hit(np.array([origin], float), np.array([direction], float))
+
+
+def test_a_ray_embree_cannot_represent_misses_instead_of_aborting():
+    # A surface 1e20 away puts the scene's centre there: a ray near the origin is beyond Embree's
+    # range relative to it, and misses.
+    far = bsgi.BilinearPatch("far", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]) * 1e20)
+    caster = bsgi.RayCaster([_unit_square(), far])
+    hits = caster.closest_hit(np.array([[0.5, 0.5, 1.0]]), np.array([[0, 0, -1.0]]))
+    assert hits["surface"][0] == -1
