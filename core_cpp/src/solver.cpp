@@ -604,18 +604,18 @@ RayCaster ray_caster_of(const Scene& scene) {
     return RayCaster(occluders, panes);
 }
 
-size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<SurfaceSides>& sides,
-                      const std::vector<std::array<int, 2>>& detail = {}) {
+// The bytes a solve of these plans (and final plans) allocates: splines, form-factor rows, rays.
+size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
+                      const std::vector<Plan>& final_plans) {
     size_t bytes = 0, triangles = 0;
-    for (const Plan& p : plan_scene(scene, settings, 1, sides, detail)) {
+    for (const Plan& p : plans) {
         bytes += plan_bytes(p);
         // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
         if (settings.form_factors && p.kind == Representation::Diffuse)
             bytes += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
                      (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
-    if (settings.final_gather)
-        for (const Plan& p : plan_scene(scene, settings, settings.final_spatial_factor, sides, detail)) bytes += plan_bytes(p) / 3;
+    for (const Plan& p : final_plans) bytes += plan_bytes(p) / 3;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3;
     return bytes + triangles * 128;  // the ray caster: a 64-byte record and about as much BVH a triangle
@@ -629,7 +629,9 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) 
     // The direct light's detail is only known after probing it: at most spatial_coeffs each.
     SolverSettings bound = settings;
     if (settings.detail_tolerance > 0) bound.coeffs_from_size = false;
-    return estimate_bytes(scene, bound, probe_sides(scene, caster, bound));
+    const std::vector<SurfaceSides> sides = probe_sides(scene, caster, bound);
+    return estimate_bytes(scene, bound, plan_scene(scene, bound, 1, sides),
+                          bound.final_gather ? plan_scene(scene, bound, bound.final_spatial_factor, sides) : std::vector<Plan>{});
 }
 
 namespace {
@@ -717,11 +719,12 @@ struct SolveSteps::State {
         for (size_t i = 0; i < scene.size(); ++i)
             if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
         gather.emplace(lit_scene, settings, caster);
-        const std::vector<std::array<int, 2>> detail =
-            detail_of_scene(*gather, scene, plan_scene(scene, settings, 1, sides), settings, progress, knot_rays);
-        plans = plan_scene(scene, settings, 1, sides, detail);
+        plans = plan_scene(scene, settings, 1, sides);
+        const std::vector<std::array<int, 2>> detail = detail_of_scene(*gather, scene, plans, settings, progress, knot_rays);
+        if (std::any_of(detail.begin(), detail.end(), [](const std::array<int, 2>& d) { return d[0] || d[1]; }))
+            plans = plan_scene(scene, settings, 1, sides, detail);
         if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides, detail);
-        bytes = estimate_bytes(scene, settings, sides, detail);
+        bytes = estimate_bytes(scene, settings, plans, final_plans);
         if (bytes > settings.memory_budget_mb * 1024 * 1024) {
             const Plan* largest = nullptr;
             for (const Plan& p : plans)
