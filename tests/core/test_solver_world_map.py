@@ -8,7 +8,7 @@ import pytest
 import bsgi
 from reference import mitsuba_reference, scene_spec
 from reference.scene_spec import quad
-from test_solver_world import open_box
+from test_solver_world import open_box, open_box_errors
 
 ALBEDO = 0.7
 H, W = 128, 256
@@ -252,15 +252,9 @@ def test_open_box_under_a_sky_map_against_mitsuba():
                                       "irradiance": {"type": "rgb", "value": list(sun_irradiance())}}, **shapes})
     pairs = mitsuba_reference.visible_pairs(spec, 1500, seed=7)
     ref, stderr = mitsuba_reference.radiance_along(reference, pairs["eye"], pairs["point"], spp=16384, seed=4)
-    noise = np.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
     scene = scene_spec.to_bsgi(spec)
     scene.world_map = sky()
-    sol = bsgi.solve(scene, bsgi.SolverSettings.preset("preview"))
-    ours = scene_spec.solved_radiance(scene, sol, pairs)
-    err = np.sqrt(((ours - ref) ** 2).sum() / (ref ** 2).sum())
-    bias = (ours - ref).sum() / ref.sum()
-    metal = np.array([spec.patches[i].name == "back" for i in pairs["patch"]])
-    err_metal = np.sqrt(((ours - ref)[metal] ** 2).sum() / (ref[metal] ** 2).sum())
+    noise, err, bias, err_metal, _ = open_box_errors(spec, scene, pairs, ref, stderr)
     print(f"\nopen box under a sky map vs Mitsuba 3 (noise {noise:.4f}): NRMSE {err:.4f}, bias {bias:+.4f}, "
           f"metal wall {err_metal:.4f}")
     # Measured: NRMSE 13% (the splines blur the sun's hard shadows: the sun given as a distant
