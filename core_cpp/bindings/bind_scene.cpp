@@ -286,6 +286,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("spatial_coeffs_min", &SolverSettings::spatial_coeffs_min)
         .def_readwrite("detail_tolerance", &SolverSettings::detail_tolerance)
         .def_readwrite("adaptive_knots", &SolverSettings::adaptive_knots)
+        .def_readwrite("hidden_nodes_to_contact", &SolverSettings::hidden_nodes_to_contact)
         .def_readwrite("angular_degree", &SolverSettings::angular_degree)
         .def_readwrite("angular_delta", &SolverSettings::angular_delta)
         .def_readwrite("angular_resolution", &SolverSettings::angular_resolution)

@@ -253,6 +253,31 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
     }, out, rays);
 }
 
+bool Gatherer::enclosed(const SurfacePoint& p, int side, const std::vector<const Receiver*>& receiver_of,
+                        size_t& rays) const {
+    const Vec3 n = side == 0 ? p.frame.z : -p.frame.z;
+    // 4 x 4 cosine-weighted cells and the normal: a node beside the block sees its lit outside
+    // (or the room) along most of them, one under it along none.
+    constexpr int kCells = 4;
+    for (int c = 0; c <= kCells * kCells; ++c) {
+        Vec3 local{0, 0, 1};
+        if (c < kCells * kCells) {
+            const double s2 = (c / kCells + 0.5) / kCells, phi = 2 * kPi * (c % kCells + 0.5) / kCells;
+            const double sin_t = std::sqrt(s2);
+            local = {sin_t * std::cos(phi), sin_t * std::sin(phi), std::sqrt(1 - s2)};
+        }
+        if (side == 1) local.z = -local.z;
+        const Vec3 dir = p.frame.to_world(local);
+        ++rays;
+        const SurfaceHit hit = caster_.closest_hit(caster_.spawn(p.p, n, dir), dir);
+        if (hit.surface < 0 || caster_.pane(hit.surface) || scene_[hit.surface].material.emits()) return false;
+        const int seen = dot(dir, hit.frame.z) < 0 ? 0 : 1;
+        const Receiver* h = receiver_of[hit.surface];
+        if (h && h->solves(seen)) return false;
+    }
+    return true;
+}
+
 void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
     hemisphere(r, j, 1, [&](const SurfaceHit& hit, const Vec3& dir) { return hit.surface < 0 ? world_along(dir) : Vec3{0, 0, 0}; },
                out, rays);

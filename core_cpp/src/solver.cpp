@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <cstdio>
+#include <cstdlib>
 
 #include "bsgi/gather.h"
 #include "bsgi/parallel.h"
@@ -398,6 +400,56 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     return r;
 }
 
+// Moves each node that a solved side sees only as the inside of closed, unlit meshes (under a
+// block resting on the surface) to the nearest point of the surface that is seen: the nearest
+// seen node in (u, v), then bisection towards it down to 1/64 of the way (the contact line).
+// A surface hidden everywhere keeps its nodes.
+void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, const Gatherer& gather,
+                       const std::vector<const Receiver*>& receiver_of, const SolverSettings& settings, Progress& progress,
+                       size_t& rays) {
+    if (!settings.hidden_nodes_to_contact) return;
+    std::atomic<size_t> probe_rays{0};
+    parallel_for(receivers.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+        size_t local = 0;
+        for (size_t k = begin; k < end; ++k) {
+            Receiver& r = receivers[k];
+            const Surface& surface = *scene[r.surface].surface;
+            // Hidden on one side is enough: the other side's light (an open floor's underside lit
+            // by the sky) has no edge there, and is sampled a little aside.
+            auto hidden = [&](const SurfacePoint& p) {
+                for (int side = 0; side < r.sides; ++side)
+                    if (r.solves(side) && gather.enclosed(p, side, receiver_of, local)) return true;
+                return false;
+            };
+            const std::vector<double> us = r.axes[0].schoenberg_nodes(), vs = r.axes[1].schoenberg_nodes();
+            std::vector<uint8_t> is_hidden(r.nodes.size());
+            size_t count = 0;
+            for (size_t j = 0; j < r.nodes.size(); ++j) count += is_hidden[j] = hidden(r.nodes[j]);
+            if (count == 0 || count == r.nodes.size()) continue;
+            const size_t nv = vs.size();
+            for (size_t j = 0; j < r.nodes.size(); ++j) {
+                if (!is_hidden[j]) continue;
+                double u0 = us[j / nv], v0 = vs[j % nv], best = 1e300, u1 = u0, v1 = v0;
+                for (size_t i = 0; i < r.nodes.size(); ++i) {
+                    const double du = us[i / nv] - u0, dv = vs[i % nv] - v0;
+                    if (!is_hidden[i] && du * du + dv * dv < best) best = du * du + dv * dv, u1 = us[i / nv], v1 = vs[i % nv];
+                }
+                for (int step = 0; step < 6; ++step) {  // (u0, v0) hidden, (u1, v1) seen
+                    const double um = 0.5 * (u0 + u1), vm = 0.5 * (v0 + v1);
+                    if (hidden(surface.evaluate(um, vm))) u0 = um, v0 = vm;
+                    else u1 = um, v1 = vm;
+                }
+                r.nodes[j] = surface.evaluate(u1, v1);
+                if (std::getenv("BSGI_DEBUG_ENCLOSED")) std::fprintf(stderr, "MOVE %d %zu %g %g -> %g %g %g\n", r.surface, r.nodes.size(), us[j / nv], vs[j % nv], r.nodes[j].p.x, r.nodes[j].p.y, r.nodes[j].p.z);
+            }
+            if (std::getenv("BSGI_DEBUG_ENCLOSED")) std::fprintf(stderr, "HIDDEN %d %zu of %zu\n", r.surface, count, r.nodes.size());
+        }
+        probe_rays += local;
+    }, progress.cancel_flag());
+    progress.throw_if_cancelled();
+    rays += probe_rays;
+}
+
 // Runs `work(receiver, node, values)` for every node of receivers [begin, end) on all threads
 // and writes the values into the receivers' spline set `target`.
 template <typename Work>
@@ -746,6 +798,7 @@ struct SolveSteps::State {
         progress.begin_stage("placing knots", 0, stages, 1);
         receivers = build_receivers(scene, plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
         receiver_of = index_by_surface(scene, receivers);
+        move_hidden_nodes(receivers, scene, *gather, receiver_of, settings, progress, knot_rays);
         rows.resize(receivers.size());
         rows_done.assign(receivers.size(), 0);
     }
@@ -758,6 +811,7 @@ struct SolveSteps::State {
     void build_finals(Progress& progress) {
         if (finals_built || !settings.final_gather) return;
         finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
+        move_hidden_nodes(finals, scene, *gather, receiver_of, settings, progress, knot_rays);
         finals_built = true;
     }
 

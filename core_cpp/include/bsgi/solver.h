@@ -34,6 +34,11 @@ struct SolverSettings {
     // Knots clustered where the direct light has detail (shadow edges, contact lines) instead
     // of uniform: costs a probe of the direct light on a (2n+1)^2 grid per surface.
     bool adaptive_knots = false;
+    // A node that sees only the unlit inside of a closed mesh (a floor under a block resting on
+    // it) gathers instead at the nearest point of its surface that is seen, on the contact line:
+    // the hidden 0 no longer drags the spline down across the line, and the light at the line
+    // (darkened by the contact, or nearly 0 in a crevice) is what the spline takes there.
+    bool hidden_nodes_to_contact = true;
 
     // Angular representation of glossy surfaces: knots (24) on [-R, R] in alpha and beta,
     // R = sqrt(1 - sin delta) so directions reach theta = pi/2 - delta. The count per direction
