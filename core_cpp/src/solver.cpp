@@ -6,8 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
-#include <cstdio>
-#include <cstdlib>
 
 #include "bsgi/gather.h"
 #include "bsgi/parallel.h"
@@ -440,9 +438,7 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
                     else u1 = um, v1 = vm;
                 }
                 r.nodes[j] = surface.evaluate(u1, v1);
-                if (std::getenv("BSGI_DEBUG_ENCLOSED")) std::fprintf(stderr, "MOVE %d %zu %g %g -> %g %g %g\n", r.surface, r.nodes.size(), us[j / nv], vs[j % nv], r.nodes[j].p.x, r.nodes[j].p.y, r.nodes[j].p.z);
             }
-            if (std::getenv("BSGI_DEBUG_ENCLOSED")) std::fprintf(stderr, "HIDDEN %d %zu of %zu\n", r.surface, count, r.nodes.size());
         }
         probe_rays += local;
     }, progress.cancel_flag());
