@@ -308,8 +308,11 @@ KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coe
     std::vector<std::pair<double, int>> fixed;  // position, multiplicity
     int used = 0;
     for (size_t k : by_order) {
+        // Only where the light is less smooth than the spline between knots (C^(degree-1)): a
+        // D2 line under a quadratic changes the error's constant, not its order, and its knot
+        // is better spent by the probe.
         const int m = degree + 1 - merged[k].order;
-        if (m <= 0 || used + m > inner / 2) continue;
+        if (merged[k].order >= std::max(degree, 1) || used + m > inner / 2) continue;
         fixed.emplace_back(merged[k].position, m);
         used += m;
         ++placed;

@@ -55,7 +55,8 @@ private:
     const Scene* scene_;
 };
 
-// Clamped knots on [a, b] with num_coeffs coefficients: each line gets a knot of multiplicity
+// Clamped knots on [a, b] with num_coeffs coefficients: each line of order below the degree
+// (where the light is less smooth than the spline, C^(degree-1)) gets a knot of multiplicity
 // degree + 1 - order (lines closer than a fifth of a uniform span merged, the lowest order
 // kept; at most half the inner knots go to lines, lowest orders first), and the remaining inner
 // knots are spread between them, each gap getting its share of `density` (given on equal cells
