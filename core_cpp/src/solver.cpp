@@ -642,8 +642,6 @@ SolverSettings SolverSettings::preset(const std::string& name) {
     } else if (name == "final") {
         s.spatial_coeffs = 16;
         s.adaptive_knots = true;
-        s.discontinuity_knots = true;
-        s.emitter_shadow_depth = 5;
         s.angular_resolution = 4.0;
         s.tolerance = 1e-3;
     } else {

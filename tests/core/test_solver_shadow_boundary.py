@@ -102,13 +102,16 @@ def test_the_closed_form_matches_a_brute_force_integral_over_the_light():
         assert exact(x, y) == pytest.approx(brute, rel=2e-3, abs=1e-7)
 
 
-def test_final_preset_resolves_umbra_penumbra_and_lit_region(reference):
-    sol = solve()
+def test_shadow_splitting_resolves_umbra_penumbra_and_lit_region(reference):
+    # The final preset with discontinuity knots (on the umbra's and penumbra's edges, adaptive
+    # knots between them) and the emitter's cells split while partly shadowed, down to depth 5.
+    sol = solve(discontinuity_knots=True, emitter_shadow_depth=5)
     err = errors(sol, reference)
-    print(f"\nfinal preset: umbra {err['umbra']:.2e}, penumbra {err['penumbra']:.2e}, lit {err['lit']:.2e} "
+    print(f"\nfinal preset, discontinuity knots, shadow depth 5: umbra {err['umbra']:.2e}, penumbra {err['penumbra']:.2e}, lit {err['lit']:.2e} "
           f"(mean error relative to the unshadowed / exact radiance), 10-90% penumbra width "
           f"{err['width']:+.3f} against the exact {err['exact_width']:.3f}; {sol.stats['rays']} rays")
     print(sol.reports[0]["reason"])
+    assert "discontinuity knots: 4 lines in u, 4 in v" in sol.reports[0]["reason"]
     # Issue #15's bounds: each region within 1%, the width within 10%.
     assert err["umbra"] <= 0.01 and err["penumbra"] <= 0.01 and err["lit"] <= 0.01 and abs(err["width"]) <= 0.1
     # Within about 2x of what is measured (umbra 0: knots of multiplicity 2 on its edges).
@@ -116,6 +119,19 @@ def test_final_preset_resolves_umbra_penumbra_and_lit_region(reference):
     assert err["penumbra"] <= 3e-3  # measured 1.4e-3
     assert err["lit"] <= 2e-3  # measured 9e-4
     assert abs(err["width"]) <= 0.01  # measured +0.003
+
+
+def test_knots_alone_leave_the_penumbra_a_staircase(reference):
+    # Without the shadow splitting the knots make the umbra exact, but the penumbra's node values
+    # come from 3 x 3 shadow rays to the light: a staircase that no knot placement smooths.
+    # Issue #15's 1% is not reached this way.
+    err = errors(solve(discontinuity_knots=True), reference)
+    print(f"\nfinal preset, discontinuity knots: umbra {err['umbra']:.2e}, penumbra {err['penumbra']:.2e}, lit {err['lit']:.2e}, "
+          f"width {err['width']:+.3f}")
+    assert err["umbra"] <= 1e-6
+    assert err["penumbra"] <= 0.14  # measured 0.094
+    assert err["lit"] <= 0.004  # measured 0.0020
+    assert abs(err["width"]) <= 0.5  # measured -0.35
 
 
 @pytest.mark.slow
@@ -175,9 +191,9 @@ def test_contact_lines_of_a_box_on_the_floor_against_mitsuba():
         return np.sqrt(((ours[mask] - ref[mask]) ** 2).sum() / (ref[mask] ** 2).sum())
 
     err = {}
-    for label, overrides in {"previous final": dict(discontinuity_knots=False, emitter_shadow_depth=0),
-                             "adaptive": dict(discontinuity_knots=False), "discontinuity": dict(adaptive_knots=False),
-                             "final": {}}.items():
+    for label, overrides in {"final preset": {}, "discontinuity knots": dict(discontinuity_knots=True),
+                             "shadow splitting": dict(emitter_shadow_depth=5),
+                             "both": dict(discontinuity_knots=True, emitter_shadow_depth=5)}.items():
         settings = bsgi.SolverSettings.preset("final")
         settings.max_bounces = 0
         for k, v in overrides.items():
@@ -186,8 +202,10 @@ def test_contact_lines_of_a_box_on_the_floor_against_mitsuba():
         err[label] = nrmse(ours, np.ones(len(ref), bool)), nrmse(ours, near)
         print(f"\n{label}: NRMSE {err[label][0]:.4f}, within 5 cm of the box {err[label][1]:.4f} (reference noise {noise:.4f})", end="")
     assert noise < 0.01  # measured 0.005
-    # measured: previous final 0.062 (0.153 within 5 cm), adaptive knots with the shadow splitting
-    # 0.011 (0.039), discontinuity knots 0.011 (0.022), both (the final preset) 0.0097 (0.016)
-    assert err["final"][0] <= 0.02 and err["final"][1] <= 0.032
-    assert err["final"][1] <= 0.6 * err["adaptive"][1]
-    assert err["previous final"][0] >= 3 * err["final"][0]
+    print()
+    # measured: the final preset 0.062 (0.153 within 5 cm), discontinuity knots alone 0.074
+    # (0.209: sharp knots on node values of a 3 x 3 shadow-ray staircase), the shadow splitting
+    # alone 0.011 (0.039), both 0.0097 (0.016)
+    assert err["both"][0] <= 0.02 and err["both"][1] <= 0.032
+    assert err["both"][1] <= 0.6 * err["shadow splitting"][1]
+    assert err["final preset"][0] >= 3 * err["both"][0]
