@@ -238,21 +238,36 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             if (near && front) between.emplace_back(closest, o);
         }
         std::sort(between.begin(), between.end());
+        // The point x seen from y, projected onto the receiver's plane (x between y and it).
+        auto project = [&](const Vec3& y, const Vec3& x, Vec3& out_p) {
+            const double hy = height(y), hx = height(x);
+            if (!on_live_side(hy) || std::abs(hx) >= std::abs(hy) || (std::abs(hx) > flat && hx * hy < 0)) return false;
+            out_p = y + (x - y) * (hy / (hy - hx));
+            return true;
+        };
+        // Whether the occluder's shadow can reach the surface: the box of its vertices seen from
+        // the emitter's vertices, in (u, v), meets the unit square (kept when a vertex does not
+        // project, e.g. one above an emitter vertex's height).
+        auto shadow_reaches = [&](const Poly& P) {
+            double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+            for (const Vec3& y : E.vertices)
+                for (const Vec3& x : P.vertices) {
+                    Vec3 q;
+                    if (!project(y, x, q)) return true;
+                    const auto uv = A.uv(q);
+                    for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], uv[k]), hi[k] = std::max(hi[k], uv[k]);
+                }
+            return lo[0] <= 1 + tolerance[0] && hi[0] >= -tolerance[0] && lo[1] <= 1 + tolerance[1] && hi[1] >= -tolerance[1];
+        };
         for (const auto& [unused, o] : between) {
             const Poly& P = polys_[o];
+            if (!shadow_reaches(P)) continue;
             const size_t cost = E.vertices.size() * P.edges.size() + P.vertices.size() * E.edges.size();
             if (pairs + cost > kMaxPairs) {
                 ++skipped;
                 continue;
             }
             pairs += cost;
-            // The point x seen from y, projected onto the receiver's plane (x between y and it).
-            auto project = [&](const Vec3& y, const Vec3& x, Vec3& out_p) {
-                const double hy = height(y), hx = height(x);
-                if (!on_live_side(hy) || std::abs(hx) >= std::abs(hy) || (std::abs(hx) > flat && hx * hy < 0)) return false;
-                out_p = y + (x - y) * (hy / (hy - hx));
-                return true;
-            };
             // EV: an emitter vertex and an occluder edge; a kink where an emitter edge at the
             // vertex is parallel to the occluder edge (the whole emitter edge then meets it).
             for (size_t v = 0; v < E.vertices.size(); ++v)
