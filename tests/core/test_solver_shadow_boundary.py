@@ -125,7 +125,13 @@ def test_knots_alone_leave_the_penumbra_a_staircase(reference):
     # Without the shadow splitting the knots make the umbra exact, but the penumbra's node values
     # come from 3 x 3 shadow rays to the light: a staircase that no knot placement smooths.
     # Issue #15's 1% is not reached this way.
-    err = errors(solve(discontinuity_knots=True), reference)
+    sol = solve(discontinuity_knots=True)
+    err = errors(sol, reference)
+    # Kinks (the occluder's edges parallel to the light's): double knots at the umbra's and the
+    # penumbra's edges, x = +-0.35 and +-0.85, in u and in v.
+    for axis in sol.radiance[0].axes:
+        for x in (-LIT, -UMBRA, UMBRA, LIT):
+            assert np.sum(np.abs(np.array(axis.knots) - (x / HALF_FLOOR + 1) / 2) < 1e-9) == 2
     print(f"\nfinal preset, discontinuity knots: umbra {err['umbra']:.2e}, penumbra {err['penumbra']:.2e}, lit {err['lit']:.2e}, "
           f"width {err['width']:+.3f}")
     assert err["umbra"] <= 1e-6
@@ -198,7 +204,12 @@ def test_contact_lines_of_a_box_on_the_floor_against_mitsuba():
         settings.max_bounces = 0
         for k, v in overrides.items():
             setattr(settings, k, v)
-        ours = bsgi.solve(scene_spec.to_bsgi(spec), settings).radiance[0].evaluate(uv)
+        floor = bsgi.solve(scene_spec.to_bsgi(spec), settings).radiance[0]
+        if settings.discontinuity_knots:  # the contact lines x = -0.2, 0.4 (y = -0.3, 0.2): a jump, triple knots
+            for axis, lines in zip(floor.axes, ((-0.2, 0.4), (-0.3, 0.2))):
+                for x in lines:
+                    assert np.sum(np.abs(np.array(axis.knots) - (x / 1.5 + 1) / 2) < 1e-9) == 3
+        ours = floor.evaluate(uv)
         err[label] = nrmse(ours, np.ones(len(ref), bool)), nrmse(ours, near)
         print(f"\n{label}: NRMSE {err[label][0]:.4f}, within 5 cm of the box {err[label][1]:.4f} (reference noise {noise:.4f})", end="")
     assert noise < 0.01  # measured 0.005
