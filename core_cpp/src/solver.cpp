@@ -51,6 +51,7 @@ void validate(const SolverSettings& s) {
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");
     need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
     need(s.memory_budget_mb > 0, "memory_budget_mb must be > 0");
+    need(s.error_checks >= 1 && s.error_checks <= 4096, "error_checks must be in 1..4096");
 }
 
 // What the solver decided for one receiving surface, before anything is allocated.
@@ -501,6 +502,7 @@ public:
             for (int c = 0; c < 3; ++c) brightest[c] = std::max(brightest[c], m[3 + c]);
         double error = 0;
         last_increment = 0;
+        errors_.assign(receivers.size(), 0.0);
         for (size_t k = 0; k < receivers.size(); ++k)
             for (int c = 0; c < 3; ++c) {
                 Channel& s = state_[k][c];
@@ -521,6 +523,7 @@ public:
                     channel_error = pair * (extrapolate ? std::abs(rho2 - s.rho2[2]) / ((1 - rho2) * (1 - rho2)) : s.tail) / total;
                 }
                 error = std::max(error, channel_error);
+                errors_[k] = std::max(errors_[k], channel_error);
             }
         return error;
     }
@@ -530,6 +533,8 @@ public:
         const auto& s = state_[size_t(k)];
         return {s[0].tail, s[1].tail, s[2].tail};
     }
+    // What update() returned, for receiver k alone (0 before the first bounce).
+    double error(int k) const { return errors_.empty() ? 0.0 : errors_[size_t(k)]; }
 
 private:
     static constexpr double kNegligible = 1e-12;
@@ -556,6 +561,7 @@ private:
         return sums;
     }
     std::vector<std::array<Channel, 3>> state_;
+    std::vector<double> errors_;
 };
 
 }  // namespace
@@ -679,6 +685,65 @@ int begin_solve(const Scene& scene, const SolverSettings& settings, Progress& pr
     return stages;
 }
 
+// The error estimate's check points: a low-discrepancy (R2) sequence over the parameter square,
+// whose points fall between the Schoenberg nodes of any knots, and per point kCheckDirections
+// cosine-distributed outgoing directions (stratified in cos^2 theta, turned from point to point),
+// which fall between a glossy receiver's angular nodes.
+constexpr int kCheckDirections = 8;
+
+std::array<double, 2> check_point(size_t i) {
+    return {std::fmod(0.5 + i * 0.7548776662466927, 1.0), std::fmod(0.5 + i * 0.5698402909980532, 1.0)};
+}
+
+std::vector<Vec3> check_directions(size_t i) {
+    std::vector<Vec3> d;
+    for (int a = 0; a < kCheckDirections; ++a) {
+        const double w = (a + 0.5) / kCheckDirections;
+        const double phi = 2 * 3.14159265358979323846 * std::fmod(a * 0.6180339887498949 + i * 0.7548776662466927, 1.0);
+        const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
+        d.push_back({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
+    }
+    return d;
+}
+
+// A receiver of r's material and sides whose one node is the check point p and whose angular
+// nodes are `directions` (if glossy): gathering at it is the phase's gather where no node sits.
+Receiver probe_of(const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& directions) {
+    Receiver q;
+    q.surface = r.surface;
+    q.index = r.index;
+    q.kind = r.kind;
+    q.bsdf = r.bsdf;
+    q.albedo = r.albedo;
+    q.tint = r.tint;
+    q.sides = r.sides;
+    q.live = r.live;
+    q.map = r.map;
+    q.nodes = {p};
+    if (r.kind != Representation::Diffuse) q.directions = directions, q.per_node = directions.size();
+    return q;
+}
+
+// The sides a viewer sees of a receiver: both of a transmitting one, else the front if it was
+// solved, else the back.
+std::array<bool, 2> sides_seen(const Receiver& r) {
+    if (r.bsdf->transmits()) return {r.solves(0), r.solves(1)};
+    return {r.solves(0), !r.solves(0) && r.solves(1)};
+}
+
+// The settings of the error estimate's second gather: twice the integration nodes per direction
+// (hemisphere nodes, BSDF samples as a density of 2 would give them, emitter cells half as wide,
+// twice the world's bright directions).
+SolverSettings doubled_integration(SolverSettings s) {
+    s.hemisphere_nodes_theta *= 2;
+    s.hemisphere_nodes_phi *= 2;
+    s.bsdf_samples *= 2;
+    s.emitter_cell_ratio *= 0.5;
+    s.emitter_max_depth = std::min(s.emitter_max_depth + 1, 20);
+    s.world_bright_samples *= 2;
+    return s;
+}
+
 }  // namespace
 
 struct SolveSteps::State {
@@ -692,6 +757,8 @@ struct SolveSteps::State {
     size_t bytes = 0;
     Scene lit_scene;
     std::optional<Gatherer> gather;
+    const SolverSettings fine_settings;  // of the error estimate's doubled gather
+    std::optional<Gatherer> fine_gather;
     size_t knot_rays = 0;  // of placing the knots, counted once by the solve however many steps place them
     std::vector<Receiver> receivers, finals;
     bool finals_built = false;
@@ -705,7 +772,8 @@ struct SolveSteps::State {
     bool solved = false;
 
     State(const Scene& scene_, const SolverSettings& settings_, Progress& progress, const std::vector<SurfaceSides>* probed)
-        : scene(scene_), settings(settings_), stages(begin_solve(scene_, settings_, progress)), caster(ray_caster_of(scene_)) {
+        : scene(scene_), settings(settings_), stages(begin_solve(scene_, settings_, progress)), caster(ray_caster_of(scene_)),
+          fine_settings(doubled_integration(settings_)) {
         rows_possible = settings.form_factors && !scene.has_albedo_textures();
         ff_stage = rows_possible && settings.max_bounces > 0 ? 1 : 0;
         if (probed && probed->size() != scene.size())
@@ -759,6 +827,118 @@ struct SolveSteps::State {
         if (finals_built || !settings.final_gather) return;
         finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
         finals_built = true;
+    }
+
+    // The per-surface error estimate (SurfaceReport::estimated_error) of the last phase's
+    // splines Le of `result` (the finals, or the receivers without a final gather), indexed like
+    // them (NaN for partners, which count with their surface): at each check point, the light
+    // gathered as the last phase would gather it (direct light, and the others' cumulative
+    // radiance Le with the world's along the same rays: without a final gather, the bounces'
+    // sum Le is the fixed point of that gather) against the spline, relative RMS over the
+    // checks; the first quarter of the checks gathered again at doubled integration nodes;
+    // and `tail`, per receiver, the bounces' relative radiance still missing.
+    std::vector<double> estimate_errors(const std::vector<Receiver>& result, const std::vector<double>& tail, Progress& progress,
+                                        size_t& rays) {
+        if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
+        const int density = settings.final_gather ? settings.final_integration_factor : 1;
+        const size_t n = size_t(settings.error_checks), n_fine = (n + 1) / 2;
+        // The second gather also takes its indirect light from the final splines where there are
+        // some: the others' coarse splines Le, which the final gather read, err more than the
+        // finals (the contact shadows blurred over a coarse grid), and that error enters each
+        // surface's light through its gather, where its own splines cannot show it.
+        const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
+        // Per (receiver, check): squared error of the spline, squared difference of the two
+        // gathers, sum of the gathered radiance, values compared.
+        struct Check {
+            double fit = 0, integration = 0, radiance = 0, values = 0;  // values: their weight
+        };
+        std::vector<Check> checks(result.size() * n);
+        std::atomic<size_t> check_rays{0};
+        parallel_for(checks.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+            size_t local = 0;
+            std::vector<Vec3> g, f;
+            for (size_t w = begin; w < end; ++w) {
+                const Receiver& r = result[w / n];
+                if (r.is_partner) continue;
+                const size_t i = w % n;
+                const auto [u, v] = check_point(i);
+                const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
+                const std::vector<Vec3> dirs = check_directions(i);
+                const std::array<bool, 2> seen = sides_seen(r);
+                // The surface's light is the sum of its parts (D and S of (38), a tint's pair),
+                // compared at (side, direction) values; a diffuse part has one per side.
+                const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
+                std::vector<Vec3> G(2 * nd, Vec3{0, 0, 0}), S = G, F = G;
+                for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
+                    const Receiver q = probe_of(*part, p, dirs);
+                    const size_t m = q.sides * q.per_node;
+                    auto gathered = [&](const Gatherer& by, const std::vector<const Receiver*>& from, std::vector<Vec3>& out) {
+                        std::vector<Vec3> direct(m);
+                        out.assign(m, {0, 0, 0});
+                        by.direct(q, 0, direct.data(), local);
+                        by.indirect(q, 0, from, &Receiver::Le, density, true, out.data(), local);
+                        for (size_t k = 0; k < m; ++k) out[k] += direct[k];
+                    };
+                    gathered(*gather, receiver_of, g);
+                    if (i < n_fine) gathered(*fine_gather, result_of, f);
+                    for (int side = 0; side < q.sides; ++side)
+                        for (size_t a = 0; a < nd && seen[side]; ++a) {
+                            const size_t b = q.per_node == 1 ? 0 : a, k = side * q.per_node + b;
+                            G[side * nd + a] += g[k];
+                            if (i < n_fine) F[side * nd + a] += f[k];
+                            S[side * nd + a] += part->own_radiance(&Receiver::Le, u, v, q.outgoing(side, b));
+                        }
+                }
+                // Only what a viewer can see counts: a value along a direction whose ray meets the
+                // back of an opaque surface (the floor under a box, the ceiling behind a lamp)
+                // lies inside a closed object; a diffuse value counts by its share of visible directions.
+                Check& c = checks[w];
+                for (int side = 0; side < 2; ++side)
+                    for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
+                        const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
+                        const SurfaceHit hit = caster.closest_hit(caster.spawn(p.p, p.frame.z, d), d);
+                        ++local;
+                        if (hit.surface >= 0 && dot(hit.frame.z, d) > 0 && !scene[hit.surface].material.thin_glass &&
+                            !(scene[hit.surface].material.bsdf && scene[hit.surface].material.bsdf->transmits()))
+                            continue;
+                        const size_t k = side * nd + (nd == 1 ? 0 : a);
+                        const double weight = nd == 1 ? 1.0 / dirs.size() : 1.0;
+                        const Vec3 e = S[k] - G[k], f_diff = G[k] - F[k];
+                        c.fit += weight * dot(e, e) / 3;
+                        if (i < n_fine) c.integration += weight * dot(f_diff, f_diff) / 3;
+                        c.radiance += weight * (G[k].x + G[k].y + G[k].z) / 3;
+                        c.values += weight;
+                    }
+            }
+            check_rays += local;
+        }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        rays += check_rays;
+        std::vector<double> errors(result.size(), std::nan(""));
+        for (size_t k = 0; k < result.size(); ++k) {
+            if (result[k].is_partner) continue;
+            Check fit, fine;
+            for (size_t i = 0; i < n; ++i) {
+                const Check& c = checks[k * n + i];
+                fit.fit += c.fit, fit.radiance += c.radiance, fit.values += c.values;
+                if (i < n_fine) fine.integration += c.integration, fine.values += c.values;
+            }
+            // Emission leaves the front side (and the back where two-sided) on top of the spline.
+            const Material& m = scene[result[k].surface].material;
+            const double mean = fit.values > 0 ? fit.radiance / fit.values + (m.emission.x + m.emission.y + m.emission.z) / 3 : 0;
+            if (!(mean > 0)) {
+                errors[k] = 0;  // no light: nothing to be wrong about
+                continue;
+            }
+            const double e_fit = std::sqrt(fit.fit / fit.values) / mean;
+            // Both errors the second gather shows converge at first order where they dominate (a
+            // shadow edge, a contact line: the integrand's and the spline's discontinuities), so
+            // the first gather's error is twice its difference from the second (Richardson).
+            const double e_int = fine.values > 0 ? 2 * std::sqrt(fine.integration / fine.values) / mean : 0;
+            const double e_tail = std::min(tail[k], 1.0);  // not converged: as large as the radiance
+            errors[k] = std::sqrt(e_fit * e_fit + e_int * e_int + e_tail * e_tail);
+        }
+        return errors;
     }
 
     // The rows of the transport operator of receivers [begin, end) that use them, cast once.
@@ -951,6 +1131,15 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     }
     std::vector<Receiver>& result = settings.final_gather ? st.finals : receivers;
     solution.stats.rays = rays + st.knot_rays;
+    std::vector<double> errors(result.size(), std::nan(""));
+    if (settings.estimate_error) {
+        const auto t3 = std::chrono::steady_clock::now();
+        std::vector<double> tail(result.size(), 0.0);
+        for (size_t k = 0; k < result.size(); ++k)
+            if (const Receiver* coarse = st.receiver_of[result[k].surface]) tail[k] = convergence.error(coarse->index);
+        errors = st.estimate_errors(result, tail, progress, solution.stats.estimate_rays);
+        solution.stats.seconds_estimate = seconds_since(t3);
+    }
     const std::vector<Plan>& plans = st.plans;
     const std::vector<Plan>& final_plans = st.final_plans;
 
@@ -1006,7 +1195,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         std::vector<int> shape;
         for (size_t n : out->upper.shape()) shape.push_back(int(n));
         shape.pop_back();
-        solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason});
+        solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason, errors[k]});
         solution.radiance[r.surface] = std::move(out);
     }
     for (size_t i = 0; i < scene.size(); ++i) {
