@@ -695,6 +695,48 @@ std::array<double, 2> check_point(size_t i) {
     return {std::fmod(0.5 + i * 0.7548776662466927, 1.0), std::fmod(0.5 + i * 0.5698402909980532, 1.0)};
 }
 
+// A check point and its weight: the inverse of its density against uniform points.
+struct CheckPoint {
+    double u, v, weight;
+};
+
+// n check points of receiver r where its splines' error is likely: a spline's error grows with
+// h^2 |f''| (h its knot spacing), and its second differences over h show where (shadow edges and
+// contact lines, whose error a few uniform points would miss on a large surface). Chosen among
+// 16 n candidates of the R2 sequence with density 1/2 + 1/2 of that indicator's share
+// (defensive: smooth parts keep half the points), by systematic sampling; each weighted by the
+// inverse of its density, so that weighted means are those over uniform points.
+std::vector<CheckPoint> check_points(const Receiver& r, size_t n) {
+    const size_t m = 16 * n;
+    const Vec3 normal{0, 0, r.solves(0) || !r.solves(1) ? 1.0 : -1.0};
+    auto f = [&](double u, double v) {
+        const Vec3 L = r.radiance(&Receiver::Le, std::clamp(u, 0.0, 1.0), std::clamp(v, 0.0, 1.0), normal);
+        return L.x + L.y + L.z;
+    };
+    const double hu = 1.0 / r.Le[0].axis(0).num_coeffs(), hv = 1.0 / r.Le[0].axis(1).num_coeffs();
+    std::vector<double> score(m);
+    double mean = 0;
+    for (size_t i = 0; i < m; ++i) {
+        const auto [u, v] = check_point(i);
+        const double c = f(u, v);
+        const double d2 = std::abs(f(u - hu, v) - 2 * c + f(u + hu, v)) + std::abs(f(u, v - hv) - 2 * c + f(u, v + hv));
+        mean += score[i] = d2;
+    }
+    mean /= m;
+    for (double& x : score) x = mean > 0 ? 0.5 + 0.5 * x / mean : 1.0;  // density against uniform, mean 1
+    std::vector<CheckPoint> out;
+    double cumulative = 0;
+    size_t next = 0;
+    for (size_t i = 0; i < m && next < n; ++i) {
+        cumulative += score[i] / m;
+        for (; next < n && cumulative * n > next + 0.5; ++next) {
+            const auto [u, v] = check_point(i);
+            out.push_back({u, v, 1.0 / score[i]});
+        }
+    }
+    return out;
+}
+
 std::vector<Vec3> check_directions(size_t i) {
     std::vector<Vec3> d;
     for (int a = 0; a < kCheckDirections; ++a) {
@@ -841,34 +883,42 @@ struct SolveSteps::State {
                                         size_t& rays) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
         const int density = settings.final_gather ? settings.final_integration_factor : 1;
-        const size_t n = size_t(settings.error_checks), n_fine = (n + 1) / 2;
+        const size_t n = size_t(settings.error_checks);
         // The second gather also takes its indirect light from the final splines where there are
         // some: the others' coarse splines Le, which the final gather read, err more than the
         // finals (the contact shadows blurred over a coarse grid), and that error enters each
         // surface's light through its gather, where its own splines cannot show it.
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
-        // Per (receiver, check): squared error of the spline, squared difference of the two
-        // gathers, sum of the gathered radiance, values compared.
+        // Per (receiver, check), weighted: squared error of the spline, squared differences of the
+        // gathers from the final splines and at doubled nodes, the gathered radiance, the weight.
         struct Check {
-            double fit = 0, integration = 0, radiance = 0, values = 0;  // values: their weight
+            double fit = 0, input = 0, integration = 0, radiance = 0, values = 0;  // values: their weight
         };
         std::vector<Check> checks(result.size() * n);
+        std::vector<std::vector<CheckPoint>> points(result.size());
+        for (size_t k = 0; k < result.size(); ++k)
+            if (!result[k].is_partner) points[k] = check_points(result[k], n);
+        // Every other check is gathered again from the final splines, every fourth also at doubled
+        // integration nodes (four times the rays): spread over the surface as all of them are.
+        auto input_check = [](size_t i) { return i % 2 == 0; };
+        auto fine_check = [](size_t i) { return i % 4 == 0; };
         std::atomic<size_t> check_rays{0};
         parallel_for(checks.size(), 1, settings.threads, [&](size_t begin, size_t end) {
             size_t local = 0;
-            std::vector<Vec3> g, f;
+            std::vector<Vec3> g, f, h;
             for (size_t w = begin; w < end; ++w) {
                 const Receiver& r = result[w / n];
                 if (r.is_partner) continue;
                 const size_t i = w % n;
-                const auto [u, v] = check_point(i);
+                if (i >= points[w / n].size()) continue;
+                const auto [u, v, weight_of_point] = points[w / n][i];
                 const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
                 const std::vector<Vec3> dirs = check_directions(i);
                 const std::array<bool, 2> seen = sides_seen(r);
                 // The surface's light is the sum of its parts (D and S of (38), a tint's pair),
                 // compared at (side, direction) values; a diffuse part has one per side.
                 const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
-                std::vector<Vec3> G(2 * nd, Vec3{0, 0, 0}), S = G, F = G;
+                std::vector<Vec3> G(2 * nd, Vec3{0, 0, 0}), S = G, F = G, I = G;
                 for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
                     const Receiver q = probe_of(*part, p, dirs);
                     const size_t m = q.sides * q.per_node;
@@ -880,12 +930,17 @@ struct SolveSteps::State {
                         for (size_t k = 0; k < m; ++k) out[k] += direct[k];
                     };
                     gathered(*gather, receiver_of, g);
-                    if (i < n_fine) gathered(*fine_gather, result_of, f);
+                    if (input_check(i)) {
+                        if (settings.final_gather) gathered(*gather, result_of, h);
+                        else h = g;  // the input was the result's own splines
+                    }
+                    if (fine_check(i)) gathered(*fine_gather, result_of, f);
                     for (int side = 0; side < q.sides; ++side)
                         for (size_t a = 0; a < nd && seen[side]; ++a) {
                             const size_t b = q.per_node == 1 ? 0 : a, k = side * q.per_node + b;
                             G[side * nd + a] += g[k];
-                            if (i < n_fine) F[side * nd + a] += f[k];
+                            if (input_check(i)) I[side * nd + a] += h[k];
+                            if (fine_check(i)) F[side * nd + a] += f[k];
                             S[side * nd + a] += part->own_radiance(&Receiver::Le, u, v, q.outgoing(side, b));
                         }
                 }
@@ -902,10 +957,11 @@ struct SolveSteps::State {
                             !(scene[hit.surface].material.bsdf && scene[hit.surface].material.bsdf->transmits()))
                             continue;
                         const size_t k = side * nd + (nd == 1 ? 0 : a);
-                        const double weight = nd == 1 ? 1.0 / dirs.size() : 1.0;
-                        const Vec3 e = S[k] - G[k], f_diff = G[k] - F[k];
+                        const double weight = weight_of_point * (nd == 1 ? 1.0 / dirs.size() : 1.0);
+                        const Vec3 e = S[k] - G[k], input = I[k] - G[k], integration = F[k] - I[k];
                         c.fit += weight * dot(e, e) / 3;
-                        if (i < n_fine) c.integration += weight * dot(f_diff, f_diff) / 3;
+                        if (input_check(i)) c.input += weight * dot(input, input) / 3;
+                        if (fine_check(i)) c.integration += weight * dot(integration, integration) / 3;
                         c.radiance += weight * (G[k].x + G[k].y + G[k].z) / 3;
                         c.values += weight;
                     }
@@ -917,26 +973,31 @@ struct SolveSteps::State {
         std::vector<double> errors(result.size(), std::nan(""));
         for (size_t k = 0; k < result.size(); ++k) {
             if (result[k].is_partner) continue;
-            Check fit, fine;
+            Check all, input, fine;
             for (size_t i = 0; i < n; ++i) {
                 const Check& c = checks[k * n + i];
-                fit.fit += c.fit, fit.radiance += c.radiance, fit.values += c.values;
-                if (i < n_fine) fine.integration += c.integration, fine.values += c.values;
+                all.fit += c.fit, all.radiance += c.radiance, all.values += c.values;
+                if (input_check(i)) input.input += c.input, input.values += c.values;
+                if (fine_check(i)) fine.integration += c.integration, fine.values += c.values;
             }
             // Emission leaves the front side (and the back where two-sided) on top of the spline.
             const Material& m = scene[result[k].surface].material;
-            const double mean = fit.values > 0 ? fit.radiance / fit.values + (m.emission.x + m.emission.y + m.emission.z) / 3 : 0;
+            const double mean = all.values > 0 ? all.radiance / all.values + (m.emission.x + m.emission.y + m.emission.z) / 3 : 0;
             if (!(mean > 0)) {
                 errors[k] = 0;  // no light: nothing to be wrong about
                 continue;
             }
-            const double e_fit = std::sqrt(fit.fit / fit.values) / mean;
-            // Both errors the second gather shows converge at first order where they dominate (a
-            // shadow edge, a contact line: the integrand's and the spline's discontinuities), so
-            // the first gather's error is twice its difference from the second (Richardson).
-            const double e_int = fine.values > 0 ? 2 * std::sqrt(fine.integration / fine.values) / mean : 0;
+            auto rms = [&](double squared, double values) { return values > 0 ? std::sqrt(squared / values) / mean : 0.0; };
+            const double e_fit = rms(all.fit, all.values);
+            // The coarse splines' error reaches the gather as the final splines' difference from
+            // them, halved: where it dominates (a contact shadow, blurred over a coarse grid) a
+            // spline's error converges at first order in its knot spacing, and the finals have
+            // half the coarse spacing (Richardson). The doubled integration nodes' difference is
+            // taken as the integration error itself (the rules converge faster where smooth).
+            const double e_input = 2 * rms(input.input, input.values);
+            const double e_int = rms(fine.integration, fine.values);
             const double e_tail = std::min(tail[k], 1.0);  // not converged: as large as the radiance
-            errors[k] = std::sqrt(e_fit * e_fit + e_int * e_int + e_tail * e_tail);
+            errors[k] = std::sqrt(e_fit * e_fit + e_input * e_input + e_int * e_int + e_tail * e_tail);
         }
         return errors;
     }

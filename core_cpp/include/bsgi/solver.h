@@ -95,7 +95,7 @@ struct SolverSettings {
     // surfaces, along directions between the angular nodes) against the spline there, the first
     // quarter of them gathered again at doubled integration nodes, plus the bounces' tail.
     bool estimate_error = true;
-    int error_checks = 24;
+    int error_checks = 48;
 
     int threads = 0;  // 0: all hardware threads
     double memory_budget_mb = 4096;
