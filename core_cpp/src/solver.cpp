@@ -705,30 +705,44 @@ struct CheckPoint {
 // contact lines, whose error a few uniform points would miss on a large surface). Chosen among
 // 16 n candidates of the R2 sequence with density 1/2 + 1/2 of that indicator's share
 // (defensive: smooth parts keep half the points), by systematic sampling; each weighted by the
-// inverse of its density, so that weighted means are those over uniform points.
-std::vector<CheckPoint> check_points(const Receiver& r, size_t n) {
+// inverse of its density, so that weighted means are those over uniform points. Candidates
+// `hidden` (inside a closed object: the floor under a box) are left out, and the means are those
+// over the visible part of the surface.
+template <typename Hidden>
+std::vector<CheckPoint> check_points(const Receiver& r, size_t n, Hidden&& hidden) {
     const size_t m = 16 * n;
     const Vec3 normal{0, 0, r.solves(0) || !r.solves(1) ? 1.0 : -1.0};
     auto f = [&](double u, double v) {
         const Vec3 L = r.radiance(&Receiver::Le, std::clamp(u, 0.0, 1.0), std::clamp(v, 0.0, 1.0), normal);
         return L.x + L.y + L.z;
     };
-    const double hu = 1.0 / r.Le[0].axis(0).num_coeffs(), hv = 1.0 / r.Le[0].axis(1).num_coeffs();
-    std::vector<double> score(m);
+    // The local knot spacing (adaptive knots cluster at shadow edges).
+    const TensorSpline& spline = r.Le[r.solves(0) || !r.solves(1) ? 0 : 1];
+    auto spacing = [&](int axis, double x) {
+        const KnotVector& k = spline.axis(axis);
+        return 1.0 / k.span_inverse_width(k.find_span(std::clamp(x, k.domain_begin(), k.domain_end())));
+    };
+    std::vector<double> score(m, -1.0);  // -1: hidden
     double mean = 0;
+    size_t visible = 0;
     for (size_t i = 0; i < m; ++i) {
         const auto [u, v] = check_point(i);
-        const double c = f(u, v);
+        if (hidden(u, v)) continue;
+        const double c = f(u, v), hu = spacing(0, u), hv = spacing(1, v);
         const double d2 = std::abs(f(u - hu, v) - 2 * c + f(u + hu, v)) + std::abs(f(u, v - hv) - 2 * c + f(u, v + hv));
         mean += score[i] = d2;
+        ++visible;
     }
-    mean /= m;
-    for (double& x : score) x = mean > 0 ? 0.5 + 0.5 * x / mean : 1.0;  // density against uniform, mean 1
     std::vector<CheckPoint> out;
+    if (!visible) return out;
+    mean /= visible;
+    for (double& x : score)
+        if (x >= 0) x = mean > 0 ? 0.5 + 0.5 * x / mean : 1.0;  // density against uniform, mean 1
     double cumulative = 0;
     size_t next = 0;
     for (size_t i = 0; i < m && next < n; ++i) {
-        cumulative += score[i] / m;
+        if (score[i] < 0) continue;
+        cumulative += score[i] / visible;
         for (; next < n && cumulative * n > next + 0.5; ++next) {
             const auto [u, v] = check_point(i);
             out.push_back({u, v, 1.0 / score[i]});
@@ -896,8 +910,29 @@ struct SolveSteps::State {
         };
         std::vector<Check> checks(result.size() * n);
         std::vector<std::vector<CheckPoint>> points(result.size());
-        for (size_t k = 0; k < result.size(); ++k)
-            if (!result[k].is_partner) points[k] = check_points(result[k], n);
+        // Behind a surface's back (opaque, not a pane): inside a closed object, seen by no viewer.
+        auto behind = [&](const Vec3& p, const Vec3& normal, const Vec3& d, size_t& counted) {
+            const SurfaceHit hit = caster.closest_hit(caster.spawn(p, normal, d), d);
+            ++counted;
+            return hit.surface >= 0 && dot(hit.frame.z, d) > 0 && !scene[hit.surface].material.thin_glass &&
+                   !(scene[hit.surface].material.bsdf && scene[hit.surface].material.bsdf->transmits());
+        };
+        std::atomic<size_t> candidate_rays{0};
+        parallel_for(result.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+            size_t local = 0;
+            for (size_t k = begin; k < end; ++k) {
+                if (result[k].is_partner) continue;
+                const Surface& surface = *scene[result[k].surface].surface;
+                const double side = result[k].solves(0) || !result[k].solves(1) ? 1.0 : -1.0;
+                points[k] = check_points(result[k], n, [&](double u, double v) {
+                    const SurfacePoint p = surface.evaluate(u, v);
+                    return behind(p.p, p.frame.z, p.frame.z * side, local);
+                });
+            }
+            candidate_rays += local;
+        }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        rays += candidate_rays;
         // Every other check is gathered again from the final splines, every fourth also at doubled
         // integration nodes (four times the rays): spread over the surface as all of them are.
         auto input_check = [](size_t i) { return i % 2 == 0; };
@@ -951,11 +986,7 @@ struct SolveSteps::State {
                 for (int side = 0; side < 2; ++side)
                     for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
                         const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
-                        const SurfaceHit hit = caster.closest_hit(caster.spawn(p.p, p.frame.z, d), d);
-                        ++local;
-                        if (hit.surface >= 0 && dot(hit.frame.z, d) > 0 && !scene[hit.surface].material.thin_glass &&
-                            !(scene[hit.surface].material.bsdf && scene[hit.surface].material.bsdf->transmits()))
-                            continue;
+                        if (behind(p.p, p.frame.z, d, local)) continue;
                         const size_t k = side * nd + (nd == 1 ? 0 : a);
                         const double weight = weight_of_point * (nd == 1 ? 1.0 / dirs.size() : 1.0);
                         const Vec3 e = S[k] - G[k], input = I[k] - G[k], integration = F[k] - I[k];

@@ -74,10 +74,14 @@ def compare(name, preset):
 
 
 CASES = [(name, preset) for name in SCENES for preset in ("preview", "final")]
-# Measured (PAIRS, SPP, seeds above): the Cornell box's floor under the final preset is estimated at
-# 0.49 of its measured error (0.038 against 0.077): its error sits in narrow bands along the boxes'
-# contact lines, which 48 check points sample unevenly.
-KNOWN = {("cornell", "final"): "floor: estimate 0.49 x measured (contact lines sampled by few checks)"}
+# Measured (PAIRS, SPP, seeds above), not yet within the factor of two: under the final preset the
+# tall box's face towards the camera (tall box 1) is estimated at 0.47 (0.42 with the glossy back
+# wall) of its measured error. Its error sits in the bottom 5% of the face (21% too dark there):
+# the floor's spline beside the contact line, too dark, which the face gathers; the estimate's
+# difference between the coarse and final floor splines, doubled, sees only part of it. The
+# short box's face away from the lamp (short box 2) is at 2.05 in the diffuse box.
+KNOWN = {("cornell", "final"): "tall box 1 estimated at 0.47 x measured (contact with the floor); short box 2 at 2.05 x",
+         ("glossy cornell", "final"): "tall box 1 estimated at 0.42 x measured (contact with the floor)"}
 
 
 @pytest.mark.slow
