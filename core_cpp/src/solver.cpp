@@ -891,8 +891,8 @@ struct SolveSteps::State {
     // gathered as the last phase would gather it (direct light, and the others' cumulative
     // radiance Le with the world's along the same rays: without a final gather, the bounces'
     // sum Le is the fixed point of that gather) against the spline, relative RMS over the
-    // checks; the first quarter of the checks gathered again at doubled integration nodes;
-    // and `tail`, per receiver, the bounces' relative radiance still missing.
+    // visible checks; every other check gathered again from the final splines, every fourth at
+    // doubled integration nodes; and `tail`, per receiver, the bounces' radiance still missing.
     std::vector<double> estimate_errors(const std::vector<Receiver>& result, const std::vector<double>& tail, Progress& progress,
                                         size_t& rays) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
