@@ -18,7 +18,7 @@ import numpy as np
 
 import bsgi
 
-from . import charts, geometry, textures, view_radiance
+from . import charts, error_view, geometry, textures, view_radiance
 from .materials import user_slots
 from .user_materials import PROP_SLOTS, PROP_SPLINE_INDICES, UV_NAME, is_baked, user_spline_material_index
 
@@ -659,6 +659,9 @@ def clear_bake(obj) -> None:
     """Remove the bake from an object: its slots, UV maps and materials as before the bake."""
     if not is_baked(obj):
         return
+    error_view.show_error(obj, False)
+    if error_view.PROP_ERROR in obj:
+        del obj[error_view.PROP_ERROR]
     show_baked(obj, False)
     if obj.get(PROP_ADDED_SLOT):
         for _ in range(int(obj[PROP_ADDED_SLOT])):

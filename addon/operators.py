@@ -10,7 +10,7 @@ import bsgi
 
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from . import bake, pipeline, solution_file
+from . import bake, error_view, pipeline, solution_file
 from .errors import ExportError
 
 
@@ -144,6 +144,7 @@ class BSGI_OT_rebake(bpy.types.Operator):
             for warning in bake.rebake(obj):
                 self.report({"WARNING"}, warning)
         context.scene.bsgi.show_baked = True
+        error_view.refresh(context.scene)
         return {"FINISHED"}
 
 

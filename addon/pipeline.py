@@ -12,7 +12,7 @@ import bpy
 
 import bsgi
 
-from . import bake, preferences
+from . import bake, error_view, preferences
 from .export import Export, export_scene
 
 
@@ -85,7 +85,14 @@ def finish(context, job: Job, solution: bsgi.Solution) -> None:
             baking.touch(obj)
             warnings += bake.bake_object(obj, bake.face_splines(exported, solution.surfaces), exported.chart_uvs)
     job.export.warnings = list(dict.fromkeys(warnings))
+    for name, error in error_view.object_errors(job.export, solution).items():
+        obj = bpy.data.objects[name]
+        if math.isfinite(error):
+            obj[error_view.PROP_ERROR] = error
+        elif error_view.PROP_ERROR in obj:
+            del obj[error_view.PROP_ERROR]
     context.scene.bsgi.show_baked = True
+    error_view.refresh(context.scene)
 
 
 def solve_and_bake(context, on_progress=None, progress: bsgi.Progress | None = None, ray_address: str | None = None) -> dict:
@@ -113,6 +120,8 @@ def report(job: Job, solution: bsgi.Solution, solve_seconds: float, bake_seconds
         "bounces": stats["bounces"],
         "rays": stats["rays"],
         "representations": representation_summary(solution.reports),
+        # Per baked object: the root mean square of its surfaces' estimated relative errors.
+        "estimated_errors": error_view.object_errors(job.export, solution),
         "warnings": job.export.warnings,
         # Per material, light, object and the world: what is approximated and how.
         "approximations": [{"owner": a.owner, "objects": a.objects, "notes": a.notes, "text": a.text()}
@@ -155,6 +164,9 @@ def summary_text(rep: dict) -> str:
     if largest:
         text += (f"; largest '{largest['name']}' {'x'.join(map(str, largest['shape']))} "
                  f"({largest['coefficients']} coefficients)")
+    worst = error_view.worst_text(rep.get("estimated_errors", {}))
+    if worst:
+        text += f"; {worst}"
     approximated = rep.get("approximations", [])
     if approximated:
         notes = sum(len(a["notes"]) for a in approximated)

@@ -7,6 +7,12 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 import bsgi
 
 
+def _show_error_update(self, context):
+    from . import error_view
+
+    error_view.refresh(context.scene)
+
+
 def _show_baked_update(self, context):
     from . import bake
 
@@ -65,6 +71,10 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     show_baked: BoolProperty(
         name="Show Baked Radiance", default=True, update=_show_baked_update,
         description="Show the solved radiance, or the objects' own materials")
+    show_error: BoolProperty(
+        name="Show Estimated Error", default=False, update=_show_error_update,
+        description="Colour each baked object by the solver's estimate of its relative error: green at 1% or "
+        "less, yellow, red at 10% or more (grey: not estimated); off shows the baked radiance again")
 
     def solver_settings(self) -> bsgi.SolverSettings:
         """The preset's settings, or with CUSTOM the core's defaults with the individual settings."""

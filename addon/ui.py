@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import bpy
 
+from . import error_view
 
-def draw_controls(layout, scene):
+
+def draw_controls(layout, scene, obj=None):
     settings = scene.bsgi
     layout.operator("bsgi.solve", icon="LIGHT_AREA")
     layout.prop(settings, "preset")
@@ -22,6 +24,9 @@ def draw_controls(layout, scene):
     row.prop(settings, "show_baked", toggle=True)
     row.operator("bsgi.rebake", text="", icon="FILE_REFRESH")
     row.operator("bsgi.clear", text="", icon="X")
+    layout.prop(settings, "show_error", toggle=True)
+    if obj is not None and error_view.PROP_ERROR in obj:
+        layout.label(text=f"{obj.name}: estimated error {100 * float(obj[error_view.PROP_ERROR]):.1f}%")
     row = layout.row(align=True)
     row.operator("bsgi.export_solution", text="Export", icon="EXPORT")
     row.operator("bsgi.import_solution", text="Import", icon="IMPORT")
@@ -34,7 +39,7 @@ class BSGI_PT_render(bpy.types.Panel):
     bl_context = "render"
 
     def draw(self, context):
-        draw_controls(self.layout, context.scene)
+        draw_controls(self.layout, context.scene, context.object)
 
 
 class BSGI_PT_sidebar(bpy.types.Panel):
@@ -44,7 +49,7 @@ class BSGI_PT_sidebar(bpy.types.Panel):
     bl_category = "B-spline GI"
 
     def draw(self, context):
-        draw_controls(self.layout, context.scene)
+        draw_controls(self.layout, context.scene, context.object)
 
 
 class BSGI_PT_object(bpy.types.Panel):

@@ -311,6 +311,8 @@ void bind_scene(py::module_& m) {
         .def_readwrite("final_spatial_factor", &SolverSettings::final_spatial_factor)
         .def_readwrite("final_integration_factor", &SolverSettings::final_integration_factor)
         .def_readwrite("two_sided", &SolverSettings::two_sided)
+        .def_readwrite("estimate_error", &SolverSettings::estimate_error)
+        .def_readwrite("error_checks", &SolverSettings::error_checks)
         .def_readwrite("threads", &SolverSettings::threads)
         .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb)
         .def("__repr__", [](const SolverSettings& s) {
@@ -439,6 +441,7 @@ void bind_scene(py::module_& m) {
             for (const auto& r : s.reports) {
                 py::dict d;
                 d["name"] = r.name, d["representation"] = r.representation, d["shape"] = r.shape, d["reason"] = r.reason;
+                d["estimated_error"] = r.estimated_error;
                 out.append(d);
             }
             return out;
@@ -456,6 +459,8 @@ void bind_scene(py::module_& m) {
             d["rays"] = s.stats.rays;
             d["bytes"] = s.stats.bytes;
             d["transport_terms"] = s.stats.transport_terms;
+            d["seconds_estimate"] = s.stats.seconds_estimate;
+            d["estimate_rays"] = s.stats.estimate_rays;
             return d;
         });
 

@@ -53,6 +53,7 @@ void validate(const SolverSettings& s) {
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");
     need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
     need(s.memory_budget_mb > 0, "memory_budget_mb must be > 0");
+    need(s.error_checks >= 1 && s.error_checks <= 4096, "error_checks must be in 1..4096");
 }
 
 // What the solver decided for one receiving surface, before anything is allocated.
@@ -609,6 +610,7 @@ public:
             for (int c = 0; c < 3; ++c) brightest[c] = std::max(brightest[c], m[3 + c]);
         double error = 0;
         last_increment = 0;
+        errors_.assign(receivers.size(), 0.0);
         for (size_t k = 0; k < receivers.size(); ++k)
             for (int c = 0; c < 3; ++c) {
                 Channel& s = state_[k][c];
@@ -629,6 +631,7 @@ public:
                     channel_error = pair * (extrapolate ? std::abs(rho2 - s.rho2[2]) / ((1 - rho2) * (1 - rho2)) : s.tail) / total;
                 }
                 error = std::max(error, channel_error);
+                errors_[k] = std::max(errors_[k], channel_error);
             }
         return error;
     }
@@ -638,6 +641,8 @@ public:
         const auto& s = state_[size_t(k)];
         return {s[0].tail, s[1].tail, s[2].tail};
     }
+    // What update() returned, for receiver k alone (0 before the first bounce).
+    double error(int k) const { return errors_.empty() ? 0.0 : errors_[size_t(k)]; }
 
 private:
     static constexpr double kNegligible = 1e-12;
@@ -664,6 +669,7 @@ private:
         return sums;
     }
     std::vector<std::array<Channel, 3>> state_;
+    std::vector<double> errors_;
 };
 
 }  // namespace
@@ -787,6 +793,121 @@ int begin_solve(const Scene& scene, const SolverSettings& settings, Progress& pr
     return stages;
 }
 
+// The error estimate's check points: a low-discrepancy (R2) sequence over the parameter square,
+// whose points fall between the Schoenberg nodes of any knots, and per point kCheckDirections
+// cosine-distributed outgoing directions (stratified in cos^2 theta, turned from point to point),
+// which fall between a glossy receiver's angular nodes.
+constexpr int kCheckDirections = 8;
+
+std::array<double, 2> check_point(size_t i) {
+    return {std::fmod(0.5 + i * 0.7548776662466927, 1.0), std::fmod(0.5 + i * 0.5698402909980532, 1.0)};
+}
+
+// A check point and its weight: the inverse of its density against uniform points.
+struct CheckPoint {
+    double u, v, weight;
+};
+
+// n check points of receiver r where its splines' error is likely: a spline's error grows with
+// h^2 |f''| (h its knot spacing), and its second differences over h show where (shadow edges and
+// contact lines, whose error a few uniform points would miss on a large surface). Chosen among
+// 16 n candidates of the R2 sequence with density 1/2 + 1/2 of that indicator's share
+// (defensive: smooth parts keep half the points), by systematic sampling; each weighted by the
+// inverse of its density, so that weighted means are those over uniform points. Candidates
+// `hidden` (inside a closed object: the floor under a box) are left out, and the means are those
+// over the visible part of the surface.
+template <typename Hidden>
+std::vector<CheckPoint> check_points(const Receiver& r, size_t n, Hidden&& hidden) {
+    const size_t m = 16 * n;
+    const Vec3 normal{0, 0, r.solves(0) || !r.solves(1) ? 1.0 : -1.0};
+    auto f = [&](double u, double v) {
+        const Vec3 L = r.radiance(&Receiver::Le, std::clamp(u, 0.0, 1.0), std::clamp(v, 0.0, 1.0), normal);
+        return L.x + L.y + L.z;
+    };
+    // The local knot spacing (adaptive knots cluster at shadow edges).
+    const TensorSpline& spline = r.Le[r.solves(0) || !r.solves(1) ? 0 : 1];
+    auto spacing = [&](int axis, double x) {
+        const KnotVector& k = spline.axis(axis);
+        return 1.0 / k.span_inverse_width(k.find_span(std::clamp(x, k.domain_begin(), k.domain_end())));
+    };
+    std::vector<double> score(m, -1.0);  // -1: hidden
+    double mean = 0;
+    size_t visible = 0;
+    for (size_t i = 0; i < m; ++i) {
+        const auto [u, v] = check_point(i);
+        if (hidden(u, v)) continue;
+        const double c = f(u, v), hu = spacing(0, u), hv = spacing(1, v);
+        const double d2 = std::abs(f(u - hu, v) - 2 * c + f(u + hu, v)) + std::abs(f(u, v - hv) - 2 * c + f(u, v + hv));
+        mean += score[i] = d2;
+        ++visible;
+    }
+    std::vector<CheckPoint> out;
+    if (!visible) return out;
+    mean /= visible;
+    for (double& x : score)
+        if (x >= 0) x = mean > 0 ? 0.5 + 0.5 * x / mean : 1.0;  // density against uniform, mean 1
+    double cumulative = 0;
+    size_t next = 0;
+    for (size_t i = 0; i < m && next < n; ++i) {
+        if (score[i] < 0) continue;
+        cumulative += score[i] / visible;
+        for (; next < n && cumulative * n > next + 0.5; ++next) {
+            const auto [u, v] = check_point(i);
+            out.push_back({u, v, 1.0 / score[i]});
+        }
+    }
+    return out;
+}
+
+std::vector<Vec3> check_directions(size_t i) {
+    std::vector<Vec3> d;
+    for (int a = 0; a < kCheckDirections; ++a) {
+        const double w = (a + 0.5) / kCheckDirections;
+        const double phi = 2 * 3.14159265358979323846 * std::fmod(a * 0.6180339887498949 + i * 0.7548776662466927, 1.0);
+        const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
+        d.push_back({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
+    }
+    return d;
+}
+
+// A receiver of r's material and sides whose one node is the check point p and whose angular
+// nodes are `directions` (if glossy): gathering at it is the phase's gather where no node sits.
+Receiver probe_of(const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& directions) {
+    Receiver q;
+    q.surface = r.surface;
+    q.index = r.index;
+    q.kind = r.kind;
+    q.bsdf = r.bsdf;
+    q.albedo = r.albedo;
+    q.tint = r.tint;
+    q.sides = r.sides;
+    q.live = r.live;
+    q.map = r.map;
+    q.nodes = {p};
+    if (r.kind != Representation::Diffuse) q.directions = directions, q.per_node = directions.size();
+    return q;
+}
+
+// The sides a viewer sees of a receiver: both of a transmitting one, else the front if it was
+// solved, else the back.
+std::array<bool, 2> sides_seen(const Receiver& r) {
+    if (r.bsdf->transmits()) return {r.solves(0), r.solves(1)};
+    return {r.solves(0), !r.solves(0) && r.solves(1)};
+}
+
+// The settings of the error estimate's second gather: twice the integration nodes per direction
+// (hemisphere nodes, BSDF samples as a density of 2 would give them, emitter cells half as wide,
+// twice the world's bright directions).
+SolverSettings doubled_integration(SolverSettings s) {
+    s.hemisphere_nodes_theta *= 2;
+    s.hemisphere_nodes_phi *= 2;
+    s.bsdf_samples *= 2;
+    s.emitter_cell_ratio *= 0.5;
+    s.emitter_max_depth = std::min(s.emitter_max_depth + 1, 20);
+    s.world_bright_samples *= 2;
+    return s;
+}
+
 }  // namespace
 
 struct SolveSteps::State {
@@ -800,6 +921,8 @@ struct SolveSteps::State {
     size_t bytes = 0;
     Scene lit_scene;
     std::optional<Gatherer> gather;
+    const SolverSettings fine_settings;  // of the error estimate's doubled gather
+    std::optional<Gatherer> fine_gather;
     size_t knot_rays = 0;  // of placing the knots, counted once by the solve however many steps place them
     std::vector<Receiver> receivers, finals;
     bool finals_built = false;
@@ -813,7 +936,8 @@ struct SolveSteps::State {
     bool solved = false;
 
     State(const Scene& scene_, const SolverSettings& settings_, Progress& progress, const std::vector<SurfaceSides>* probed)
-        : scene(scene_), settings(settings_), stages(begin_solve(scene_, settings_, progress)), caster(ray_caster_of(scene_)) {
+        : scene(scene_), settings(settings_), stages(begin_solve(scene_, settings_, progress)), caster(ray_caster_of(scene_)),
+          fine_settings(doubled_integration(settings_)) {
         rows_possible = settings.form_factors && !scene.has_albedo_textures();
         ff_stage = rows_possible && settings.max_bounces > 0 ? 1 : 0;
         if (probed && probed->size() != scene.size())
@@ -869,6 +993,154 @@ struct SolveSteps::State {
         finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
         move_hidden_nodes(finals, scene, *gather, receiver_of, settings, progress, knot_rays);
         finals_built = true;
+    }
+
+    // The per-surface error estimate (SurfaceReport::estimated_error) of the last phase's
+    // splines Le of `result` (the finals, or the receivers without a final gather), indexed like
+    // them (NaN for partners, which count with their surface): at each check point, the light
+    // gathered as the last phase would gather it (direct light, and the others' cumulative
+    // radiance Le with the world's along the same rays: without a final gather, the bounces'
+    // sum Le is the fixed point of that gather) against the spline, relative RMS over the
+    // visible checks; every other check gathered again from the final splines, every fourth at
+    // doubled integration nodes; and `tail`, per receiver, the bounces' radiance still missing.
+    std::vector<double> estimate_errors(const std::vector<Receiver>& result, const std::vector<double>& tail, Progress& progress,
+                                        size_t& rays) {
+        if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
+        const int density = settings.final_gather ? settings.final_integration_factor : 1;
+        const size_t n = size_t(settings.error_checks);
+        // The second gather also takes its indirect light from the final splines where there are
+        // some: the others' coarse splines Le, which the final gather read, err more than the
+        // finals (the contact shadows blurred over a coarse grid), and that error enters each
+        // surface's light through its gather, where its own splines cannot show it.
+        const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
+        // Per (receiver, check), weighted: squared error of the spline, squared differences of the
+        // gathers from the final splines and at doubled nodes, the gathered radiance, the weight.
+        struct Check {
+            double fit = 0, input = 0, integration = 0, radiance = 0, values = 0;  // values: their weight
+        };
+        std::vector<Check> checks(result.size() * n);
+        std::vector<std::vector<CheckPoint>> points(result.size());
+        // Behind a surface's back (opaque, not a pane): inside a closed object, seen by no viewer.
+        auto behind = [&](const Vec3& p, const Vec3& normal, const Vec3& d, size_t& counted) {
+            const SurfaceHit hit = caster.closest_hit(caster.spawn(p, normal, d), d);
+            ++counted;
+            return hit.surface >= 0 && dot(hit.frame.z, d) > 0 && !scene[hit.surface].material.thin_glass &&
+                   !(scene[hit.surface].material.bsdf && scene[hit.surface].material.bsdf->transmits());
+        };
+        std::atomic<size_t> candidate_rays{0};
+        parallel_for(result.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+            size_t local = 0;
+            for (size_t k = begin; k < end; ++k) {
+                if (result[k].is_partner) continue;
+                const Surface& surface = *scene[result[k].surface].surface;
+                const double side = result[k].solves(0) || !result[k].solves(1) ? 1.0 : -1.0;
+                points[k] = check_points(result[k], n, [&](double u, double v) {
+                    const SurfacePoint p = surface.evaluate(u, v);
+                    return behind(p.p, p.frame.z, p.frame.z * side, local);
+                });
+            }
+            candidate_rays += local;
+        }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        rays += candidate_rays;
+        // Every other check is gathered again from the final splines, every fourth also at doubled
+        // integration nodes (four times the rays): spread over the surface as all of them are.
+        auto input_check = [](size_t i) { return i % 2 == 0; };
+        auto fine_check = [](size_t i) { return i % 4 == 0; };
+        std::atomic<size_t> check_rays{0};
+        parallel_for(checks.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+            size_t local = 0;
+            std::vector<Vec3> g, f, h;
+            for (size_t w = begin; w < end; ++w) {
+                const Receiver& r = result[w / n];
+                if (r.is_partner) continue;
+                const size_t i = w % n;
+                if (i >= points[w / n].size()) continue;
+                const auto [u, v, weight_of_point] = points[w / n][i];
+                const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
+                const std::vector<Vec3> dirs = check_directions(i);
+                const std::array<bool, 2> seen = sides_seen(r);
+                // The surface's light is the sum of its parts (D and S of (38), a tint's pair),
+                // compared at (side, direction) values; a diffuse part has one per side.
+                const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
+                std::vector<Vec3> G(2 * nd, Vec3{0, 0, 0}), S = G, F = G, I = G;
+                for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
+                    const Receiver q = probe_of(*part, p, dirs);
+                    const size_t m = q.sides * q.per_node;
+                    auto gathered = [&](const Gatherer& by, const std::vector<const Receiver*>& from, std::vector<Vec3>& out) {
+                        std::vector<Vec3> direct(m);
+                        out.assign(m, {0, 0, 0});
+                        by.direct(q, 0, direct.data(), local);
+                        by.indirect(q, 0, from, &Receiver::Le, density, true, out.data(), local);
+                        for (size_t k = 0; k < m; ++k) out[k] += direct[k];
+                    };
+                    gathered(*gather, receiver_of, g);
+                    if (input_check(i)) {
+                        if (settings.final_gather) gathered(*gather, result_of, h);
+                        else h = g;  // the input was the result's own splines
+                    }
+                    if (fine_check(i)) gathered(*fine_gather, result_of, f);
+                    for (int side = 0; side < q.sides; ++side)
+                        for (size_t a = 0; a < nd && seen[side]; ++a) {
+                            const size_t b = q.per_node == 1 ? 0 : a, k = side * q.per_node + b;
+                            G[side * nd + a] += g[k];
+                            if (input_check(i)) I[side * nd + a] += h[k];
+                            if (fine_check(i)) F[side * nd + a] += f[k];
+                            S[side * nd + a] += part->own_radiance(&Receiver::Le, u, v, q.outgoing(side, b));
+                        }
+                }
+                // Only what a viewer can see counts: a value along a direction whose ray meets the
+                // back of an opaque surface (the floor under a box, the ceiling behind a lamp)
+                // lies inside a closed object; a diffuse value counts by its share of visible directions.
+                Check& c = checks[w];
+                for (int side = 0; side < 2; ++side)
+                    for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
+                        const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
+                        if (behind(p.p, p.frame.z, d, local)) continue;
+                        const size_t k = side * nd + (nd == 1 ? 0 : a);
+                        const double weight = weight_of_point * (nd == 1 ? 1.0 / dirs.size() : 1.0);
+                        const Vec3 e = S[k] - G[k], input = I[k] - G[k], integration = F[k] - I[k];
+                        c.fit += weight * dot(e, e) / 3;
+                        if (input_check(i)) c.input += weight * dot(input, input) / 3;
+                        if (fine_check(i)) c.integration += weight * dot(integration, integration) / 3;
+                        c.radiance += weight * (G[k].x + G[k].y + G[k].z) / 3;
+                        c.values += weight;
+                    }
+            }
+            check_rays += local;
+        }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        rays += check_rays;
+        std::vector<double> errors(result.size(), std::nan(""));
+        for (size_t k = 0; k < result.size(); ++k) {
+            if (result[k].is_partner) continue;
+            Check all, input, fine;
+            for (size_t i = 0; i < n; ++i) {
+                const Check& c = checks[k * n + i];
+                all.fit += c.fit, all.radiance += c.radiance, all.values += c.values;
+                if (input_check(i)) input.input += c.input, input.values += c.values;
+                if (fine_check(i)) fine.integration += c.integration, fine.values += c.values;
+            }
+            // Emission leaves the front side (and the back where two-sided) on top of the spline.
+            const Material& m = scene[result[k].surface].material;
+            const double mean = all.values > 0 ? all.radiance / all.values + (m.emission.x + m.emission.y + m.emission.z) / 3 : 0;
+            if (!(mean > 0)) {
+                errors[k] = 0;  // no light: nothing to be wrong about
+                continue;
+            }
+            auto rms = [&](double squared, double values) { return values > 0 ? std::sqrt(squared / values) / mean : 0.0; };
+            const double e_fit = rms(all.fit, all.values);
+            // The coarse splines' error reaches the gather as the final splines' difference from
+            // them, halved: where it dominates (a contact shadow, blurred over a coarse grid) a
+            // spline's error converges at first order in its knot spacing, and the finals have
+            // half the coarse spacing (Richardson). The doubled integration nodes' difference is
+            // taken as the integration error itself (the rules converge faster where smooth).
+            const double e_input = 2 * rms(input.input, input.values);
+            const double e_int = rms(fine.integration, fine.values);
+            const double e_tail = std::min(tail[k], 1.0);  // not converged: as large as the radiance
+            errors[k] = std::sqrt(e_fit * e_fit + e_input * e_input + e_int * e_int + e_tail * e_tail);
+        }
+        return errors;
     }
 
     // The rows of the transport operator of receivers [begin, end) that use them, cast once.
@@ -1061,6 +1333,15 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     }
     std::vector<Receiver>& result = settings.final_gather ? st.finals : receivers;
     solution.stats.rays = rays + st.knot_rays;
+    std::vector<double> errors(result.size(), std::nan(""));
+    if (settings.estimate_error) {
+        const auto t3 = std::chrono::steady_clock::now();
+        std::vector<double> tail(result.size(), 0.0);
+        for (size_t k = 0; k < result.size(); ++k)
+            if (const Receiver* coarse = st.receiver_of[result[k].surface]) tail[k] = convergence.error(coarse->index);
+        errors = st.estimate_errors(result, tail, progress, solution.stats.estimate_rays);
+        solution.stats.seconds_estimate = seconds_since(t3);
+    }
     const std::vector<Plan>& plans = st.plans;
     const std::vector<Plan>& final_plans = st.final_plans;
 
@@ -1116,7 +1397,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         std::vector<int> shape;
         for (size_t n : out->upper.shape()) shape.push_back(int(n));
         shape.pop_back();
-        solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason});
+        solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason, errors[k]});
         solution.radiance[r.surface] = std::move(out);
     }
     for (size_t i = 0; i < scene.size(); ++i) {

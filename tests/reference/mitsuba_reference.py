@@ -64,9 +64,10 @@ def to_mitsuba(spec: SceneSpec, max_depth: int = -1):
     return mi.load_dict(shapes, optimize=False)
 
 
-def visible_pairs(spec: SceneSpec, count: int, seed: int = 0):
+def visible_pairs(spec: SceneSpec, count: int, seed: int = 0, margin: float = 0.02):
     """Random (patch index, u, v, outgoing direction) on receiving patches, each seen from a point
-    along its direction: returns patch indices, (u, v), points, directions, eye points."""
+    along its direction: returns patch indices, (u, v), points, directions, eye points. (u, v) lie
+    in [margin, 1 - margin]."""
     mi = load_mitsuba()
     scene = to_mitsuba(spec)
     rng = np.random.default_rng(seed)
@@ -76,7 +77,7 @@ def visible_pairs(spec: SceneSpec, count: int, seed: int = 0):
     while len(out["patch"]) < count:
         n = 4 * count
         pick = rng.choice(len(receivers), n, p=areas / areas.sum())
-        uv = rng.uniform(0.02, 0.98, (n, 2))
+        uv = rng.uniform(margin, 1 - margin, (n, 2))
         pts, nrm = zip(*(_point(spec.patches[receivers[k]].corners, *uv[j]) for j, k in enumerate(pick)))
         pts, nrm = np.array(pts), np.array(nrm)
         # Transmitting patches are seen from both sides.

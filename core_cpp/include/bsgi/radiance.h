@@ -79,6 +79,12 @@ struct SurfaceReport {
     std::string representation;
     std::vector<int> shape;      // coefficients per dimension of the upper spline
     std::string reason;
+    // Relative RMS error of the radiance leaving the surface (RGB, over its visible points,
+    // uniform in (u, v), and cosine-distributed directions) against its mean radiance: the
+    // spline against the gathered radiance where no node sits, the error of the splines the
+    // gather read, the integration error (doubled nodes) and the bounces not taken, added in
+    // quadrature (SolverSettings::estimate_error). NaN where not estimated (emitters, panes).
+    double estimated_error = std::nan("");
 };
 
 }  // namespace bsgi

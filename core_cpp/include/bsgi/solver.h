@@ -103,6 +103,15 @@ struct SolverSettings {
     // opaque surfaces reflect on their front side only.
     bool two_sided = true;
 
+    // Per-surface error estimate (SurfaceReport::estimated_error): after the last phase, the
+    // gathered radiance at error_checks points per surface that no node sits on (and, on glossy
+    // surfaces, along directions between the angular nodes) against the spline there; half of
+    // them gathered again from the final splines (the coarse splines' error the final gather
+    // read), a quarter at doubled integration nodes; plus the bounces' tail. Off: the reports'
+    // estimated_error is NaN.
+    bool estimate_error = true;
+    int error_checks = 48;
+
     int threads = 0;  // 0: all hardware threads
     double memory_budget_mb = 4096;
 
@@ -120,6 +129,8 @@ struct SolveStats {
     size_t rays = 0;
     size_t bytes = 0;            // the memory estimate the solve was admitted with
     size_t transport_terms = 0;  // entries of the form-factor operator, if used
+    double seconds_estimate = 0;  // of the per-surface error estimate (not in the phases' times)
+    size_t estimate_rays = 0;     // rays of the error estimate (not in `rays`)
 };
 
 struct Solution {
