@@ -692,11 +692,13 @@ SolverSettings SolverSettings::preset(const std::string& name) {
     } else if (name == "preview") {
         s.spatial_coeffs = 12;
         s.angular_resolution = 3.0;
+        s.emitter_shadow_depth = 3;
         s.tolerance = 3e-3;
     } else if (name == "final") {
         s.spatial_coeffs = 16;
         s.adaptive_knots = true;
         s.angular_resolution = 4.0;
+        s.emitter_shadow_depth = 5;
         s.tolerance = 1e-3;
     } else {
         throw std::invalid_argument("unknown preset '" + name + "': use draft, preview or final");
