@@ -80,8 +80,11 @@ CASES = [(name, preset) for name in SCENES for preset in ("preview", "final")]
 # the floor's spline beside the contact line, too dark, which the face gathers; the estimate's
 # difference between the coarse and final floor splines, doubled, sees only part of it. The
 # short box's face away from the lamp (short box 2) is at 2.05 in the diffuse box.
-KNOWN = {("cornell", "final"): "tall box 1 estimated at 0.47 x measured (contact with the floor); short box 2 at 2.05 x",
-         ("glossy cornell", "final"): "tall box 1 estimated at 0.42 x measured (contact with the floor)"}
+# Since the contact-line nodes and the shadow splitting (both in the presets), the final preset's
+# estimates agree; at preview two box faces do not (issue 15, open).
+KNOWN = {("cornell", "preview"): "tall box 2 estimated at 0.41 x measured (5.3%, beside the floor's contact line); "
+                                 "short box 0 at 2.27 x",
+         ("glossy cornell", "preview"): "tall box 2 estimated at 0.40 x measured (beside the floor's contact line)"}
 
 
 @pytest.mark.slow
