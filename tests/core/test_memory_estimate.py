@@ -30,6 +30,7 @@ def status(key):
 scene, _ = interior_core.build_scene(int(sys.argv[1]))
 settings = bsgi.SolverSettings.preset("draft")
 settings.max_bounces = 1
+settings.two_sided = sys.argv[3] == "two-sided"
 estimate = bsgi.estimate_solve_bytes(scene, settings)
 ctypes.CDLL("libc.so.6").malloc_trim(0)  # what the estimate's own probe freed goes back
 with open("/proc/self/clear_refs", "w") as f:
@@ -40,19 +41,22 @@ print(json.dumps({"estimate": estimate, "added": status("VmHWM") - before, "surf
 """
 
 
-def _measure(objects: int) -> dict:
-    out = subprocess.run([sys.executable, "-c", MEASURE, str(objects), str(ROOT / "bench")], capture_output=True,
+def _measure(objects: int, sides: str) -> dict:
+    out = subprocess.run([sys.executable, "-c", MEASURE, str(objects), str(ROOT / "bench"), sides], capture_output=True,
                          text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(not pathlib.Path("/proc/self/clear_refs").exists(), reason="needs Linux's VmHWM reset")
-def test_estimate_within_20_percent_of_measured_peak_at_three_sizes():
-    # Measured 2026-12-02: 10, 30, 100 objects (243, 363, 819 surfaces): estimate / added peak
-    # 0.91, 1.00, 1.00 (the sides probe dominates at these sizes). Issue 16 asks for 25%.
+@pytest.mark.parametrize("sides", ["two-sided", "front-only"])
+def test_estimate_within_25_percent_of_measured_peak_at_three_sizes(sides):
+    # Measured 2026-12-02 at 10, 30, 100 objects (243, 363, 819 surfaces), estimate / added peak:
+    # two-sided 0.92, 0.99, 1.00 (the sides probe's peak dominates at these sizes); front sides
+    # only (no probe: the receivers, packed copies and final receivers) 0.92, 0.90, 0.89.
+    # Issue 16 asks for 25%, about twice the largest miss.
     for objects in (10, 30, 100):
-        m = _measure(objects)
+        m = _measure(objects, sides)
         ratio = m["estimate"] / m["added"]
-        assert 0.8 < ratio < 1.2, f"{objects} objects ({m['surfaces']} surfaces): estimate {m['estimate'] / 2**20:.1f} MiB, " \
+        assert 0.75 < ratio < 1.25, f"{objects} objects ({m['surfaces']} surfaces): estimate {m['estimate'] / 2**20:.1f} MiB, " \
                                   f"measured {m['added'] / 2**20:.1f} MiB"
