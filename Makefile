@@ -15,7 +15,12 @@ PYTEST_ARGS ?=
 # Mesa's software EGL for EEVEE/Workbench in the bpy module: libegl1 (glvnd) + libegl-mesa0 (the
 # vendor) + libgl1-mesa-dri (llvmpipe); Blender also loads libGL.so.1 (libgl1) for GL entry points.
 APT_PACKAGES := libembree-dev libtbb-dev libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 libxi6 libxxf86vm1 libllvm19 \
-                libxfixes3 libxrender1 libxkbcommon0 libsm6 cmake g++ make
+                libxfixes3 libxrender1 libxkbcommon0 libsm6 cmake g++ make ccache
+# The four builds of the core (.venv, the two wheels, the sanitizer's) compile through ccache: a
+# fresh clone on a machine that built the same sources reuses the objects (paths taken relative to
+# the clone). Expanded when a recipe runs, after the apt step installed ccache.
+export CCACHE_BASEDIR := $(CURDIR)
+export CMAKE_CXX_COMPILER_LAUNCHER = $(shell command -v ccache 2>/dev/null)
 PYTHON311  ?= $(shell command -v python3.11 2>/dev/null || ls $(HOME)/.pyenv/versions/3.11*/bin/python3.11 2>/dev/null | tail -n 1)
 # pyenv's shim for a version that is not selected exists but fails: take the first that runs.
 PYTHON313  ?= $(shell for p in python3.13 $(HOME)/.pyenv/versions/3.13*/bin/python3.13; do \

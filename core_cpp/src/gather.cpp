@@ -152,6 +152,12 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     }
     const double ds = s1 - s0, dt = t1 - t0;
     const double offset = caster_.offset();
+    // A cell the receiver sees partly shadowed (a penumbra) is split while it is, down to
+    // emitter_shadow_depth: the nodes' visibility is then resolved finely only where it
+    // changes. Its samples are kept until the cell is known to be whole.
+    const bool shadow_split = depth < settings_.emitter_shadow_depth;
+    std::vector<std::pair<Vec3, Vec3>> kept;
+    int lit = 0, dark = 0;
     // Each node stands for the part of the cell its weight covers: an emission texture is
     // averaged over that part (exact for the integral where the geometric factor is constant).
     const std::vector<double>& edge = cell_edges_;
@@ -176,11 +182,24 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             ++rays;
             if (stop <= 0) continue;
             const double pass = caster_.transmittance(origin, segment, 0.0, stop);  // 0: shadowed; < 1: through panes
+            ++(pass > 0 ? lit : dark);
             if (pass <= 0) continue;
             const double w = cell_rule_.weights[p] * cell_rule_.weights[k] * ds * dt;
             const Vec3 Le = light.emission_over(s0 + ds * edge[p], s0 + ds * edge[p + 1], t0 + dt * edge[k], t0 + dt * edge[k + 1]);
-            visit(d / len, Le * (pass * cone * w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian));
+            const Vec3 value = Le * (pass * cone * w * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian);
+            if (shadow_split) kept.emplace_back(d / len, value);
+            else visit(d / len, value);
         }
+    if (!shadow_split) return;
+    if (lit && dark) {
+        const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
+        emitter_cell(r, emitter, light, s0, sm, t0, tm, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, sm, s1, t0, tm, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, s0, sm, tm, t1, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, sm, s1, tm, t1, depth + 1, ratio, sides, visit, rays);
+        return;
+    }
+    for (const auto& [wi, value] : kept) visit(wi, value);
 }
 
 template <typename Visit>
@@ -251,6 +270,31 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
         return h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel,
                            h->tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
     }, out, rays);
+}
+
+bool Gatherer::enclosed(const SurfacePoint& p, int side, const std::vector<const Receiver*>& receiver_of,
+                        size_t& rays) const {
+    const Vec3 n = side == 0 ? p.frame.z : -p.frame.z;
+    // 4 x 4 cosine-weighted cells and the normal: a node beside the block sees its lit outside
+    // (or the room) along most of them, one under it along none.
+    constexpr int kCells = 4;
+    for (int c = 0; c <= kCells * kCells; ++c) {
+        Vec3 local{0, 0, 1};
+        if (c < kCells * kCells) {
+            const double s2 = (c / kCells + 0.5) / kCells, phi = 2 * kPi * (c % kCells + 0.5) / kCells;
+            const double sin_t = std::sqrt(s2);
+            local = {sin_t * std::cos(phi), sin_t * std::sin(phi), std::sqrt(1 - s2)};
+        }
+        if (side == 1) local.z = -local.z;
+        const Vec3 dir = p.frame.to_world(local);
+        ++rays;
+        const SurfaceHit hit = caster_.closest_hit(caster_.spawn(p.p, n, dir), dir);
+        if (hit.surface < 0 || caster_.pane(hit.surface) || scene_[hit.surface].material.emits()) return false;
+        const int seen = dot(dir, hit.frame.z) < 0 ? 0 : 1;
+        const Receiver* h = receiver_of[hit.surface];
+        if (h && h->solves(seen)) return false;
+    }
+    return true;
 }
 
 void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "bsgi/discontinuities.h"
 #include "bsgi/gather.h"
 #include "bsgi/parallel.h"
 #include "bsgi/sides.h"
@@ -40,6 +41,7 @@ void validate(const SolverSettings& s) {
     need(s.spatial_coeffs <= 4096 && s.angular_coeffs_max <= 4096, "spatial_coeffs and angular_coeffs_max must be at most 4096");
     need(s.emitter_degree >= 0 && s.emitter_degree <= 3, "emitter_degree must be in 0..3");
     need(s.emitter_max_depth >= 0 && s.emitter_max_depth <= 20, "emitter_max_depth must be in 0..20");
+    need(s.emitter_shadow_depth >= 0 && s.emitter_shadow_depth <= 12, "emitter_shadow_depth must be in 0..12");
     need(s.emitter_cell_ratio > 0, "emitter_cell_ratio must be > 0");
     need(s.hemisphere_nodes_theta >= 1 && s.hemisphere_nodes_phi >= 1, "hemisphere nodes must be >= 1");
     need(s.hemisphere_nodes_theta <= 1024 && s.hemisphere_nodes_phi <= 1024, "hemisphere nodes must be at most 1024");
@@ -263,12 +265,11 @@ KnotVector equidistributed_knots(const std::vector<double>& density, int num_coe
 // differences along u (v), which concentrates them at shadow edges and contact lines. A quarter
 // of the density stays uniform and no span gets narrower than about an eighth of the uniform
 // one, so smooth light keeps near-uniform knots.
-std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const Scene& scene, const Plan& p,
-                                                 const SolverSettings& settings, size_t& rays) {
-    const int d = settings.spatial_degree;
+// detail_density: the probe's densities along u and v on equal cells of [eps, 1 - eps] (empty
+// where the light is flat or dark: uniform), which adaptive_knots equidistributes.
+std::array<std::vector<double>, 2> detail_density(const Gatherer& gather, const Scene& scene, const Plan& p,
+                                                  const SolverSettings& settings, size_t& rays) {
     const double a = settings.epsilon, b = 1 - settings.epsilon;
-    const KnotVector uniform_u = KnotVector::clamped_uniform(p.nu, d, a, b);
-    const KnotVector uniform_v = KnotVector::clamped_uniform(p.nv, d, a, b);
     const int pu = 2 * p.nu + 1, pv = 2 * p.nv + 1;
     std::vector<double> f(size_t(pu) * pv);
     double fmax = 0;
@@ -280,7 +281,7 @@ std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const S
                                              rays, p.live);
             fmax = std::max(fmax, f[size_t(i) * pv + j] = e.x + e.y + e.z);
         }
-    if (!(fmax > 0)) return {uniform_u, uniform_v};
+    if (!(fmax > 0)) return {};
     auto density_along = [&](bool along_u) {
         const int n = along_u ? pu : pv, m = along_u ? pv : pu;
         std::vector<double> second(n, 0.0);
@@ -293,12 +294,50 @@ std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const S
         double mean = 0;
         for (int k = 0; k + 1 < n; ++k) mean += density[k] = std::sqrt(0.5 * (second[k] + second[k + 1]));
         mean /= n - 1;
-        if (!(mean > 1e-6)) return std::vector<double>(n - 1, 1.0);
+        if (!(mean > 1e-6)) return std::vector<double>{};
         for (double& x : density) x = std::min(0.25 + 0.75 * x / mean, 8.0);
         return density;
     };
-    return {p.nu > d + 1 ? equidistributed_knots(density_along(true), p.nu, d, a, b) : uniform_u,
-            p.nv > d + 1 ? equidistributed_knots(density_along(false), p.nv, d, a, b) : uniform_v};
+    return {density_along(true), density_along(false)};
+}
+
+std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const Scene& scene, const Plan& p,
+                                                 const SolverSettings& settings, size_t& rays) {
+    const int d = settings.spatial_degree;
+    const double a = settings.epsilon, b = 1 - settings.epsilon;
+    const auto density = detail_density(gather, scene, p, settings, rays);
+    auto along = [&](int n, const std::vector<double>& f) {
+        return n > d + 1 && !f.empty() ? equidistributed_knots(f, n, d, a, b) : KnotVector::clamped_uniform(n, d, a, b);
+    };
+    return {along(p.nu, density[0]), along(p.nv, density[1])};
+}
+
+// Knots on the lines where the direct light is not smooth (discontinuities.h), the others spread
+// uniformly or, with adaptive_knots, by the probe's density; what was found goes into the
+// plan's reason.
+std::pair<KnotVector, KnotVector> knots_at_discontinuities(const DiscontinuityFinder& finder, const Gatherer& gather,
+                                                           const Scene& scene, Plan& p, const SolverSettings& settings,
+                                                           size_t& rays) {
+    const int d = settings.spatial_degree;
+    const double a = settings.epsilon, b = 1 - settings.epsilon;
+    // A segment is a parameter line if it stays within a tenth of a span of one.
+    const std::array<double, 2> tolerance{0.1 * (b - a) / std::max(p.nu - d, 1), 0.1 * (b - a) / std::max(p.nv - d, 1)};
+    const ReceiverDiscontinuities found = finder.find(p.surface, p.live, tolerance);
+    std::array<std::vector<double>, 2> density;
+    if (settings.adaptive_knots) density = detail_density(gather, scene, p, settings, rays);
+    std::array<int, 2> placed{0, 0};
+    const KnotVector ku = discontinuity_knots(found.lines[0], p.nu, d, a, b, density[0], placed[0]);
+    const KnotVector kv = discontinuity_knots(found.lines[1], p.nv, d, a, b, density[1], placed[1]);
+    std::ostringstream why;
+    why << "; discontinuity knots: ";
+    if (!found.planar) why << found.note;
+    else {
+        why << placed[0] << " lines in u, " << placed[1] << " in v";
+        if (found.oblique) why << ", " << found.oblique << " oblique event segments left to " << (settings.adaptive_knots ? "the probe" : "uniform knots");
+        if (!found.note.empty()) why << "; " << found.note;
+    }
+    p.reason += why.str();
+    return {ku, kv};
 }
 
 // The spatial coefficients per direction a surface's direct light asks for, where its size
@@ -355,6 +394,22 @@ std::vector<std::array<int, 2>> detail_of_scene(const Gatherer& gather, const Sc
     return detail;
 }
 
+// Schoenberg nodes (12), except that at a knot of multiplicity degree + 1 (a jump) the two
+// nodes that fall on it sample the light just before and just after it: the basis function
+// ending there takes the left limit, the one starting there the right limit.
+std::vector<double> nodes_beside_jumps(const KnotVector& k) {
+    std::vector<double> nodes = k.schoenberg_nodes();
+    for (size_t i = 0; i + 1 < nodes.size(); ++i)
+        if (nodes[i] == nodes[i + 1] && k.degree() > 0) {
+            const double t = nodes[i];
+            const auto& knots = k.knots();
+            const auto lo = std::lower_bound(knots.begin(), knots.end(), t), hi = std::upper_bound(knots.begin(), knots.end(), t);
+            const double left = lo == knots.begin() ? 0 : t - *(lo - 1), right = hi == knots.end() ? 0 : *hi - t;
+            nodes[i] = t - 1e-3 * left, nodes[i + 1] = t + 1e-3 * right;
+        }
+    return nodes;
+}
+
 // `bounces`: the receiver gathers bounces (L, Ltmp); a final gather's receiver holds Le only.
 Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, const KnotVector& kv,
                        const SolverSettings& s, bool bounces) {
@@ -395,9 +450,58 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     }
     r.axes = axes;
     const Surface& surface = *scene[p.surface].surface;
-    for (double u : ku.schoenberg_nodes())
-        for (double v : kv.schoenberg_nodes()) r.nodes.push_back(surface.evaluate(u, v));
+    const std::vector<double> nu = nodes_beside_jumps(ku), nv = nodes_beside_jumps(kv);
+    for (double u : nu)
+        for (double v : nv) r.nodes.push_back(surface.evaluate(u, v));
     return r;
+}
+
+// Moves each node that a solved side sees only as the inside of closed, unlit meshes (under a
+// block resting on the surface) to the nearest point of the surface that is seen: the nearest
+// seen node in (u, v), then bisection towards it down to 1/64 of the way (the contact line).
+// A surface hidden everywhere keeps its nodes.
+void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, const Gatherer& gather,
+                       const std::vector<const Receiver*>& receiver_of, const SolverSettings& settings, Progress& progress,
+                       size_t& rays) {
+    if (!settings.hidden_nodes_to_contact) return;
+    std::atomic<size_t> probe_rays{0};
+    parallel_for(receivers.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+        size_t local = 0;
+        for (size_t k = begin; k < end; ++k) {
+            Receiver& r = receivers[k];
+            const Surface& surface = *scene[r.surface].surface;
+            // Hidden on one side is enough: the other side's light (an open floor's underside lit
+            // by the sky) has no edge there, and is sampled a little aside.
+            auto hidden = [&](const SurfacePoint& p) {
+                for (int side = 0; side < r.sides; ++side)
+                    if (r.solves(side) && gather.enclosed(p, side, receiver_of, local)) return true;
+                return false;
+            };
+            const std::vector<double> us = r.axes[0].schoenberg_nodes(), vs = r.axes[1].schoenberg_nodes();
+            std::vector<uint8_t> is_hidden(r.nodes.size());
+            size_t count = 0;
+            for (size_t j = 0; j < r.nodes.size(); ++j) count += is_hidden[j] = hidden(r.nodes[j]);
+            if (count == 0 || count == r.nodes.size()) continue;
+            const size_t nv = vs.size();
+            for (size_t j = 0; j < r.nodes.size(); ++j) {
+                if (!is_hidden[j]) continue;
+                double u0 = us[j / nv], v0 = vs[j % nv], best = 1e300, u1 = u0, v1 = v0;
+                for (size_t i = 0; i < r.nodes.size(); ++i) {
+                    const double du = us[i / nv] - u0, dv = vs[i % nv] - v0;
+                    if (!is_hidden[i] && du * du + dv * dv < best) best = du * du + dv * dv, u1 = us[i / nv], v1 = vs[i % nv];
+                }
+                for (int step = 0; step < 6; ++step) {  // (u0, v0) hidden, (u1, v1) seen
+                    const double um = 0.5 * (u0 + u1), vm = 0.5 * (v0 + v1);
+                    if (hidden(surface.evaluate(um, vm))) u0 = um, v0 = vm;
+                    else u1 = um, v1 = vm;
+                }
+                r.nodes[j] = surface.evaluate(u1, v1);
+            }
+        }
+        probe_rays += local;
+    }, progress.cancel_flag());
+    progress.throw_if_cancelled();
+    rays += probe_rays;
 }
 
 // Runs `work(receiver, node, values)` for every node of receivers [begin, end) on all threads
@@ -437,7 +541,7 @@ size_t node_count(const std::vector<Receiver>& receivers) {
     return n;
 }
 
-std::vector<Receiver> build_receivers(const Scene& scene, const std::vector<Plan>& plans, const Gatherer& gather,
+std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& plans, const Gatherer& gather,
                                       const SolverSettings& settings, bool adaptive, Progress& progress, size_t& rays,
                                       bool bounces = true) {
     const double a = settings.epsilon, b = 1 - settings.epsilon;
@@ -445,11 +549,15 @@ std::vector<Receiver> build_receivers(const Scene& scene, const std::vector<Plan
     for (const Plan& p : plans)
         knots.emplace_back(KnotVector::clamped_uniform(p.nu, settings.spatial_degree, a, b),
                            KnotVector::clamped_uniform(p.nv, settings.spatial_degree, a, b));
-    if (adaptive) {
+    std::optional<DiscontinuityFinder> finder;
+    if (settings.discontinuity_knots) finder.emplace(scene);
+    if (adaptive || finder) {
         std::atomic<size_t> probe_rays{0};
         parallel_for(plans.size(), 1, settings.threads, [&](size_t begin, size_t end) {
             size_t local = 0;
-            for (size_t k = begin; k < end; ++k) knots[k] = adaptive_knots(gather, scene, plans[k], settings, local);
+            for (size_t k = begin; k < end; ++k)
+                knots[k] = finder ? knots_at_discontinuities(*finder, gather, scene, plans[k], settings, local)
+                                  : adaptive_knots(gather, scene, plans[k], settings, local);
             probe_rays += local;
         }, progress.cancel_flag());
         progress.throw_if_cancelled();
@@ -768,6 +876,7 @@ struct SolveSteps::State {
         progress.begin_stage("placing knots", 0, stages, 1);
         receivers = build_receivers(scene, plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
         receiver_of = index_by_surface(scene, receivers);
+        move_hidden_nodes(receivers, scene, *gather, receiver_of, settings, progress, knot_rays);
         rows.resize(receivers.size());
         rows_done.assign(receivers.size(), 0);
     }
@@ -780,6 +889,7 @@ struct SolveSteps::State {
     void build_finals(Progress& progress) {
         if (finals_built || !settings.final_gather) return;
         finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays, false);
+        move_hidden_nodes(finals, scene, *gather, receiver_of, settings, progress, knot_rays);
         finals_built = true;
     }
 

@@ -250,3 +250,20 @@ def test_pointwise_callback_fit_matches_the_vectorised_one():
         bsgi.fit(bsgi.TensorSpline(axes, 2), lambda x: np.zeros(3), "quadratic", vectorized=False)
     with pytest.raises(ZeroDivisionError):
         bsgi.fit(bsgi.TensorSpline(axes, 2), lambda x: 1 / 0, "schoenberg", vectorized=False)
+
+
+@pytest.mark.parametrize("method", ["schoenberg", "quadratic"])
+def test_a_kink_on_a_double_knot_is_reproduced(method):
+    # The discontinuity knots of a D1 line (solver, discontinuities.h): a quadratic spline with a
+    # double knot at the kink is C0 there, so a function with a kink on it is in its space.
+    # Schoenberg reproduces piecewise linear functions, the quasi-interpolant piecewise quadratics.
+    t = 0.37
+    k = bsgi.KnotVector([0, 0, 0, 0.1, 0.2, 0.3, t, t, 0.5, 0.7, 0.85, 1, 1, 1], 2)
+    if method == "schoenberg":
+        f = lambda x: np.where(x < t, 1 + 2 * x, 1 + 2 * t - 3 * (x - t))
+    else:
+        f = lambda x: np.where(x < t, 1 + 2 * x - x * x, 1 + 2 * t - t * t + 5 * (x - t) ** 2 - 3 * (x - t))
+    assert max_error(fit_1d(k, f, method), f) < 1e-12
+    # On single knots near it the kink is smoothed over a span: the double knot is what buys it.
+    near = bsgi.KnotVector([0, 0, 0, 0.1, 0.2, 0.3, t - 0.02, t + 0.02, 0.5, 0.7, 0.85, 1, 1, 1], 2)
+    assert max_error(fit_1d(near, f, method), f) > 1e-3

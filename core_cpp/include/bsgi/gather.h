@@ -107,6 +107,9 @@ public:
     // not every bounce.
     void transport_row(const Receiver& r, int side, size_t j, const std::vector<const Receiver*>& receiver_of,
                        std::vector<TransportTerm>& row, size_t& rays) const;
+    // Whether every one of a few directions over `side`'s hemisphere at p ends on a side of a
+    // surface that is neither solved nor emitting (the inside of a closed, unlit mesh).
+    bool enclosed(const SurfacePoint& p, int side, const std::vector<const Receiver*>& receiver_of, size_t& rays) const;
     // Direct irradiance at a point on the given sides (for probing where the light has detail).
     Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays, std::array<bool, 2> sides = {true, false}) const;
 

@@ -34,6 +34,16 @@ struct SolverSettings {
     // Knots clustered where the direct light has detail (shadow edges, contact lines) instead
     // of uniform: costs a probe of the direct light on a (2n+1)^2 grid per surface.
     bool adaptive_knots = false;
+    // A node that sees only the unlit inside of a closed mesh (a floor under a block resting on
+    // it) gathers instead at the nearest point of its surface that is seen, on the contact line:
+    // the hidden 0 no longer drags the spline down across the line, and the light at the line
+    // (darkened by the contact, or nearly 0 in a crevice) is what the spline takes there.
+    bool hidden_nodes_to_contact = true;
+    // Knots on the lines where the direct light is not smooth, found from the polygonal emitters'
+    // and occluders' geometry (discontinuities.h: EV and VE events, contact lines) where they
+    // are parameter lines of a planar receiver, with the multiplicity of their order; the other
+    // knots spread between them (by the probe's density with adaptive_knots).
+    bool discontinuity_knots = false;
 
     // Angular representation of glossy surfaces: knots (24) on [-R, R] in alpha and beta,
     // R = sqrt(1 - sin delta) so directions reach theta = pi/2 - delta. The count per direction
@@ -53,6 +63,9 @@ struct SolverSettings {
     int emitter_degree = 2;
     double emitter_cell_ratio = 1.0;
     int emitter_max_depth = 16;
+    // A cell whose nodes the receiver sees partly shadowed is split in four while it is, down
+    // to this depth (0: never): the visible part of an emitter in a penumbra is resolved there.
+    int emitter_shadow_depth = 0;
 
     // Hemispherical integral (26)-(32): cosine-weighted nodes in (cos^2 theta, phi); glossy
     // receivers add bsdf_samples stratified BSDF-sampled directions per outgoing direction,

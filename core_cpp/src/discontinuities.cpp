@@ -1,0 +1,382 @@
+#include "bsgi/discontinuities.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <sstream>
+
+namespace bsgi {
+
+// A polygonal surface as its feature edges: boundary edges and creases of its tessellation,
+// collinear runs merged, so a quad is its four sides whatever its triangles.
+struct DiscontinuityFinder::Polygonal {
+    std::vector<Vec3> vertices;                  // the corners: ends of the merged edges
+    std::vector<std::array<int, 2>> edges;       // into vertices
+    std::vector<std::vector<Vec3>> edge_faces;   // unit normals of the faces along each edge
+    std::vector<std::vector<int>> edges_at;      // per vertex, its edges
+    Vec3 normal{0, 0, 0};                        // of a planar one (zero if not planar)
+    bool planar = false;
+};
+
+namespace {
+
+using Poly = DiscontinuityFinder::Polygonal;
+
+bool parallel(const Vec3& a, const Vec3& b) {
+    return length(cross(a, b)) <= 1e-6 * length(a) * length(b);
+}
+
+// The feature edges of a surface's tessellation, or none if it is curved or has too many.
+Poly polygonal_of(const Surface& surface) {
+    Poly poly;
+    const Tessellation t = surface.tessellate();
+    const size_t nv = t.positions.size() / 3;
+    if (nv < 3 || t.triangles.empty()) return poly;
+    // Vertices are unified by position: tessellations may repeat them along seams.
+    const double q = 1e-9 * std::max(surface.size(), 1e-300);
+    std::map<std::array<long long, 3>, int> ids;
+    std::vector<int> id(nv);
+    std::vector<Vec3> pos;
+    for (size_t i = 0; i < nv; ++i) {
+        const Vec3 p{t.positions[3 * i], t.positions[3 * i + 1], t.positions[3 * i + 2]};
+        const std::array<long long, 3> key{std::llround(p.x / q), std::llround(p.y / q), std::llround(p.z / q)};
+        auto [it, fresh] = ids.emplace(key, int(pos.size()));
+        if (fresh) pos.push_back(p);
+        id[i] = it->second;
+    }
+    // A curved (non-polygonal) surface: its tessellation only approximates it.
+    Vec3 plane_n{0, 0, 0};
+    std::map<std::pair<int, int>, std::vector<Vec3>> faces;
+    for (size_t k = 0; k + 2 < t.triangles.size(); k += 3) {
+        const int a = id[t.triangles[k]], b = id[t.triangles[k + 1]], c = id[t.triangles[k + 2]];
+        const Vec3 n = cross(pos[b] - pos[a], pos[c] - pos[a]);
+        if (!(length(n) > 0)) continue;
+        const Vec3 un = normalize(n);
+        plane_n = plane_n + n;
+        for (auto [x, y] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) faces[{std::min(x, y), std::max(x, y)}].push_back(un);
+    }
+    if (!(length(plane_n) > 0)) return poly;
+    plane_n = normalize(plane_n);
+    poly.planar = true;
+    for (const Vec3& p : pos) poly.planar = poly.planar && std::abs(dot(p - pos[0], plane_n)) <= 1e-9 * surface.size();
+    if (!poly.planar && !surface.tessellation_is_exact()) return poly;
+    // Feature edges: on the boundary, or between faces that are not coplanar.
+    std::vector<std::pair<int, int>> kept;
+    std::vector<std::vector<Vec3>> kept_faces;
+    for (const auto& [e, normals] : faces) {
+        bool feature = normals.size() == 1;
+        for (const Vec3& n : normals) feature = feature || dot(n, normals[0]) < 1 - 1e-9;
+        if (feature) kept.push_back(e), kept_faces.push_back(normals);
+    }
+    // Merge collinear runs through vertices that join exactly two edges.
+    std::vector<std::vector<int>> at(pos.size());
+    for (size_t e = 0; e < kept.size(); ++e) at[kept[e].first].push_back(int(e)), at[kept[e].second].push_back(int(e));
+    std::vector<char> used(kept.size(), 0);
+    auto other = [&](int e, int v) { return kept[e].first == v ? kept[e].second : kept[e].first; };
+    auto passes = [&](int v, int e) {  // the run goes on through v past edge e
+        if (at[v].size() != 2) return -1;
+        const int f = at[v][0] == e ? at[v][1] : at[v][0];
+        return parallel(pos[other(e, v)] - pos[v], pos[other(f, v)] - pos[v]) && !used[f] ? f : -1;
+    };
+    std::map<int, int> corner;
+    auto corner_of = [&](int v) {
+        auto [it, fresh] = corner.emplace(v, int(poly.vertices.size()));
+        if (fresh) poly.vertices.push_back(pos[v]), poly.edges_at.emplace_back();
+        return it->second;
+    };
+    for (size_t e0 = 0; e0 < kept.size(); ++e0) {
+        if (used[e0]) continue;
+        used[e0] = 1;
+        std::vector<Vec3> normals = kept_faces[e0];
+        int ends[2] = {kept[e0].first, kept[e0].second};
+        for (int side = 0; side < 2; ++side) {
+            int e = int(e0), v = ends[side];
+            for (int f; (f = passes(v, e)) >= 0 && f != int(e0);) {
+                used[f] = 1;
+                v = other(f, v), e = f;
+            }
+            ends[side] = v;
+        }
+        if (ends[0] == ends[1]) continue;  // a closed collinear loop cannot be
+        const int a = corner_of(ends[0]), b = corner_of(ends[1]);
+        poly.edges_at[a].push_back(int(poly.edges.size()));
+        poly.edges_at[b].push_back(int(poly.edges.size()));
+        poly.edges.push_back({a, b});
+        poly.edge_faces.push_back(normals);
+        if (poly.edges.size() > size_t(DiscontinuityFinder::kMaxEdges)) return Poly{};
+    }
+    poly.normal = poly.planar ? plane_n : Vec3{0, 0, 0};
+    return poly;
+}
+
+// The receiver as a plane with an affine parametrization s(u, v) = o + u du + v dv.
+struct Affine {
+    Vec3 o, du, dv, n;
+    double gram_inv[2][2];
+    std::array<double, 2> uv(const Vec3& p) const {
+        const Vec3 d = p - o;
+        const double a = dot(d, du), b = dot(d, dv);
+        return {gram_inv[0][0] * a + gram_inv[0][1] * b, gram_inv[1][0] * a + gram_inv[1][1] * b};
+    }
+};
+
+bool affine_of(const Surface& s, Affine& A) {
+    A.o = s.evaluate(0, 0).p;
+    A.du = s.evaluate(1, 0).p - A.o;
+    A.dv = s.evaluate(0, 1).p - A.o;
+    const Vec3 n = cross(A.du, A.dv);
+    if (!(length(n) > 1e-12 * s.size() * s.size())) return false;
+    A.n = normalize(n);
+    for (int i = 0; i <= 4; ++i)
+        for (int j = 0; j <= 4; ++j) {
+            const double u = i / 4.0, v = j / 4.0;
+            if (length(s.evaluate(u, v).p - (A.o + u * A.du + v * A.dv)) > 1e-9 * s.size()) return false;
+        }
+    const double g00 = dot(A.du, A.du), g01 = dot(A.du, A.dv), g11 = dot(A.dv, A.dv), det = g00 * g11 - g01 * g01;
+    A.gram_inv[0][0] = g11 / det, A.gram_inv[0][1] = -g01 / det, A.gram_inv[1][0] = -g01 / det, A.gram_inv[1][1] = g00 / det;
+    return true;
+}
+
+// Clips the segment a-b in (u, v) to the unit square (Liang-Barsky); false if it misses it.
+bool clip_unit(std::array<double, 2>& a, std::array<double, 2>& b) {
+    double t0 = 0, t1 = 1;
+    for (int k = 0; k < 2; ++k) {
+        const double d = b[k] - a[k];
+        for (double bound : {0.0, 1.0}) {
+            const double p = bound == 0.0 ? -d : d, r = bound == 0.0 ? a[k] : 1 - a[k];
+            if (p == 0) {
+                if (r < 0) return false;
+                continue;
+            }
+            const double t = r / p;
+            if (p < 0) t0 = std::max(t0, t);
+            else t1 = std::min(t1, t);
+        }
+    }
+    if (t0 > t1) return false;
+    const std::array<double, 2> a0 = a;
+    for (int k = 0; k < 2; ++k) a[k] = a0[k] + t0 * (b[k] - a0[k]), b[k] = a0[k] + t1 * (b[k] - a0[k]);
+    return true;
+}
+
+}  // namespace
+
+DiscontinuityFinder::DiscontinuityFinder(const Scene& scene) : scene_(&scene) {
+    polys_.resize(scene.size());
+    for (size_t i = 0; i < scene.size(); ++i)
+        if (scene[i].occluder || scene[i].material.emits()) polys_[i] = polygonal_of(*scene[i].surface);
+}
+
+DiscontinuityFinder::~DiscontinuityFinder() = default;
+DiscontinuityFinder::DiscontinuityFinder(DiscontinuityFinder&&) noexcept = default;
+
+ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 2> live, std::array<double, 2> tolerance) const {
+    const Scene& scene = *scene_;
+    ReceiverDiscontinuities out;
+    Affine A;
+    if (!affine_of(*scene[surface].surface, A)) {
+        out.note = "not a plane with affine (u, v): discontinuities left to the probe";
+        return out;
+    }
+    out.planar = true;
+    const double size = scene[surface].surface->size(), flat = 1e-7 * size;
+    auto height = [&](const Vec3& p) { return dot(p - A.o, A.n); };
+    auto on_live_side = [&](double h) { return (h > flat && live[0]) || (h < -flat && live[1]); };
+    // Adds the segment a-b of the receiver's plane as a line of the given order, if it is one.
+    auto add = [&](const Vec3& a, const Vec3& b, int order) {
+        std::array<double, 2> p = A.uv(a), q = A.uv(b);
+        if (!clip_unit(p, q)) return;
+        if (std::abs(p[0] - q[0]) + std::abs(p[1] - q[1]) < 1e-9) return;  // a point
+        bool along = false;
+        for (int k = 0; k < 2; ++k)
+            if (std::abs(p[k] - q[k]) <= tolerance[k] && std::abs(p[1 - k] - q[1 - k]) > tolerance[1 - k]) {
+                out.lines[k].push_back({0.5 * (p[k] + q[k]), order});
+                along = true;
+            }
+        out.oblique += !along;
+    };
+    // Contact lines: an occluder's feature edge on the receiver's plane with a face leaving it.
+    for (size_t o = 0; o < scene.size(); ++o) {
+        const Poly& P = polys_[o];
+        if (int(o) == surface || !scene[o].occluder || P.edges.empty()) continue;
+        for (size_t e = 0; e < P.edges.size(); ++e) {
+            const Vec3 &a = P.vertices[P.edges[e][0]], &b = P.vertices[P.edges[e][1]];
+            if (std::abs(height(a)) > flat || std::abs(height(b)) > flat) continue;
+            bool leaves = false;
+            for (const Vec3& n : P.edge_faces[e]) leaves = leaves || std::abs(dot(n, A.n)) < 1 - 1e-9;
+            if (leaves) add(a, b, 0);
+        }
+    }
+    // Occluders that can stand between the receiver and an emitter, nearest first.
+    size_t pairs = 0;
+    int skipped = 0;
+    for (size_t em = 0; em < scene.size(); ++em) {
+        const Poly& E = polys_[em];
+        if (int(em) == surface || !scene[em].material.emits()) continue;
+        if (E.edges.empty()) {
+            if (out.note.empty()) out.note = "emitter '" + scene[em].surface->name() + "' is curved: its shadows left to the probe";
+            continue;
+        }
+        double reach = 0;  // the emitter's farthest vertex on a live side
+        for (const Vec3& v : E.vertices)
+            if (on_live_side(height(v))) reach = std::max(reach, std::abs(height(v)));
+        if (!(reach > 0)) continue;
+        const bool one_sided = E.planar && !scene[em].material.two_sided_emission;
+        std::vector<std::pair<double, size_t>> between;
+        for (size_t o = 0; o < scene.size(); ++o) {
+            const Poly& P = polys_[o];
+            if (int(o) == surface || o == em || !scene[o].occluder || P.edges.empty()) continue;
+            bool near = false, front = !one_sided;
+            double closest = 1e300;
+            for (const Vec3& v : P.vertices) {
+                const double h = height(v);
+                near = near || (std::abs(h) < reach && (std::abs(h) <= flat || on_live_side(h)));
+                if (one_sided) front = front || dot(v - E.vertices[0], E.normal) > flat;
+                closest = std::min(closest, std::abs(h));
+            }
+            if (near && front) between.emplace_back(closest, o);
+        }
+        std::sort(between.begin(), between.end());
+        // The point x seen from y, projected onto the receiver's plane (x between y and it).
+        auto project = [&](const Vec3& y, const Vec3& x, Vec3& out_p) {
+            const double hy = height(y), hx = height(x);
+            if (!on_live_side(hy) || std::abs(hx) >= std::abs(hy) || (std::abs(hx) > flat && hx * hy < 0)) return false;
+            out_p = y + (x - y) * (hy / (hy - hx));
+            return true;
+        };
+        // Whether the occluder's shadow can reach the surface: the box of its vertices seen from
+        // the emitter's vertices, in (u, v), meets the unit square (kept when a vertex does not
+        // project, e.g. one above an emitter vertex's height).
+        auto shadow_reaches = [&](const Poly& P) {
+            double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+            for (const Vec3& y : E.vertices)
+                for (const Vec3& x : P.vertices) {
+                    Vec3 q;
+                    if (!project(y, x, q)) return true;
+                    const auto uv = A.uv(q);
+                    for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], uv[k]), hi[k] = std::max(hi[k], uv[k]);
+                }
+            return lo[0] <= 1 + tolerance[0] && hi[0] >= -tolerance[0] && lo[1] <= 1 + tolerance[1] && hi[1] >= -tolerance[1];
+        };
+        for (const auto& [unused, o] : between) {
+            const Poly& P = polys_[o];
+            if (!shadow_reaches(P)) continue;
+            const size_t cost = E.vertices.size() * P.edges.size() + P.vertices.size() * E.edges.size();
+            if (pairs + cost > kMaxPairs) {
+                ++skipped;
+                continue;
+            }
+            pairs += cost;
+            // EV: an emitter vertex and an occluder edge; a kink where an emitter edge at the
+            // vertex is parallel to the occluder edge (the whole emitter edge then meets it).
+            for (size_t v = 0; v < E.vertices.size(); ++v)
+                for (const auto& e : P.edges) {
+                    Vec3 a, b;
+                    if (!project(E.vertices[v], P.vertices[e[0]], a) || !project(E.vertices[v], P.vertices[e[1]], b)) continue;
+                    int order = 2;
+                    for (int f : E.edges_at[v])
+                        if (parallel(E.vertices[E.edges[f][1]] - E.vertices[E.edges[f][0]], P.vertices[e[1]] - P.vertices[e[0]])) order = 1;
+                    add(a, b, order);
+                }
+            // VE: an occluder vertex and an emitter edge.
+            for (size_t w = 0; w < P.vertices.size(); ++w)
+                for (const auto& e : E.edges) {
+                    Vec3 a, b;
+                    if (std::abs(height(P.vertices[w])) <= flat) continue;  // on the receiver: the contact line's end
+                    if (!project(E.vertices[e[0]], P.vertices[w], a) || !project(E.vertices[e[1]], P.vertices[w], b)) continue;
+                    int order = 2;
+                    for (int f : P.edges_at[w])
+                        if (parallel(P.vertices[P.edges[f][1]] - P.vertices[P.edges[f][0]], E.vertices[e[1]] - E.vertices[e[0]])) order = 1;
+                    add(a, b, order);
+                }
+        }
+    }
+    if (skipped) {
+        std::ostringstream why;
+        why << (out.note.empty() ? "" : out.note + "; ") << skipped << " farther occluders not searched (over " << kMaxPairs
+            << " vertex-edge pairs)";
+        out.note = why.str();
+    }
+    return out;
+}
+
+KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coeffs, int degree, double a, double b,
+                               const std::vector<double>& density, int& placed) {
+    placed = 0;
+    const int inner = num_coeffs - degree - 1;
+    const double span = (b - a) / std::max(inner + 1, 1);
+    // Lines at the ends are the clamped ends' knots already; close ones are one line.
+    std::sort(lines.begin(), lines.end(), [](const DiscontinuityLine& x, const DiscontinuityLine& y) { return x.position < y.position; });
+    std::vector<DiscontinuityLine> merged;
+    for (const DiscontinuityLine& l : lines) {
+        if (!(l.position > a + 0.2 * span && l.position < b - 0.2 * span)) continue;
+        if (!merged.empty() && l.position - merged.back().position < 0.2 * span)
+            merged.back().order = std::min(merged.back().order, l.order);
+        else
+            merged.push_back(l);
+    }
+    // At most half the inner knots go to lines, the lowest orders (the strongest) first.
+    std::vector<size_t> by_order(merged.size());
+    std::iota(by_order.begin(), by_order.end(), 0);
+    std::stable_sort(by_order.begin(), by_order.end(), [&](size_t x, size_t y) { return merged[x].order < merged[y].order; });
+    std::vector<std::pair<double, int>> fixed;  // position, multiplicity
+    int used = 0;
+    for (size_t k : by_order) {
+        // Only where the light is less smooth than the spline between knots (C^(degree-1)): a
+        // D2 line under a quadratic changes the error's constant, not its order, and its knot
+        // is better spent by the probe.
+        const int m = degree + 1 - merged[k].order;
+        if (merged[k].order >= std::max(degree, 1) || used + m > inner / 2) continue;
+        fixed.emplace_back(merged[k].position, m);
+        used += m;
+        ++placed;
+    }
+    std::sort(fixed.begin(), fixed.end());
+    // The density's integral from a to x (uniform if none was given).
+    const size_t cells = density.size();
+    std::vector<double> cumulative(cells + 1, 0.0);
+    for (size_t k = 0; k < cells; ++k) cumulative[k + 1] = cumulative[k] + density[k];
+    auto mass = [&](double x) {
+        const double s = (x - a) / (b - a);
+        if (cells == 0) return s;
+        const double c = std::clamp(s * cells, 0.0, double(cells));
+        const size_t k = std::min(size_t(c), cells - 1);
+        return cumulative[k] + (c - k) * density[k];
+    };
+    auto inverse = [&](double target, double lo, double hi) {  // x in [lo, hi] with mass(x) = target
+        for (int it = 0; it < 60; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            (mass(mid) < target ? lo : hi) = mid;
+        }
+        return 0.5 * (lo + hi);
+    };
+    // The remaining knots go to the gaps by their share of the density (largest remainders).
+    std::vector<double> bounds{a};
+    for (const auto& f : fixed) bounds.push_back(f.first);
+    bounds.push_back(b);
+    const int rest = inner - used;
+    const size_t gaps = bounds.size() - 1;
+    const double total = mass(b) - mass(a);
+    std::vector<int> count(gaps, 0);
+    std::vector<std::pair<double, size_t>> remainder;
+    int given = 0;
+    for (size_t g = 0; g < gaps; ++g) {
+        const double share = rest * (mass(bounds[g + 1]) - mass(bounds[g])) / total;
+        count[g] = int(std::floor(share));
+        given += count[g];
+        remainder.emplace_back(share - count[g], g);
+    }
+    std::sort(remainder.rbegin(), remainder.rend());
+    for (int k = 0; k < rest - given; ++k) ++count[remainder[size_t(k) % gaps].second];
+    std::vector<double> t(degree + 1, a);
+    for (size_t g = 0; g < gaps; ++g) {
+        const double m0 = mass(bounds[g]), m1 = mass(bounds[g + 1]);
+        for (int j = 1; j <= count[g]; ++j) t.push_back(inverse(m0 + (m1 - m0) * j / (count[g] + 1), bounds[g], bounds[g + 1]));
+        if (g + 1 < gaps) t.insert(t.end(), fixed[g].second, fixed[g].first);
+    }
+    t.insert(t.end(), degree + 1, b);
+    return KnotVector(std::move(t), degree);
+}
+
+}  // namespace bsgi
