@@ -18,15 +18,16 @@ constexpr int kPoints = 6, kCells = kPoints * kPoints, kTheta = 6, kPhi = 12, kE
 // alone may have slipped through a crack between two patches (a box's edge).
 constexpr int kRaysToCarry = 2;
 
+constexpr int kNotChecked = -1, kLitDirectly = -2;
+
 // A probe ray's end on a receiver: the cell it lands in, numbered (surface * 2 + side) * kCells
-// + cell, and where.
+// + cell, and where. 24 bytes: a large scene's probe holds millions.
 struct Hit {
-    int cell;
     double u, v;
-    // Checked when needed: whether the point itself sees light directly (0 not checked yet, 1
-    // yes, 2 no), and the cells its own probe rays reach.
-    char direct = 0;
-    std::vector<int> sees;
+    int cell;
+    // Checked when needed: whether the point itself sees light directly (kLitDirectly), else
+    // the cells its own probe rays reach (an index into the probe's `sees`).
+    int checked = kNotChecked;
 };
 
 // What the centre of one cell of one side sees: light (an emitter, a distant light, the world)
@@ -125,15 +126,39 @@ std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, in
                 view.others |= hit.surface != i;
                 if (!scene[hit.surface].receiver) continue;
                 const int hit_side = dot(dir, hit.frame.z) < 0 ? 0 : 1;
-                view.hits.push_back({(2 * hit.surface + hit_side) * kCells + cell_of(hit.u, hit.v), hit.u, hit.v});
+                view.hits.push_back({hit.u, hit.v, (2 * hit.surface + hit_side) * kCells + cell_of(hit.u, hit.v)});
             }
+            // Only a cell not lit directly asks its hits whether they carry light: the others'
+            // would hold most of a large scene's probe memory for nothing.
+            if (!view.light.empty()) view.hits = {};
+            view.hits.shrink_to_fit();
         }
     return cells;
 }
 
+// What the probe holds at its end, its peak: the cells' views with their hits (and the cells
+// their ends see), and each cell's reason. A heap block costs its capacity and about 16 bytes.
+size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views, const std::vector<std::string>& why,
+                  const std::vector<std::vector<int>>& sees) {
+    constexpr size_t kBlock = 16;
+    auto string_bytes = [](const std::string& s) { return sizeof(std::string) + (s.capacity() > 15 ? s.capacity() + 1 + kBlock : 0); };
+    size_t bytes = views.size() * sizeof(views[0]) + why.size() * sizeof(char);  // and `lit`, a char a cell
+    for (const std::string& w : why) bytes += string_bytes(w);
+    bytes += sees.capacity() * sizeof(sees[0]);
+    for (const std::vector<int>& cells : sees) bytes += cells.capacity() * sizeof(int) + (cells.empty() ? 0 : kBlock);
+    for (const auto& surface : views)
+        for (const std::vector<CellView>& cells : surface) {
+            bytes += cells.capacity() * sizeof(CellView) + (cells.empty() ? 0 : kBlock);
+            for (const CellView& c : cells) {
+                bytes += string_bytes(c.light) - sizeof(std::string) + c.hits.capacity() * sizeof(Hit) + (c.hits.empty() ? 0 : kBlock);
+            }
+        }
+    return bytes;
+}
+
 }  // namespace
 
-std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings) {
+std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings, size_t* bytes) {
     const size_t n = scene.size();
     std::vector<SurfaceSides> out(n);
     std::vector<int> probed;  // both sides of every opaque receiver
@@ -181,24 +206,29 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             }
     // A ray's end carries light if its cell is lit and the point itself sees light directly or
     // sees a lit cell (a cell lit at its centre may be dark where the ray ends).
+    std::vector<std::vector<int>> sees;
     auto carries_light = [&](Hit& h) {
         if (!lit[h.cell]) return false;
         const int surface = h.cell / (2 * kCells), side = (h.cell / kCells) % 2;
-        if (!h.direct) {
+        if (h.checked == kNotChecked) {
             const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
-            h.direct = direct_light(scene, caster, surface, p, side, true).empty() ? 2 : 1;
-            if (h.direct == 2)
+            if (!direct_light(scene, caster, surface, p, side, true).empty()) {
+                h.checked = kLitDirectly;
+            } else {
+                h.checked = int(sees.size());
+                std::vector<int>& cells = sees.emplace_back();
                 for (int k = 0; k < kTheta * kPhi; ++k) {
                     const Vec3 dir = probe_direction(p, side, k, 0.5);
                     const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
                     if (hit.surface >= 0 && scene[hit.surface].receiver)
-                        h.sees.push_back((2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1)) * kCells +
-                                         cell_of(hit.u, hit.v));
+                        cells.push_back((2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1)) * kCells + cell_of(hit.u, hit.v));
                 }
+                cells.shrink_to_fit();
+            }
         }
-        if (h.direct == 1) return true;
+        if (h.checked == kLitDirectly) return true;
         int seen = 0;
-        for (int c : h.sees) seen += lit[c];
+        for (int c : sees[h.checked]) seen += lit[c];
         return seen >= kRaysToCarry;
     };
     for (bool changed = true; changed;) {
@@ -237,6 +267,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                                        ? "emits, but only into itself (the inside of a closed mesh)"
                                        : escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
         }
+    if (bytes) *bytes = held_bytes(views, why, sees);
     return out;
 }
 

@@ -411,8 +411,9 @@ std::vector<double> nodes_beside_jumps(const KnotVector& k) {
     return nodes;
 }
 
+// `bounces`: the receiver gathers bounces (L, Ltmp); a final gather's receiver holds Le only.
 Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, const KnotVector& kv,
-                       const SolverSettings& s) {
+                       const SolverSettings& s, bool bounces) {
     Receiver r;
     r.surface = p.surface;
     r.kind = p.kind;
@@ -444,6 +445,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     for (int side = 0; side < r.sides; ++side) {
         const std::vector<KnotVector>& a = r.live[side] ? axes : none;
         r.Le.emplace_back(a, 3);
+        if (!bounces) continue;
         r.L.emplace_back(a, 3);
         r.Ltmp.emplace_back(a, 3);
     }
@@ -541,7 +543,8 @@ size_t node_count(const std::vector<Receiver>& receivers) {
 }
 
 std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& plans, const Gatherer& gather,
-                                      const SolverSettings& settings, bool adaptive, Progress& progress, size_t& rays) {
+                                      const SolverSettings& settings, bool adaptive, Progress& progress, size_t& rays,
+                                      bool bounces = true) {
     const double a = settings.epsilon, b = 1 - settings.epsilon;
     std::vector<std::pair<KnotVector, KnotVector>> knots;
     for (const Plan& p : plans)
@@ -562,8 +565,9 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
         rays += probe_rays;
     }
     std::vector<Receiver> receivers;
+    receivers.reserve(plans.size());  // no copies of the nodes while growing
     for (size_t k = 0; k < plans.size(); ++k) {
-        receivers.push_back(make_receiver(scene, plans[k], knots[k].first, knots[k].second, settings));
+        receivers.push_back(make_receiver(scene, plans[k], knots[k].first, knots[k].second, settings, bounces));
         receivers.back().index = int(k);
     }
     for (size_t k = 0; k < plans.size(); ++k)
@@ -720,21 +724,32 @@ RayCaster ray_caster_of(const Scene& scene) {
     return RayCaster(occluders, panes);
 }
 
-// The bytes a solve of these plans (and final plans) allocates: splines, form-factor rows, rays.
+// The bytes a solve of these plans (and final plans) allocates after the sides probe, at its
+// peak: the ray caster, the receivers (three spline sets and the nodes), the form-factor rows,
+// and then the larger of a bounce's two packed copies of a set and the final gather's finer
+// receivers (one set and their nodes) with the coarse input and the fine output packed.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
-    size_t bytes = 0, triangles = 0;
+    auto set_bytes = [](const Plan& p) { return p.coefficients() * 3 * sizeof(double); };
+    auto node_bytes = [](const Plan& p) { return size_t(p.nu) * p.nv * sizeof(SurfacePoint); };
+    size_t coarse = 0, resident = 0, fine = 0, fine_nodes = 0, triangles = 0, occluders = 0;
     for (const Plan& p : plans) {
-        bytes += plan_bytes(p);
+        coarse += set_bytes(p);
+        resident += plan_bytes(p);
         // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
         if (settings.form_factors && p.kind == Representation::Diffuse)
-            bytes += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
-                     (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
+            resident += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
+                        (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
-    for (const Plan& p : final_plans) bytes += plan_bytes(p) / 3;
+    for (const Plan& p : final_plans) fine += set_bytes(p), fine_nodes += node_bytes(p);
+    const size_t bounce = 2 * coarse, final = final_plans.empty() ? 0 : coarse + 2 * fine + fine_nodes;
     for (const auto& s : scene.surfaces())
-        if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3;
-    return bytes + triangles * 128;  // the ray caster: a 64-byte record and about as much BVH a triangle
+        if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
+    // The ray caster: a 64-byte record and about as much BVH a triangle, and an Embree geometry
+    // a surface (about 1 kB: 410 MB for the 350,000 quads of the interior of 50,000 objects). The
+    // gather's copy of the scene, the plans and the sides: about 8 kB a receiver (measured on the
+    // furnished interior).
+    return triangles * 128 + occluders * 1024 + plans.size() * 8192 + resident + std::max(bounce, final);
 }
 
 }  // namespace
@@ -745,16 +760,23 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) 
     // The direct light's detail is only known after probing it: at most spatial_coeffs each.
     SolverSettings bound = settings;
     if (settings.detail_tolerance > 0) bound.coeffs_from_size = false;
-    const std::vector<SurfaceSides> sides = probe_sides(scene, caster, bound);
-    return estimate_bytes(scene, bound, plan_scene(scene, bound, 1, sides),
-                          bound.final_gather ? plan_scene(scene, bound, bound.final_spatial_factor, sides) : std::vector<Plan>{});
+    size_t probe = 0;
+    const std::vector<SurfaceSides> sides = probe_sides(scene, caster, bound, &probe);
+    const size_t solve = estimate_bytes(scene, bound, plan_scene(scene, bound, 1, sides),
+                                        bound.final_gather ? plan_scene(scene, bound, bound.final_spatial_factor, sides)
+                                                           : std::vector<Plan>{});
+    return std::max(probe, solve);  // the probe's memory is freed before the receivers are made
 }
 
 namespace {
 
 // Coefficients of a spline set of receivers [begin, end), flat: receiver after receiver, sides in order.
 std::vector<double> pack(const std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
+    size_t size = 0;  // reserved: growing by doubling would hold up to three times the set
+    for (size_t k = begin; k < end; ++k)
+        for (const TensorSpline& side : receivers[k].*which) size += side.coeffs().size();
     std::vector<double> flat;
+    flat.reserve(size);
     for (size_t k = begin; k < end; ++k)
         for (const TensorSpline& side : receivers[k].*which) flat.insert(flat.end(), side.coeffs().begin(), side.coeffs().end());
     return flat;
@@ -992,7 +1014,7 @@ struct SolveSteps::State {
     // The final gather's finer receivers, with their own knots.
     void build_finals(Progress& progress) {
         if (finals_built || !settings.final_gather) return;
-        finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
+        finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays, false);
         move_hidden_nodes(finals, scene, *gather, receiver_of, settings, progress, knot_rays);
         finals_built = true;
     }

@@ -28,6 +28,8 @@ struct SurfaceSides {
 // light directly or sees lit cells (a fixed point over that graph, each ray's end checked on its
 // own), and solves every side with a lit cell. Transmitting surfaces get both sides; emitters the
 // sides they emit from. With settings.two_sided off every opaque surface gets its front side only.
-std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings);
+// `bytes`, if given, receives the memory the probe held at its peak (for the solve's estimate).
+std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings,
+                                      size_t* bytes = nullptr);
 
 }  // namespace bsgi

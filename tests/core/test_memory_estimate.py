@@ -1,0 +1,62 @@
+"""Issue 16, memory that fits: the solve's own estimate before it starts
+(bsgi.estimate_solve_bytes) against the peak resident memory the solve adds, measured by the
+kernel (VmHWM after clearing it, minus the resident memory just before the solve), on the furnished
+interior of bench/interior_core.py at three sizes, each in a fresh process.
+
+The draft preset with one bounce keeps the three solves under a minute or so on the shared
+machine; the bounces do not change what is allocated (the same receivers, packed copies and
+final receivers), only how long the solve takes."""
+from __future__ import annotations
+
+import json
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+MEASURE = r"""
+import ctypes, json, sys
+sys.path.insert(0, sys.argv[2])
+import interior_core, bsgi
+
+def status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key + ":"):
+            return int(line.split()[1]) * 1024
+
+scene, _ = interior_core.build_scene(int(sys.argv[1]))
+settings = bsgi.SolverSettings.preset("draft")
+settings.max_bounces = 1
+settings.two_sided = sys.argv[3] == "two-sided"
+estimate = bsgi.estimate_solve_bytes(scene, settings)
+ctypes.CDLL("libc.so.6").malloc_trim(0)  # what the estimate's own probe freed goes back
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")  # resets VmHWM to the current resident memory
+before = status("VmRSS")
+bsgi.solve(scene, settings)
+print(json.dumps({"estimate": estimate, "added": status("VmHWM") - before, "surfaces": len(scene)}))
+"""
+
+
+def _measure(objects: int, sides: str) -> dict:
+    out = subprocess.run([sys.executable, "-c", MEASURE, str(objects), str(ROOT / "bench"), sides], capture_output=True,
+                         text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not pathlib.Path("/proc/self/clear_refs").exists(), reason="needs Linux's VmHWM reset")
+@pytest.mark.parametrize("sides", ["two-sided", "front-only"])
+def test_estimate_within_25_percent_of_measured_peak_at_three_sizes(sides):
+    # Measured 2026-12-02 at 10, 30, 100 objects (243, 363, 819 surfaces), estimate / added peak:
+    # two-sided 0.92, 0.99, 1.00 (the sides probe's peak dominates at these sizes); front sides
+    # only (no probe: the receivers, packed copies and final receivers) 0.92, 0.90, 0.89.
+    # Issue 16 asks for 25%, about twice the largest miss.
+    for objects in (10, 30, 100):
+        m = _measure(objects, sides)
+        ratio = m["estimate"] / m["added"]
+        assert 0.75 < ratio < 1.25, f"{objects} objects ({m['surfaces']} surfaces): estimate {m['estimate'] / 2**20:.1f} MiB, " \
+                                  f"measured {m['added'] / 2**20:.1f} MiB"
