@@ -142,12 +142,15 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     const bool curved = bend < kMaxEmitterCellBend;
     const double limit = curved ? std::min(ratio, kCurvedEmitterCellRatio) : ratio;
     const bool split = 2 * radius > limit * dist || (curved && depth < kCurvedEmitterDepth);
-    if (depth < settings_.emitter_max_depth && split) {
+    auto split_in_four = [&] {
         const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
         emitter_cell(r, emitter, light, s0, sm, t0, tm, depth + 1, ratio, sides, visit, rays);
         emitter_cell(r, emitter, light, sm, s1, t0, tm, depth + 1, ratio, sides, visit, rays);
         emitter_cell(r, emitter, light, s0, sm, tm, t1, depth + 1, ratio, sides, visit, rays);
         emitter_cell(r, emitter, light, sm, s1, tm, t1, depth + 1, ratio, sides, visit, rays);
+    };
+    if (depth < settings_.emitter_max_depth && split) {
+        split_in_four();
         return;
     }
     const double ds = s1 - s0, dt = t1 - t0;
@@ -192,11 +195,7 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
         }
     if (!shadow_split) return;
     if (lit && dark) {
-        const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
-        emitter_cell(r, emitter, light, s0, sm, t0, tm, depth + 1, ratio, sides, visit, rays);
-        emitter_cell(r, emitter, light, sm, s1, t0, tm, depth + 1, ratio, sides, visit, rays);
-        emitter_cell(r, emitter, light, s0, sm, tm, t1, depth + 1, ratio, sides, visit, rays);
-        emitter_cell(r, emitter, light, sm, s1, tm, t1, depth + 1, ratio, sides, visit, rays);
+        split_in_four();
         return;
     }
     for (const auto& [wi, value] : kept) visit(wi, value);
