@@ -1,0 +1,97 @@
+"""Accuracy per scene and preset (issue 15): each scene solved at draft, preview and final in a
+process of its own (bench/study/solve_blend.py: the add-on's export of the .blend, as a user's
+solve gets it) and compared with its committed Mitsuba 3 reference (bench/study/references/, 3,000
+random visible (point, direction) pairs; a reference made for an earlier version of the scene
+file is still used: the pairs and the scene's geometry are the same). Figures:
+
+- acc_<scene>_<preset>_rel_rmse, acc_<scene>_<preset>_seconds (CPU seconds of the solve),
+- acc_<scene>_<preset>_worst_surface_ratio: the mean radiance ratio (ours / Mitsuba) of the object
+  farthest from 1 among those with at least 20 pairs,
+- acc_<scene>_<preset>_cycles_seconds: the CPU time a Cycles bake of the same surfaces needed to
+  reach that error in the committed study (bench/study/results.csv, 16 to 1,024 samples,
+  interpolated in log time; absent if no bake reached it).
+
+BSGI_BENCH_ACCURACY=cornell_box,mug chooses the scenes (default: the diffuse study scenes and the
+glossy-wall box; the near-mirror box, the spheres and the glass sheet take many minutes each).
+
+    python bench/run.py accuracy
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+STUDY = HERE / "study"
+sys.path.insert(0, str(STUDY))
+
+SCENES = os.environ.get("BSGI_BENCH_ACCURACY", "cornell_box,contact_shadows,mug,bezier_patches,cornell_box_glossy_wall").split(",")
+PRESETS = ("draft", "preview", "final")
+
+
+def cycles_seconds(scene: str, error: float) -> float | None:
+    """CPU seconds of the committed study's Cycles bake at the given error: the cheapest bake that
+    reached it, interpolated in log time from the one before it."""
+    rows = [r for r in csv.DictReader(open(STUDY / "results.csv")) if r["scene"] == scene and r["method"] == "cycles bake"]
+    bakes = sorted((float(r["cpu_seconds"]), float(r["rel_rmse"])) for r in rows)  # by time
+    for k, (t1, e1) in enumerate(bakes):
+        if e1 > error:
+            continue
+        if k == 0:
+            return t1
+        t0, e0 = bakes[k - 1]
+        f = (e0 - error) / (e0 - e1)
+        return math.exp(math.log(t0) + f * (math.log(t1) - math.log(t0)))
+    return None
+
+
+def measure(scene: str, preset: str, work: Path) -> dict:
+    import run_study
+    from references import describe
+
+    blend = next(p for p in run_study.scenes([scene]))
+    data = dict(np.load(STUDY / "references" / f"{scene}.npz", allow_pickle=False))
+    np.savez(work / "pairs.npz", **{k: data[k] for k in ("object", "polygon", "point", "eye")})
+    (work / "settings.json").write_text(json.dumps({"preset": preset}))
+    out = subprocess.run([sys.executable, str(STUDY / "solve_blend.py"), str(blend), str(work / "settings.json"),
+                          str(work / "pairs.npz"), str(work / "solve.npz")], capture_output=True, text=True, check=True)
+    figures = json.loads(out.stdout.strip().splitlines()[-1])
+    ours = np.load(work / "solve.npz")["radiance"]
+    valid = ~np.isin(data["object"], run_study.emitting_objects(describe(blend))) & np.isfinite(ours).all(axis=1)
+    error = run_study.errors(ours, data, valid)["rel_rmse"]
+    ratios = []
+    for name in sorted(set(data["object"][valid].tolist())):
+        m = valid & (data["object"] == name)
+        if m.sum() >= 20:
+            ratios.append(ours[m].sum() / data["reference"][m].sum())
+    worst = max(ratios, key=lambda r: abs(r - 1))
+    return {"rel_rmse": error, "seconds": figures["cpu_seconds"], "worst_surface_ratio": worst}
+
+
+def run() -> dict:
+    figures = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for scene in SCENES:
+            for preset in PRESETS:
+                row = measure(scene, preset, Path(tmp))
+                for key, value in row.items():
+                    figures[f"acc_{scene}_{preset}_{key}"] = value
+                cycles = cycles_seconds(scene, row["rel_rmse"])
+                if cycles is not None:
+                    figures[f"acc_{scene}_{preset}_cycles_seconds"] = cycles
+                print(f"  {scene} {preset}: {100 * row['rel_rmse']:.2f}% in {row['seconds']:.1f} s CPU, worst object ratio "
+                      f"{row['worst_surface_ratio']:.4f}; Cycles bake to the same error: "
+                      f"{'not reached' if cycles is None else f'{cycles:.1f} s'}", flush=True)
+    return figures
+
+
+if __name__ == "__main__":
+    print(json.dumps(run(), indent=2))
