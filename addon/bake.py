@@ -1,5 +1,5 @@
 """Solved radiance -> what Blender shows: per object a float image atlas of its radiance (one
-tile per face, a UV chart's square or a NURBS surface's parameter square), repeated for each
+tile per face sized by its own spline, shelf-packed, a UV chart's square or a NURBS surface's parameter square), repeated for each
 angular sample of a glossy surface's disc (20)-(22); two images of the surfaces' frames (1)-(3);
 a UV map laying the faces on their tiles (a chart's own UVs; a NURBS surface's mesh has its
 UVMap); and an emission material that looks the atlas up, through the node groups of
@@ -162,13 +162,14 @@ def _tile_parameters(kind: str, t: int) -> np.ndarray:
     return np.stack([u.ravel(), v.ravel()], axis=1)
 
 
-def _face_uvs(kind: str, tile_origin, t: int, size: int, corners: int):
-    """UV coordinates of a face's loops on its tile, matching _tile_parameters."""
-    ox, oy = tile_origin
+def _face_uvs(kind: str, tile_origin, t: int, size, corners: int):
+    """UV coordinates of a face's loops on its tile, matching _tile_parameters; size = the
+    atlas's (width, height)."""
+    (ox, oy), (w, h) = tile_origin, size
     if kind == "ngon":
-        return [((ox + t / 2) / size, (oy + t / 2) / size)] * corners
+        return [((ox + t / 2) / w, (oy + t / 2) / h)] * corners
     square = [(0, 0), (1, 0), (1, 1), (0, 1)] if kind == "quad" else [(0, 0), (1, 0), (1, 1)]
-    return [((ox + 0.5 + sx * (t - 1)) / size, (oy + 0.5 + sy * (t - 1)) / size) for sx, sy in square[:corners]]
+    return [((ox + 0.5 + sx * (t - 1)) / w, (oy + 0.5 + sy * (t - 1)) / h) for sx, sy in square[:corners]]
 
 
 def face_splines(exported, surfaces) -> list:
@@ -229,26 +230,69 @@ def _evaluated_chart(obj):
         evaluated.to_mesh_clear()
 
 
+def _face_tile(radiances) -> int:
+    """Side of a face's tile: the largest of its splines' tile_size (8 for a face that only emits)."""
+    return max((tile_size(r) for r in radiances if r is not None), default=8)
+
+
+def _shelf_rows(sides, width: int) -> list:
+    """Tiles (side, index), tallest first, in rows filled left to right up to `width`:
+    per row [(x, index)] and the row's height (its first tile's side)."""
+    rows, x = [], width
+    for side, index in sides:
+        if x + side > width:
+            rows.append(([], side))
+            x = 0
+        rows[-1][0].append((x, index))
+        x += side
+    return rows
+
+
+def pack_tiles(sides) -> tuple:
+    """Origins (x, y) of square tiles of the given sides on a shelf-packed atlas, and the atlas's
+    (width, height): tiles sorted by side (stable, so equal tiles keep the faces' order), rows
+    filled up to a width tried from the square root of the tiles' area upwards, keeping the
+    smallest atlas (the squarer on a tie)."""
+    order = sorted(((side, index) for index, side in enumerate(sides)), key=lambda s: -s[0])
+    area = sum(side * side for side in sides)
+    best = None
+    for factor in np.linspace(1.0, 2.0, 21):
+        width = max(order[0][0], math.ceil(math.sqrt(area) * factor))
+        rows = _shelf_rows(order, width)
+        used = max(x + sides[index] for row, _ in rows for x, index in row)
+        height = sum(h for _, h in rows)
+        key = (used * height, abs(used - height))
+        if best is None or key < best[0]:
+            best = (key, rows, used, height)
+    _, rows, width, height = best
+    origins = [None] * len(sides)
+    y = 0
+    for row, h in rows:
+        for x, index in row:
+            origins[index] = (x, y)
+        y += h
+    return origins, (width, height)
+
+
 def _mesh_layout(obj, faces):
-    """Per face a t x t tile (t from the splines' knots) on a square grid of tiles; writes the
-    bake's UV map laying each face on its tile."""
+    """Per face a t x t tile (t from its own splines' knots), shelf-packed (pack_tiles); writes
+    the bake's UV map laying each face on its tile."""
     mesh = obj.data
     if len(mesh.polygons) != len(faces):
         raise ValueError(f"object '{obj.name}': its modifiers change its faces; apply them before baking")
-    t = max((tile_size(r) for _, radiances in faces for r in radiances if r is not None), default=8)
-    grid = math.ceil(math.sqrt(len(faces)))
-    size = grid * t
-    face = np.full((size, size), -1)
-    uv = np.zeros((size, size, 2))
+    sides = [_face_tile(radiances) for _, radiances in faces]
+    origins, (width, height) = pack_tiles(sides)
+    face = np.full((height, width), -1)
+    uv = np.zeros((height, width, 2))
     uvs = np.zeros((len(mesh.loops), 2), np.float32)
     world, polygons, first_triangle = _world_points(obj)
     surfaces = []
     for index, (kind, _) in enumerate(faces):
-        ox, oy = (index % grid) * t, (index // grid) * t
+        (ox, oy), t = origins[index], sides[index]
         face[oy:oy + t, ox:ox + t] = index
         uv[oy:oy + t, ox:ox + t] = _tile_parameters(kind, t).reshape(t, t, 2)
         poly = mesh.polygons[index]
-        for loop, corner in zip(poly.loop_indices, _face_uvs(kind, (ox, oy), t, size, poly.loop_total)):
+        for loop, corner in zip(poly.loop_indices, _face_uvs(kind, (ox, oy), t, (width, height), poly.loop_total)):
             uvs[loop] = corner
         corners = world[polygons[index] if kind != "ngon" else first_triangle[index]]
         name = f"{obj.name}: face {index}"
