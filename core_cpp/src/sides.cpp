@@ -21,23 +21,22 @@ constexpr int kRaysToCarry = 2;
 
 constexpr int kRays = kTheta * kPhi;
 constexpr int32_t kNotChecked = -1, kLitDirectly = -2;
-// A probe ray that ends on no receiver.
-constexpr uint32_t kNoEnd = UINT32_MAX;
 // What lights a point directly: scene surface e (an emitter), scene.size() + l (distant light
 // l), scene.size() + the number of distant lights (the world); kNoLight: nothing.
 constexpr int kNoLight = -1;
 
-// What the centre of one cell of one side sees: light and the receivers its rays reach. A large
-// scene's probe holds millions of ray ends, so each is only the cell it lands in, numbered
-// (surface * 2 + side) * kCells + cell; where in it is found again, when needed, by casting the
-// ray again (the probe is deterministic).
+// What the centre of one cell of one side sees: light, and whether its rays reach surfaces. A
+// cell not lit directly asks its rays' ends whether they carry light; a large scene's probe
+// would hold millions of them, so the rays are cast again when asked (the probe is
+// deterministic), at each pass of the fixed point. Cells are numbered (surface * 2 + side) *
+// kCells + cell.
 struct CellView {
     int light = kNoLight;
+    bool asks = false;     // in the surface's domain and not lit directly
     bool escaped = false;  // some rays reach no surface
     bool others = false;   // some rays reach another surface than the one probed
-    std::vector<uint32_t> ends;  // per ray (kRays, or none if lit directly): its end's cell or kNoEnd
-    // Per ray, once asked: whether its end sees light directly (kLitDirectly), else where in
-    // the probe's `seen` pool the cells its own probe rays reach are listed.
+    // Per ray, once its end is asked: whether the end sees light directly (kLitDirectly), else
+    // where in the probe's `seen` pool the cells its own probe rays reach are listed.
     std::vector<int32_t> checked;
 };
 
@@ -136,7 +135,6 @@ int direct_light(const Scene& scene, const RayCaster& caster, int i, const Surfa
 std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, int i, int side) {
     std::vector<CellView> cells(kCells);
     const Surface& surface = *scene[i].surface;
-    std::vector<uint32_t> ends(kRays);
     for (int c = 0; c < kCells; ++c) {
         CellView& view = cells[c];
         if (!surface.in_domain((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints)) continue;
@@ -146,23 +144,20 @@ std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, in
         for (int k = 0; k < kRays; ++k) {
             const Vec3 dir = probe_direction(p, side, k, turn);
             const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
-            ends[k] = kNoEnd;
             if (hit.surface < 0) {
                 view.escaped = true;
                 if (scene.has_world() && view.light == kNoLight) view.light = world_light(scene);
                 continue;
             }
             view.others |= hit.surface != i;
-            if (scene[hit.surface].receiver) ends[k] = end_cell(hit, dir);
         }
-        // Only a cell not lit directly asks its rays' ends whether they carry light.
-        if (view.light == kNoLight) view.ends = ends;
+        view.asks = view.light == kNoLight;
     }
     return cells;
 }
 
-// What the probe holds at its end, its peak: the cells' views with their rays' ends (and what
-// those see), and each cell's reason. A heap block costs its capacity and about 16 bytes.
+// What the probe holds at its end, its peak: the cells' views with what their rays' ends see,
+// and each cell's reason. A heap block costs its capacity and about 16 bytes.
 size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views, const std::vector<Reason>& why,
                   const std::vector<uint32_t>& seen) {
     constexpr size_t kBlock = 16;
@@ -171,7 +166,7 @@ size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views
     for (const auto& surface : views)
         for (const std::vector<CellView>& cells : surface) {
             bytes += block(cells);
-            for (const CellView& c : cells) bytes += block(c.ends) + block(c.checked);
+            for (const CellView& c : cells) bytes += block(c.checked);
         }
     return bytes;
 }
@@ -230,20 +225,12 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     // `seen`: a count, then (cell, rays) pairs.
     std::vector<uint32_t> seen;
     std::vector<uint32_t> reached(kRays);
-    // Ray k of cell c of surface i's side: its end, found again by casting the ray again.
-    auto ray_end = [&](int i, int side, int c, int k) {
-        const SurfacePoint p = cell_centre(*scene[i].surface, c);
-        const Vec3 dir = probe_direction(p, side, k, cell_turn(i, c, side));
-        return opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
-    };
-    auto carries_light = [&](int i, int side, int c, int k) {
-        CellView& view = views[i][side][c];
-        const uint32_t end = view.ends[k];
+    // Whether the end h of ray k of a cell's view, in cell `end`, carries light.
+    auto carries_light = [&](CellView& view, int k, uint32_t end, const SurfaceHit& h) {
         if (!lit(end)) return false;
         if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
         int32_t& checked = view.checked[k];
         if (checked == kNotChecked) {
-            const SurfaceHit h = ray_end(i, side, c, k);
             const int surface = int(end / (2 * kCells)), end_side = (end / kCells) % 2;
             const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
             if (direct_light(scene, caster, surface, p, end_side, true) != kNoLight) {
@@ -279,15 +266,22 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             for (int side = 0; side < 2; ++side)
                 for (int c = 0; c < kCells; ++c) {
                     const size_t id = (2 * size_t(i) + side) * kCells + c;
-                    if (lit(id)) continue;
-                    const std::vector<uint32_t>& ends = views[i][side][c].ends;
+                    CellView& view = views[i][side][c];
+                    if (lit(id) || !view.asks) continue;
+                    const SurfacePoint p = cell_centre(*scene[i].surface, c);
+                    const double turn = cell_turn(i, c, side);
                     int carrying = 0;
-                    for (int k = 0; k < int(ends.size()); ++k)
-                        if (ends[k] != kNoEnd && carries_light(i, side, c, k) && ++carrying == kRaysToCarry) {
-                            why[id] = {Reason::kReflected, int32_t(ends[k] / (2 * kCells))};
+                    for (int k = 0; k < kRays; ++k) {
+                        const Vec3 dir = probe_direction(p, side, k, turn);
+                        const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+                        if (hit.surface < 0 || !scene[hit.surface].receiver) continue;
+                        const uint32_t end = end_cell(hit, dir);
+                        if (carries_light(view, k, end, hit) && ++carrying == kRaysToCarry) {
+                            why[id] = {Reason::kReflected, hit.surface};
                             changed = true;
                             break;
                         }
+                    }
                 }
     }
     auto text = [&](const Reason& r) {

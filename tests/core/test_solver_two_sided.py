@@ -248,9 +248,10 @@ def probed(scene, **kw):
 
 
 def test_probe_answers_by_construction_on_simple_scenes():
-    # Issue 16: the probe keeps each ray's end as one cell id; its answer is what the scenes'
-    # construction gives (and what it gave holding 24 bytes a ray end: checked on these scenes
-    # and the interior at 10, 30 and 100 objects, identical).
+    # Issue 16: the probe casts a cell's rays again at each pass of its fixed point rather than
+    # keep their ends; its answer is what the scenes' construction gives (and what it gave
+    # keeping 24 bytes a ray end: checked on these scenes and the interior at 10, 30 and 100
+    # objects, identical).
     names = [name for name, _ in cube("wall ", [0, 0, 0], 1.0, ALBEDO)]  # x+, x-, y+, y-, z+, z-
     # A closed room around a lamp facing down: the outsides face a black world, dark; the
     # inside of the floor and of the side walls (below the lamp) see the lamp, the ceiling only
@@ -304,6 +305,6 @@ def test_probe_of_the_furnished_interior_and_its_bytes():
     per_surface = held / len(scene)
     print(f"\nsides probe of the interior at 30 objects ({len(scene)} surfaces): {per_surface / 1e3:.1f} kB a surface")
     record(probe_interior_30_bytes_per_surface=per_surface)
-    # Measured 2026-12-02: 41.6 kB a surface (131 kB when each ray's end held 24 bytes and each
-    # checked end the cells its 72 rays reach, 4 bytes each).
-    assert per_surface < 80e3
+    # Measured 2026-12-02: 21.1 kB a surface (41.6 kB holding each ray's end as a 4-byte cell id,
+    # 131 kB as 24 bytes with each end asked the cells its 72 rays reach, 4 bytes each).
+    assert per_surface < 42e3
