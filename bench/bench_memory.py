@@ -5,8 +5,8 @@ the solve's own estimate (bsgi.estimate_solve_bytes) at the preview preset, as i
 coeffs_from_size (small faces fewer coefficients), with and without the final gather. The
 estimates are of front sides only (two_sided off): the sides probe of every surface's both sides
 takes hours at this size; its own memory is the `memory_probe_bytes_per_surface` figure, measured
-at 100 objects by the probe's own count (estimate_solve_bytes of a two-sided solve is the larger of
-the probe and the rest; at the draft preset there, the probe). In a process of its own.
+at 100 objects by the probe's own count (bsgi.probe_sides), and that times this size's surfaces.
+In a process of its own.
 
     python bench/run.py memory
 """
@@ -51,10 +51,12 @@ def measure(objects: int) -> dict:
         for key, value in changes.items():
             setattr(settings, key, value)
         figures[f"memory_{objects}_estimate_{label}_mb"] = bsgi.estimate_solve_bytes(scene, settings) / 2**20
-    # The sides probe's peak a surface: the two-sided draft estimate at 100 objects, where the
-    # probe's part is the larger (133 MB against 68 MB for the rest, counted 2026-12-02).
+    # The sides probe's peak a surface, its own count at 100 objects (bsgi.probe_sides), and what
+    # that makes at this size (the probe of every surface's both sides takes hours here).
     small, _ = interior_core.build_scene(100)
-    figures["memory_probe_bytes_per_surface"] = bsgi.estimate_solve_bytes(small, bsgi.SolverSettings.preset("draft")) / len(small)
+    per_surface = bsgi.probe_sides(small, bsgi.SolverSettings.preset("draft"))[1] / len(small)
+    figures["memory_probe_bytes_per_surface"] = per_surface
+    figures[f"memory_{objects}_probe_mb_extrapolated"] = per_surface * len(scene) / 2**20
     return figures
 
 

@@ -466,6 +466,22 @@ void bind_scene(py::module_& m) {
 
     m.def("estimate_solve_bytes", &estimate_solve_bytes, py::arg("scene"), py::arg("settings"));
     m.def(
+        "probe_sides",
+        [](const Scene& scene, const SolverSettings& settings) {
+            size_t bytes = 0;
+            std::vector<SurfaceSides> sides;
+            {
+                py::gil_scoped_release release;
+                sides = probe_sides(scene, settings, &bytes);
+            }
+            py::list out;
+            for (const SurfaceSides& s : sides) out.append(py::make_tuple(s.live[0], s.live[1], s.why[0], s.why[1], s.encloses_emission));
+            return py::make_tuple(out, bytes);
+        },
+        py::arg("scene"), py::arg("settings"),
+        "The sides probe alone (bsgi/sides.h): per surface (front solved, back solved, why, why, encloses its emission) "
+        "as SolveSteps.sides, and the bytes the probe held at its peak. Releases the GIL.");
+    m.def(
         "solve",
         [](const Scene& scene, const SolverSettings& settings, Progress& progress) {
             py::gil_scoped_release release;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "bsgi/parallel.h"
 
@@ -18,25 +19,32 @@ constexpr int kPoints = 6, kCells = kPoints * kPoints, kTheta = 6, kPhi = 12, kE
 // alone may have slipped through a crack between two patches (a box's edge).
 constexpr int kRaysToCarry = 2;
 
-constexpr int kNotChecked = -1, kLitDirectly = -2;
+constexpr int kRays = kTheta * kPhi;
+constexpr int32_t kNotChecked = -1, kLitDirectly = -2;
+// What lights a point directly: scene surface e (an emitter), scene.size() + l (distant light
+// l), scene.size() + the number of distant lights (the world); kNoLight: nothing.
+constexpr int kNoLight = -1;
 
-// A probe ray's end on a receiver: the cell it lands in, numbered (surface * 2 + side) * kCells
-// + cell, and where. 24 bytes: a large scene's probe holds millions.
-struct Hit {
-    double u, v;
-    int cell;
-    // Checked when needed: whether the point itself sees light directly (kLitDirectly), else
-    // the cells its own probe rays reach (an index into the probe's `sees`).
-    int checked = kNotChecked;
-};
-
-// What the centre of one cell of one side sees: light (an emitter, a distant light, the world)
-// and the receivers its rays reach.
+// What the centre of one cell of one side sees: light, and whether its rays reach surfaces. A
+// cell not lit directly asks its rays' ends whether they carry light; a large scene's probe
+// would hold millions of them, so the rays are cast again when asked (the probe is
+// deterministic), at each pass of the fixed point. Cells are numbered (surface * 2 + side) *
+// kCells + cell.
 struct CellView {
-    std::string light;  // what lights it directly, empty if nothing
-    std::vector<Hit> hits;
+    int light = kNoLight;
+    bool asks = false;     // in the surface's domain and not lit directly
     bool escaped = false;  // some rays reach no surface
     bool others = false;   // some rays reach another surface than the one probed
+    // Per ray, once its end is asked: whether the end sees light directly (kLitDirectly), else
+    // where in the probe's `seen` pool the cells its own probe rays reach are listed.
+    std::vector<int32_t> checked;
+};
+
+// Why a cell is lit: it emits, receives light directly (`source` a light as above) or
+// receives light reflected by scene surface `source`.
+struct Reason {
+    enum Kind : int8_t { kDark, kEmits, kDirect, kReflected } kind = kDark;
+    int32_t source = 0;
 };
 
 int cell_of(double u, double v) {
@@ -65,6 +73,16 @@ SurfaceHit opaque_hit(const RayCaster& caster, Vec3 origin, const Vec3& dir) {
     return {};
 }
 
+uint32_t end_cell(const SurfaceHit& hit, const Vec3& dir) {
+    return uint32_t((2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1)) * kCells + cell_of(hit.u, hit.v));
+}
+
+// The centre of cell c of surface i and the turn of its probe rays' set.
+SurfacePoint cell_centre(const Surface& surface, int c) {
+    return surface.evaluate((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints);
+}
+double cell_turn(int i, int c, int side) { return std::fmod((2 * (i * kCells + c) + side + 1) * 0.6180339887498949, 1.0); }
+
 // True if point p (normal n of the side probed) sees a point of the emitter's emitting side.
 bool sees_emitter(const RayCaster& caster, const SurfacePoint& p, const Vec3& n, const SceneSurface& e) {
     for (int a = 0; a < kEmitterPoints; ++a)
@@ -86,72 +104,69 @@ bool sees_emitter(const RayCaster& caster, const SurfacePoint& p, const Vec3& n,
     return false;
 }
 
+int world_light(const Scene& scene) { return int(scene.size() + scene.distant_lights().size()); }
+
+std::string light_name(const Scene& scene, int light) {
+    const int n = int(scene.size());
+    if (light < n) return "light from '" + scene[light].surface->name() + "'";
+    if (light < world_light(scene)) return "light from '" + scene.distant_lights()[light - n].name + "'";
+    return "world light";
+}
+
 // What lights point p of surface i on a side directly (emitters and distant lights; the world
-// only if `world`, which the caller may find with its own rays): a description, empty if none.
-std::string direct_light(const Scene& scene, const RayCaster& caster, int i, const SurfacePoint& p, int side, bool world) {
+// only if `world`, which the caller may find with its own rays): a light as above, or kNoLight.
+int direct_light(const Scene& scene, const RayCaster& caster, int i, const SurfacePoint& p, int side, bool world) {
     const Vec3 n = side ? -p.frame.z : p.frame.z;
     for (size_t e = 0; e < scene.size(); ++e)
-        if (int(e) != i && scene[e].material.emits() && sees_emitter(caster, p, n, scene[e]))
-            return "light from '" + scene[e].surface->name() + "'";
-    for (const DistantLight& l : scene.distant_lights())
-        if (dot(l.direction, n) > 0 && caster.transmittance(caster.spawn(p.p, p.frame.z, l.direction), l.direction) > 0)
-            return "light from '" + l.name + "'";
+        if (int(e) != i && scene[e].material.emits() && sees_emitter(caster, p, n, scene[e])) return int(e);
+    const std::vector<DistantLight>& distant = scene.distant_lights();
+    for (size_t l = 0; l < distant.size(); ++l)
+        if (dot(distant[l].direction, n) > 0 &&
+            caster.transmittance(caster.spawn(p.p, p.frame.z, distant[l].direction), distant[l].direction) > 0)
+            return int(scene.size() + l);
     if (world && scene.has_world())
-        for (int k = 0; k < kTheta * kPhi; ++k) {
+        for (int k = 0; k < kRays; ++k) {
             const Vec3 dir = probe_direction(p, side, k, 0.5);
-            if (opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir).surface < 0) return "world light";
+            if (opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir).surface < 0) return world_light(scene);
         }
-    return "";
+    return kNoLight;
 }
 
 std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, int i, int side) {
     std::vector<CellView> cells(kCells);
     const Surface& surface = *scene[i].surface;
-    for (int a = 0; a < kPoints; ++a)
-        for (int b = 0; b < kPoints; ++b) {
-            CellView& view = cells[a * kPoints + b];
-            const double u = (a + 0.5) / kPoints, v = (b + 0.5) / kPoints;
-            if (!surface.in_domain(u, v)) continue;
-            const SurfacePoint p = surface.evaluate(u, v);
-            view.light = direct_light(scene, caster, i, p, side, false);
-            const double turn = std::fmod((2 * (i * kCells + a * kPoints + b) + side + 1) * 0.6180339887498949, 1.0);
-            for (int k = 0; k < kTheta * kPhi; ++k) {
-                const Vec3 dir = probe_direction(p, side, k, turn);
-                const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
-                if (hit.surface < 0) {
-                    view.escaped = true;
-                    if (scene.has_world() && view.light.empty()) view.light = "world light";
-                    continue;
-                }
-                view.others |= hit.surface != i;
-                if (!scene[hit.surface].receiver) continue;
-                const int hit_side = dot(dir, hit.frame.z) < 0 ? 0 : 1;
-                view.hits.push_back({hit.u, hit.v, (2 * hit.surface + hit_side) * kCells + cell_of(hit.u, hit.v)});
+    for (int c = 0; c < kCells; ++c) {
+        CellView& view = cells[c];
+        if (!surface.in_domain((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints)) continue;
+        const SurfacePoint p = cell_centre(surface, c);
+        view.light = direct_light(scene, caster, i, p, side, false);
+        const double turn = cell_turn(i, c, side);
+        for (int k = 0; k < kRays; ++k) {
+            const Vec3 dir = probe_direction(p, side, k, turn);
+            const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+            if (hit.surface < 0) {
+                view.escaped = true;
+                if (scene.has_world() && view.light == kNoLight) view.light = world_light(scene);
+                continue;
             }
-            // Only a cell not lit directly asks its hits whether they carry light: the others'
-            // would hold most of a large scene's probe memory for nothing.
-            if (!view.light.empty()) view.hits = {};
-            view.hits.shrink_to_fit();
+            view.others |= hit.surface != i;
         }
+        view.asks = view.light == kNoLight;
+    }
     return cells;
 }
 
-// What the probe holds at its end, its peak: the cells' views with their hits (and the cells
-// their ends see), and each cell's reason. A heap block costs its capacity and about 16 bytes.
-size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views, const std::vector<std::string>& why,
-                  const std::vector<std::vector<int>>& sees) {
+// What the probe holds at its end, its peak: the cells' views with what their rays' ends see,
+// and each cell's reason. A heap block costs its capacity and about 16 bytes.
+size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views, const std::vector<Reason>& why,
+                  const std::vector<uint32_t>& seen) {
     constexpr size_t kBlock = 16;
-    auto string_bytes = [](const std::string& s) { return sizeof(std::string) + (s.capacity() > 15 ? s.capacity() + 1 + kBlock : 0); };
-    size_t bytes = views.size() * sizeof(views[0]) + why.size() * sizeof(char);  // and `lit`, a char a cell
-    for (const std::string& w : why) bytes += string_bytes(w);
-    bytes += sees.capacity() * sizeof(sees[0]);
-    for (const std::vector<int>& cells : sees) bytes += cells.capacity() * sizeof(int) + (cells.empty() ? 0 : kBlock);
+    auto block = [](const auto& v) { return v.capacity() * sizeof(v[0]) + (v.capacity() ? kBlock : 0); };
+    size_t bytes = block(views) + block(why) + block(seen);
     for (const auto& surface : views)
         for (const std::vector<CellView>& cells : surface) {
-            bytes += cells.capacity() * sizeof(CellView) + (cells.empty() ? 0 : kBlock);
-            for (const CellView& c : cells) {
-                bytes += string_bytes(c.light) - sizeof(std::string) + c.hits.capacity() * sizeof(Hit) + (c.hits.empty() ? 0 : kBlock);
-            }
+            bytes += block(cells);
+            for (const CellView& c : cells) bytes += block(c.checked);
         }
     return bytes;
 }
@@ -192,8 +207,8 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         for (const CellView& v : views[i][1]) inside &= !v.escaped && !v.others;
         out[i].encloses_emission = inside;
     }
-    std::vector<char> lit(2 * n * kCells, 0);
-    std::vector<std::string> why(2 * n * kCells);
+    std::vector<Reason> why(2 * n * kCells);
+    auto lit = [&](size_t id) { return why[id].kind != Reason::kDark; };
     for (int i : probed)
         for (int side = 0; side < 2; ++side)
             for (int c = 0; c < kCells; ++c) {
@@ -201,35 +216,49 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                 const CellView& v = views[i][side][c];
                 const bool emits = (side == 0 || (scene[i].material.two_sided_emission && !out[i].encloses_emission)) &&
                                    scene[i].material.emits();
-                lit[id] = emits || !v.light.empty();
-                why[id] = emits ? "emits" : v.light.empty() ? "" : "receives " + v.light;
+                if (emits) why[id].kind = Reason::kEmits;
+                else if (v.light != kNoLight) why[id] = {Reason::kDirect, v.light};
             }
     // A ray's end carries light if its cell is lit and the point itself sees light directly or
-    // sees a lit cell (a cell lit at its centre may be dark where the ray ends).
-    std::vector<std::vector<int>> sees;
-    auto carries_light = [&](Hit& h) {
-        if (!lit[h.cell]) return false;
-        const int surface = h.cell / (2 * kCells), side = (h.cell / kCells) % 2;
-        if (h.checked == kNotChecked) {
+    // sees a lit cell (a cell lit at its centre may be dark where the ray ends). What a checked
+    // end sees is kept as the distinct cells its rays reach, each with its count of rays, in
+    // `seen`: a count, then (cell, rays) pairs.
+    std::vector<uint32_t> seen;
+    std::vector<uint32_t> reached(kRays);
+    // Whether the end h of ray k of a cell's view, in cell `end`, carries light.
+    auto carries_light = [&](CellView& view, int k, uint32_t end, const SurfaceHit& h) {
+        if (!lit(end)) return false;
+        if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
+        int32_t& checked = view.checked[k];
+        if (checked == kNotChecked) {
+            const int surface = int(end / (2 * kCells)), end_side = (end / kCells) % 2;
             const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
-            if (!direct_light(scene, caster, surface, p, side, true).empty()) {
-                h.checked = kLitDirectly;
+            if (direct_light(scene, caster, surface, p, end_side, true) != kNoLight) {
+                checked = kLitDirectly;
             } else {
-                h.checked = int(sees.size());
-                std::vector<int>& cells = sees.emplace_back();
-                for (int k = 0; k < kTheta * kPhi; ++k) {
-                    const Vec3 dir = probe_direction(p, side, k, 0.5);
+                size_t m = 0;
+                for (int r = 0; r < kRays; ++r) {
+                    const Vec3 dir = probe_direction(p, end_side, r, 0.5);
                     const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
-                    if (hit.surface >= 0 && scene[hit.surface].receiver)
-                        cells.push_back((2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1)) * kCells + cell_of(hit.u, hit.v));
+                    if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, dir);
                 }
-                cells.shrink_to_fit();
+                std::sort(reached.begin(), reached.begin() + m);
+                checked = int32_t(seen.size());
+                seen.push_back(0);
+                for (size_t r = 0; r < m;) {
+                    size_t next = r;
+                    while (next < m && reached[next] == reached[r]) ++next;
+                    seen.insert(seen.end(), {reached[r], uint32_t(next - r)});
+                    ++seen[size_t(checked)];
+                    r = next;
+                }
             }
         }
-        if (h.checked == kLitDirectly) return true;
-        int seen = 0;
-        for (int c : sees[h.checked]) seen += lit[c];
-        return seen >= kRaysToCarry;
+        if (checked == kLitDirectly) return true;
+        uint32_t rays = 0;
+        const uint32_t* cells = &seen[size_t(checked)];
+        for (uint32_t j = 0; j < cells[0]; ++j) rays += lit(cells[1 + 2 * j]) ? cells[2 + 2 * j] : 0;
+        return rays >= kRaysToCarry;
     };
     for (bool changed = true; changed;) {
         changed = false;
@@ -237,29 +266,43 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             for (int side = 0; side < 2; ++side)
                 for (int c = 0; c < kCells; ++c) {
                     const size_t id = (2 * size_t(i) + side) * kCells + c;
-                    if (lit[id]) continue;
+                    CellView& view = views[i][side][c];
+                    if (lit(id) || !view.asks) continue;
+                    const SurfacePoint p = cell_centre(*scene[i].surface, c);
+                    const double turn = cell_turn(i, c, side);
                     int carrying = 0;
-                    for (Hit& h : views[i][side][c].hits)
-                        if (carries_light(h) && ++carrying == kRaysToCarry) {
-                            lit[id] = changed = true;
-                            why[id] = "receives light reflected by '" + scene[h.cell / (2 * kCells)].surface->name() + "'";
+                    for (int k = 0; k < kRays; ++k) {
+                        const Vec3 dir = probe_direction(p, side, k, turn);
+                        const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+                        if (hit.surface < 0 || !scene[hit.surface].receiver) continue;
+                        const uint32_t end = end_cell(hit, dir);
+                        if (carries_light(view, k, end, hit) && ++carrying == kRaysToCarry) {
+                            why[id] = {Reason::kReflected, hit.surface};
+                            changed = true;
                             break;
                         }
+                    }
                 }
     }
+    auto text = [&](const Reason& r) {
+        return r.kind == Reason::kEmits    ? std::string("emits")
+               : r.kind == Reason::kDirect ? "receives " + light_name(scene, r.source)
+                                           : "receives light reflected by '" + scene[r.source].surface->name() + "'";
+    };
     for (int i : probed)
         for (int side = 0; side < 2; ++side) {
             // The reason of a cell lit directly if there is one, else of the first lit cell.
-            bool escaped = false;
+            bool escaped = false, reflected = false;
             out[i].live[side] = false;
             out[i].why[side].clear();
             for (int c = 0; c < kCells; ++c) {
                 const size_t id = (2 * size_t(i) + side) * kCells + c;
                 escaped |= views[i][side][c].escaped;
-                if (!lit[id]) continue;
-                const bool direct = why[id].rfind("receives light reflected", 0) != 0;
-                if (!out[i].live[side] || (direct && out[i].why[side].rfind("receives light reflected", 0) == 0))
-                    out[i].why[side] = why[id];
+                if (!lit(id)) continue;
+                if (!out[i].live[side] || (why[id].kind != Reason::kReflected && reflected)) {
+                    out[i].why[side] = text(why[id]);
+                    reflected = why[id].kind == Reason::kReflected;
+                }
                 out[i].live[side] = true;
             }
             if (!out[i].live[side])
@@ -267,7 +310,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                                        ? "emits, but only into itself (the inside of a closed mesh)"
                                        : escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
         }
-    if (bytes) *bytes = held_bytes(views, why, sees);
+    if (bytes) *bytes = held_bytes(views, why, seen);
     return out;
 }
 

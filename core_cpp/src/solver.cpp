@@ -754,6 +754,10 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
 
 }  // namespace
 
+std::vector<SurfaceSides> probe_sides(const Scene& scene, const SolverSettings& settings, size_t* bytes) {
+    return probe_sides(scene, ray_caster_of(scene), settings, bytes);
+}
+
 size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
     validate(settings);  // the plan's arithmetic assumes valid settings (UBSan found an int overflow)
     const RayCaster caster = ray_caster_of(scene);

@@ -56,6 +56,7 @@ from ._core import (
     fit_from_samples,
     fitting_nodes,
     memory_budget,
+    probe_sides,
     set_memory_budget,
 )
 from .fitting import fit
@@ -115,6 +116,7 @@ __all__ = [
     "fitting_nodes",
     "load_solution",
     "memory_budget",
+    "probe_sides",
     "save_solution",
     "set_memory_budget",
     "solve",

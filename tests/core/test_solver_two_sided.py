@@ -6,6 +6,7 @@ import pytest
 
 import bsgi
 from closed_forms import polygon_irradiance
+from figures import record
 from reference.scene_spec import quad
 
 ALBEDO = 0.6
@@ -237,3 +238,73 @@ def test_closed_two_sided_emitter_keeps_its_back_light_inside():
     np.testing.assert_array_equal(got.radiance[0].coefficients, want.radiance[0].coefficients)
     assert got.surfaces[k].lower is None
     assert "back side: no spline, emits, but only into itself" in got.reports[k]["reason"]
+
+
+
+def probed(scene, **kw):
+    """The sides probe alone: per surface (front live, back live, why, why) and its bytes."""
+    sides, held = bsgi.probe_sides(scene, settings(**kw))
+    return [tuple(s[:4]) for s in sides], held
+
+
+def test_probe_answers_by_construction_on_simple_scenes():
+    # Issue 16: the probe casts a cell's rays again at each pass of its fixed point rather than
+    # keep their ends; its answer is what the scenes' construction gives (and what it gave
+    # keeping 24 bytes a ray end: checked on these scenes and the interior at 10, 30 and 100
+    # objects, identical).
+    names = [name for name, _ in cube("wall ", [0, 0, 0], 1.0, ALBEDO)]  # x+, x-, y+, y-, z+, z-
+    # A closed room around a lamp facing down: the outsides face a black world, dark; the
+    # inside of the floor and of the side walls (below the lamp) see the lamp, the ceiling only
+    # the walls' reflected light.
+    room, _ = probed(room_scene())
+    for name, (front, back, why_front, why_back) in zip(names, room):
+        assert (front, back, why_front) == (False, True, "sees no light"), name
+        want = "receives light reflected by 'wall " if name == "wall z+" else "receives light from 'lamp'"
+        assert why_back.startswith(want), (name, why_back)
+    # In a bright world the outsides see it too.
+    scene = room_scene()
+    scene.world_radiance = [0.1] * 3
+    bright, _ = probed(scene)
+    assert all(s[:3] == (True, True, "receives world light") for s in bright[:6])
+    # A closed box with nothing in it, lit from outside by a lamp above it facing down: its
+    # inside is dead, as a closed mesh's; outside only its top sees the lamp, the world is black.
+    box, _ = probed(room_scene(lamp_inside=False))
+    for name, (front, back, why_front, why_back) in zip(names, box):
+        assert (back, why_back) == (False, "sees no light (the inside of a closed mesh?)"), name
+        assert (front, why_front) == ((True, "receives light from 'lamp'") if name == "wall z+" else (False, "sees no light"))
+    # The Cornell box: the fronts lit but for the boxes' faces lying on the floor; no back.
+    from reference import scene_spec
+
+    scene = scene_spec.to_bsgi(scene_spec.cornell_box())
+    cornell, _ = probed(scene)
+    for k, (front, back, why_front, why_back) in enumerate(cornell):
+        name = scene.surface(k).name
+        if name != "lamp":
+            assert front == (name not in ("tall box 4", "short box 4")) and not back, (name, cornell[k])
+            assert why_back.startswith("sees no light"), name
+
+
+def test_probe_of_the_furnished_interior_and_its_bytes():
+    import sys
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[2] / "bench"))
+    import interior_core
+
+    scene, _ = interior_core.build_scene(30)
+    sides, held = probed(scene)
+    names = [scene.surface(k).name for k in range(len(scene))]
+    # The room's quads face into it, lit through the window; their outsides face the sun or the
+    # bright sky directly.
+    for name, (front, back, _, why_back) in zip(names, sides):
+        if name.startswith("Room "):
+            assert front and back and why_back in ("receives world light", "receives light from 'Sun'"), (name, why_back)
+    # Chairs, tables and balls are closed boxes apart from each other: their insides are dark
+    # (books and shelves overlap one another, so some of their insides see others' outsides).
+    for name, (_, back, _, why_back) in zip(names, sides):
+        if name.split()[0] in ("Chair", "Table", "Ball"):
+            assert (back, why_back) == (False, "sees no light (the inside of a closed mesh?)"), name
+    per_surface = held / len(scene)
+    print(f"\nsides probe of the interior at 30 objects ({len(scene)} surfaces): {per_surface / 1e3:.1f} kB a surface")
+    record(probe_interior_30_bytes_per_surface=per_surface)
+    # Measured 2026-12-02: 21.1 kB a surface (41.6 kB holding each ray's end as a 4-byte cell id,
+    # 131 kB as 24 bytes with each end asked the cells its 72 rays reach, 4 bytes each).
+    assert per_surface < 42e3

@@ -31,5 +31,7 @@ struct SurfaceSides {
 // `bytes`, if given, receives the memory the probe held at its peak (for the solve's estimate).
 std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings,
                                       size_t* bytes = nullptr);
+// The same with the scene's own ray caster (what the solve casts rays at).
+std::vector<SurfaceSides> probe_sides(const Scene& scene, const SolverSettings& settings, size_t* bytes = nullptr);
 
 }  // namespace bsgi
