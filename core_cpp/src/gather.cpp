@@ -160,6 +160,7 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     // changes. Its samples are kept until the cell is known to be whole.
     const bool shadow_split = depth < settings_.emitter_shadow_depth;
     std::vector<std::pair<Vec3, Vec3>> kept;
+    if (shadow_split) kept.reserve(cell_rule_.nodes.size() * cell_rule_.nodes.size());  // one allocation a cell, in the hot loop
     int lit = 0, dark = 0;
     // Each node stands for the part of the cell its weight covers: an emission texture is
     // averaged over that part (exact for the integral where the geometric factor is constant).
