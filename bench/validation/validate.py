@@ -129,12 +129,26 @@ def print_row(scene, setting, r):
               f"{100 * s['rel_rmse']:5.2f}% (noise {100 * s['noise']:.2f}%)  {s['pairs']} pairs", flush=True)
 
 
+def markdown(figures: dict) -> str:
+    """A table row per solve: errors (all / diffuse / glossy pairs), CPU time, and per object its
+    mean ratio ours / Mitsuba and (in brackets) its relative RMSE."""
+    lines = ["| scene | preset | CPU time | error (all / diffuse / glossy) | per surface: mean ratio (rel. RMSE) |",
+             "|---|---|---|---|---|"]
+    for key, r in figures.items():
+        scene, preset = key.rsplit("_", 1)
+        errors = " / ".join("–" if np.isnan(r[k]) else f"{100 * r[k]:.1f}%" for k in ("rel_rmse", "rel_rmse_diffuse", "rel_rmse_glossy"))
+        surfaces = ", ".join(f"{n} {s['ratio']:.3f} ({100 * s['rel_rmse']:.1f}%)" for n, s in r["surfaces"].items())
+        lines.append(f"| {scene} | {preset} | {r['seconds']:.1f} s | {errors} | {surfaces} |")
+    return "\n".join(lines)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("command", choices=("references", "measure"))
     parser.add_argument("--scene", nargs="*", default=list(SCENES))
     parser.add_argument("--preset", nargs="*", default=list(PRESETS))
     parser.add_argument("--overrides", default=None, help='solver settings changed, JSON: \'{"max_bounces": 2}\'')
+    parser.add_argument("--markdown", action="store_true", help="end with a Markdown table (the README's)")
     args = parser.parse_args(argv)
     if args.command == "references":
         make_references(args.scene)
@@ -147,6 +161,8 @@ def main(argv=None):
             print_row(scene, preset + (f" {args.overrides}" if overrides else ""), r)
             figures[f"{scene}_{preset}"] = r
     print(json.dumps(figures))
+    if args.markdown:
+        print(markdown(figures))
 
 
 if __name__ == "__main__":
