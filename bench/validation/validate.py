@@ -4,8 +4,8 @@ bench/study/solve_blend.py in a process of their own, errors by run_study.errors
 study does not print: per object (per surface) the mean radiance ratio ours / Mitsuba, the
 relative RMSE and the reference's noise there.
 
-    .venv/bin/python bench/validation/validate.py references            (make the missing references)
-    .venv/bin/python bench/validation/validate.py measure [--scene S ...] [--preset P ...] [--overrides JSON]
+    .venv/bin/python bench/validation/validate.py references            (make missing or stale references)
+    .venv/bin/python bench/validation/validate.py measure [--scene S ...] [--preset P ...] [--overrides JSON] [--markdown]
 
 The references render the objects make_scenes.TWO_SIDED names two-sided and the lights
 transparent (Blender's lights cast no shadow), as Cycles and the solver see the scenes.

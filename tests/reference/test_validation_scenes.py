@@ -4,7 +4,8 @@ here): the relative RMSE and the worst object's mean radiance ratio are bounded 
 what was measured, so a regression fails; the issue's targets (final <= 1% on diffuse scenes,
 <= 2% with GGX alpha >= 0.3, every surface's mean within 1%) are strict expected failures that
 state the measured figures. Each scene is one final solve (bench/study/solve_blend.py, in a
-process of its own); the figures print with -s.
+process of its own; about 2 minutes of CPU, 7 minutes of wall time on the shared 2-core
+machine); the figures print with -s.
 
     .venv/bin/python -m pytest tests/reference/test_validation_scenes.py -s
 """
