@@ -136,7 +136,8 @@ def markdown(figures: dict) -> str:
              "|---|---|---|---|---|"]
     for key, r in figures.items():
         scene, preset = key.rsplit("_", 1)
-        errors = " / ".join("–" if np.isnan(r[k]) else f"{100 * r[k]:.1f}%" for k in ("rel_rmse", "rel_rmse_diffuse", "rel_rmse_glossy"))
+        errors = " / ".join("–" if np.isnan(r[k]) else f"{100 * r[k]:.1f}%"
+                            for k in ("rel_rmse", "rel_rmse_diffuse", "rel_rmse_glossy"))
         surfaces = ", ".join(f"{n} {s['ratio']:.3f} ({100 * s['rel_rmse']:.1f}%)" for n, s in r["surfaces"].items())
         lines.append(f"| {scene} | {preset} | {r['seconds']:.1f} s | {errors} | {surfaces} |")
     return "\n".join(lines)
