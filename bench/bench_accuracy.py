@@ -9,10 +9,15 @@ file is still used: the pairs and the scene's geometry are the same). Figures:
   farthest from 1 among those with at least 20 pairs,
 - acc_<scene>_<preset>_cycles_seconds: the CPU time a Cycles bake of the same surfaces needed to
   reach that error in the committed study (bench/study/results.csv, 16 to 1,024 samples,
-  interpolated in log time; absent if no bake reached it).
+  interpolated in log time; absent if no bake reached it),
+- acc_<scene>_worst_surface_ratio: the final preset's worst object ratio.
 
-BSGI_BENCH_ACCURACY=cornell_box,mug chooses the scenes (default: the diffuse study scenes and the
-glossy-wall box; the near-mirror box, the spheres and the glass sheet take many minutes each).
+Scenes: the study's and the validation scenes (bench/validation: open_box, table_spheres,
+ceiling_light, thin_occluder, with their own committed references, 3,000 pairs each; no Cycles
+bake of them in the study, so no cycles_seconds).
+BSGI_BENCH_ACCURACY=cornell_box,mug chooses the scenes (default: the diffuse study scenes, the
+glossy-wall box and the validation scenes; the near-mirror box, the spheres and the glass sheet
+take many minutes each).
 
     python bench/run.py accuracy
 """
@@ -33,7 +38,9 @@ HERE = Path(__file__).resolve().parent
 STUDY = HERE / "study"
 sys.path.insert(0, str(STUDY))
 
-SCENES = os.environ.get("BSGI_BENCH_ACCURACY", "cornell_box,contact_shadows,mug,bezier_patches,cornell_box_glossy_wall").split(",")
+sys.path.insert(0, str(HERE / "validation"))
+SCENES = os.environ.get("BSGI_BENCH_ACCURACY", "cornell_box,contact_shadows,mug,bezier_patches,cornell_box_glossy_wall,"
+                        "open_box,table_spheres,ceiling_light,thin_occluder").split(",")
 PRESETS = ("draft", "preview", "final")
 
 
@@ -55,7 +62,12 @@ def cycles_seconds(scene: str, error: float) -> float | None:
 
 def measure(scene: str, preset: str, work: Path) -> dict:
     import run_study
+    import validate
     from references import describe
+
+    if scene in validate.SCENES:
+        row = validate.measure(scene, preset, work=work)
+        return {k: row[k] for k in ("rel_rmse", "seconds", "worst_surface_ratio")}
 
     blend = next(p for p in run_study.scenes([scene]))
     data = dict(np.load(STUDY / "references" / f"{scene}.npz", allow_pickle=False))
@@ -84,6 +96,8 @@ def run() -> dict:
                 row = measure(scene, preset, Path(tmp))
                 for key, value in row.items():
                     figures[f"acc_{scene}_{preset}_{key}"] = value
+                if preset == "final":
+                    figures[f"acc_{scene}_worst_surface_ratio"] = row["worst_surface_ratio"]
                 cycles = cycles_seconds(scene, row["rel_rmse"])
                 if cycles is not None:
                     figures[f"acc_{scene}_{preset}_cycles_seconds"] = cycles

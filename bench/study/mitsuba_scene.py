@@ -75,7 +75,11 @@ def _obj_text(positions, triangles, tangents=None, rotation=0.0):
     return "\n".join(lines) + "\n"
 
 
-def scene_dict(description, max_depth: int = -1) -> dict:
+def scene_dict(description, max_depth: int = -1, two_sided=(), transparent_lights: bool = False) -> dict:
+    """two_sided: names of objects rendered with `twosided` (Cycles shades both sides of every
+    surface; the study's scenes leave it empty, their backs seeing no light). transparent_lights:
+    the area lights' shapes let rays through (`null` BSDF), as Blender's lights, which cast no
+    shadow; otherwise their black backs shade what lies behind them."""
     mi = load_mitsuba()
     folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-study-"))
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
@@ -90,7 +94,10 @@ def scene_dict(description, max_depth: int = -1) -> dict:
                 path.write_text(_obj_text(obj.positions, tris, obj.tangent[chosen], material.rotation))
             else:
                 path.write_text(_obj_text(obj.positions, tris))
-            shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": bsdf(material)}
+            chosen_bsdf = bsdf(material)
+            if obj.name in two_sided and material.transmission <= 0.5:
+                chosen_bsdf = {"type": "twosided", "bsdf": chosen_bsdf}
+            shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": chosen_bsdf}
             if max(material.emission) > 0:
                 shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(material.emission)}}
             shapes[f"object{k}_{m}"] = shape
@@ -101,12 +108,12 @@ def scene_dict(description, max_depth: int = -1) -> dict:
         shapes[f"light{k}"] = {
             "type": "rectangle" if light.shape == "RECTANGLE" else "disk",
             "to_world": mi.ScalarTransform4f(light.matrix @ local),
-            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0] * 3}},
+            "bsdf": {"type": "null"} if transparent_lights else {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0] * 3}},
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": list(light.radiance)}},
         }
     return shapes
 
 
-def load_scene(description, max_depth: int = -1):
+def load_scene(description, max_depth: int = -1, two_sided=(), transparent_lights: bool = False):
     mi = load_mitsuba()
-    return mi.load_dict(scene_dict(description, max_depth), optimize=False)
+    return mi.load_dict(scene_dict(description, max_depth, two_sided, transparent_lights), optimize=False)

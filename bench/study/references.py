@@ -53,27 +53,31 @@ def cache_path(blend, quick: bool, cache=CACHE) -> pathlib.Path:
     return pathlib.Path(cache) / f"{pathlib.Path(blend).stem}{'_quick' if quick else ''}.npz"
 
 
-def load_cached(blend, quick: bool, cache=CACHE):
+def load_cached(blend, quick: bool, cache=CACHE, settings=None):
     """The cached pairs and reference, or None if missing or stale (another .blend or settings)."""
     path = cache_path(blend, quick, cache)
     if not path.exists():
         return None
     data = dict(np.load(path, allow_pickle=False))
-    if str(data["key"]) != cache_key(blend, QUICK if quick else FULL):
+    if str(data["key"]) != cache_key(blend, settings or (QUICK if quick else FULL)):
         print(f"study: {path.name} is stale (scene or settings changed): remaking it", flush=True)
         return None
     return data
 
 
-def reference(blend, quick: bool = False, cache=CACHE) -> dict:
-    """Pairs and reference for a .blend, from the cache or made now (and cached)."""
-    cached = load_cached(blend, quick, cache)
+def reference(blend, quick: bool = False, cache=CACHE, settings=None) -> dict:
+    """Pairs and reference for a .blend, from the cache or made now (and cached). settings:
+    instead of FULL / QUICK, e.g. the validation scenes' (bench/validation), which may add
+    "two_sided" (object names seen and lit from both sides) and "transparent_lights" (see
+    mitsuba_scene.scene_dict)."""
+    cached = load_cached(blend, quick, cache, settings)
     if cached is not None:
         return cached
-    settings = QUICK if quick else FULL
+    settings = settings or (QUICK if quick else FULL)
+    two_sided, transparent = settings.get("two_sided", ()), settings.get("transparent_lights", False)
     description = describe(blend)
-    scene = mitsuba_scene.load_scene(description)
-    pairs = visible_pairs(description, scene, settings["pairs"], settings["seed"])
+    scene = mitsuba_scene.load_scene(description, two_sided=two_sided, transparent_lights=transparent)
+    pairs = visible_pairs(description, scene, settings["pairs"], settings["seed"], two_sided, transparent)
     start = time.perf_counter()
     mean, stderr = radiance_along(scene, pairs["eye"], pairs["point"], settings["spp"], seed=5)
     pairs.update(reference=mean, stderr=stderr, reference_seconds=time.perf_counter() - start,
@@ -84,10 +88,19 @@ def reference(blend, quick: bool = False, cache=CACHE) -> dict:
     return dict(np.load(path, allow_pickle=False))
 
 
+def _back_seen(si):
+    """Whether the surfaces hit may be seen from behind: transmitting, two-sided or a transparent light."""
+    mi = load_mitsuba()
+    flags = si.bsdf().flags()
+    return np.array(mi.has_flag(flags, mi.BSDFFlags.Transmission) | mi.has_flag(flags, mi.BSDFFlags.BackSide)
+                    | mi.has_flag(flags, mi.BSDFFlags.Null), bool)
+
+
 def _in_open_space(scene, eye, rng, rays: int = 8):
     """Whether each eye point is in the scene's open space: rays from it in random directions
-    meet only fronts of surfaces (or nothing). An eye under a floor or inside a closed object
-    (e.g. looking at the bottom of a box standing on the floor) sees a back first."""
+    meet only fronts of surfaces (or nothing), or backs that may be seen (_back_seen). An eye
+    under a floor or inside a closed object (e.g. looking at the bottom of a box standing on the
+    floor) sees a back first."""
     mi = load_mitsuba()
     ok = np.ones(len(eye), bool)
     for _ in range(rays):
@@ -95,7 +108,7 @@ def _in_open_space(scene, eye, rng, rays: int = 8):
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         si = scene.ray_intersect(mi.Ray3f(mi.Point3f(eye.T.astype(np.float32)), mi.Vector3f(d.T.astype(np.float32))))
         back = np.isfinite(np.array(si.t)) & (np.einsum("ij,ij->i", np.array(si.n).T, d) > 0)
-        back &= ~np.array(mi.has_flag(si.bsdf().flags(), mi.BSDFFlags.Transmission), bool)
+        back &= ~_back_seen(si)
         ok &= ~back
     return ok
 
@@ -120,9 +133,10 @@ def _kind(material) -> str:
     return "glossy" if glossy > diffuse else "diffuse"
 
 
-def visible_pairs(description, scene, count: int, seed: int) -> dict:
+def visible_pairs(description, scene, count: int, seed: int, two_sided=(), transparent_lights: bool = False) -> dict:
     """Random points on the scene's triangles (area-weighted) with cosine-distributed outgoing
-    directions, each with an eye point along its direction in open space."""
+    directions, each with an eye point along its direction in open space. Transmitting surfaces
+    and the objects named in two_sided are seen from both sides."""
     mi = load_mitsuba()
     rng = np.random.default_rng(seed)
     objects = description["objects"]
@@ -131,7 +145,8 @@ def visible_pairs(description, scene, count: int, seed: int) -> dict:
     cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     area = 0.5 * np.linalg.norm(cross, axis=1)
     normal = cross / np.maximum(2 * area, 1e-300)[:, None]
-    transmits = np.array([objects[k].materials[objects[k].material[t]].transmission > 0.5 for k, t in tri])
+    transmits = np.array([objects[k].materials[objects[k].material[t]].transmission > 0.5 or objects[k].name in two_sided
+                          for k, t in tri])
     lo, hi = corners.reshape(-1, 3).min(0), corners.reshape(-1, 3).max(0)
     scale = float(np.linalg.norm(hi - lo))
     kinds = np.array([_kind(objects[k].materials[objects[k].material[t]]) for k, t in tri])
@@ -156,9 +171,11 @@ def visible_pairs(description, scene, count: int, seed: int) -> dict:
         # The eye must be in open space: the ray leaves into the scene and meets a surface's
         # front (or the back of a transmitting one), or nothing.
         front = np.einsum("ij,ij->i", np.array(si.n).T, d) < 0
-        front |= np.array(mi.has_flag(si.bsdf().flags(), mi.BSDFFlags.Transmission), bool)
+        front |= _back_seen(si)
         keep = (escaped | front) & (np.linalg.norm(eye - pts, axis=1) > 1e-4 * scale)
-        keep &= ~_behind_light(pts, description["lights"]) & _in_open_space(scene, eye, rng)
+        if not transparent_lights:
+            keep &= ~_behind_light(pts, description["lights"])
+        keep &= _in_open_space(scene, eye, rng)
         for j in np.nonzero(keep)[0][: count - len(out["object"])]:
             k, t_ = tri[pick[j]]
             out["object"].append(objects[k].name)

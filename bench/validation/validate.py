@@ -1,0 +1,170 @@
+"""The validation scenes (issue 15; make_scenes.py) against Mitsuba 3, with the study's machinery:
+references made by bench/study/references.py (committed in references/), solves by
+bench/study/solve_blend.py in a process of their own, errors by run_study.errors. Adds what the
+study does not print: per object (per surface) the mean radiance ratio ours / Mitsuba, the
+relative RMSE and the reference's noise there.
+
+    .venv/bin/python bench/validation/validate.py references            (make missing or stale references)
+    .venv/bin/python bench/validation/validate.py measure [--scene S ...] [--preset P ...] [--overrides JSON] [--markdown]
+
+The references render the objects make_scenes.TWO_SIDED names two-sided and the lights
+transparent (Blender's lights cast no shadow), as Cycles and the solver see the scenes.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+STUDY = HERE.parent / "study"
+sys.path.insert(0, str(STUDY))
+sys.path.insert(0, str(HERE))
+
+from make_scenes import TWO_SIDED  # noqa: E402
+
+SCENES = tuple(TWO_SIDED)
+PRESETS = ("draft", "preview", "final")
+REFERENCES = HERE / "references"
+# 3,000 pairs as the study; 32,768 samples a pair leave the noise at 0.1-0.2% (printed).
+SETTINGS = {"pairs": 3000, "spp": 32768, "seed": 11, "transparent_lights": True}
+# Objects with fewer pairs than this get no per-surface figures (too noisy a mean).
+MIN_PAIRS = 20
+
+
+def blend_path(scene: str) -> pathlib.Path:
+    return HERE / "scenes" / f"{scene}.blend"
+
+
+def settings(scene: str) -> dict:
+    return {**SETTINGS, "two_sided": TWO_SIDED[scene]}
+
+
+def load_reference(scene: str) -> dict:
+    """The committed reference (used even if the .blend was regenerated since: the geometry is the same)."""
+    return dict(np.load(REFERENCES / f"{scene}.npz", allow_pickle=False))
+
+
+def make_references(scenes=SCENES):
+    import references
+
+    for scene in scenes:
+        data = references.reference(blend_path(scene), cache=REFERENCES, settings=settings(scene))
+        print(json.dumps({"scene": scene, "pairs": len(data["point"]), "reference_seconds": float(data["reference_seconds"]),
+                          "reference_noise": noise(data)}), flush=True)
+
+
+def noise(data, mask=None) -> float:
+    """The reference's relative noise: its standard error's RMS against its RMS."""
+    mask = np.ones(len(data["reference"]), bool) if mask is None else mask
+    return float(np.sqrt((data["stderr"][mask] ** 2).sum() / (data["reference"][mask] ** 2).sum()))
+
+
+def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
+    """One solve of the scene (solve_blend.py, its own process) and its radiance at the pairs:
+    (radiance (n, 3), the solve's figures, mask of the pairs compared)."""
+    import run_study
+    from references import describe
+
+    blend = blend_path(scene)
+    work.mkdir(parents=True, exist_ok=True)
+    np.savez(work / "pairs.npz", **{k: data[k] for k in ("object", "polygon", "point", "eye")})
+    (work / "settings.json").write_text(json.dumps(spec))
+    out = subprocess.run([sys.executable, str(STUDY / "solve_blend.py"), str(blend), str(work / "settings.json"),
+                          str(work / "pairs.npz"), str(work / "solve.npz")], capture_output=True, text=True)
+    if out.returncode:
+        raise RuntimeError(f"{scene}: solve failed:\n{out.stderr[-3000:]}")
+    figures = json.loads(out.stdout.strip().splitlines()[-1])
+    ours = np.load(work / "solve.npz")["radiance"]
+    valid = ~np.isin(data["object"], run_study.emitting_objects(describe(blend))) & np.isfinite(ours).all(axis=1)
+    return ours, figures, valid
+
+
+def per_surface(ours, data, valid) -> dict:
+    """Per object with at least MIN_PAIRS pairs: mean ratio (sum of ours / sum of the reference,
+    RGB), relative RMSE, reference noise (of the mean and per pair) and the pair count."""
+    import run_study
+
+    out = {}
+    for name in sorted(set(data["object"][valid].tolist())):
+        m = valid & (data["object"] == name)
+        if m.sum() < MIN_PAIRS:
+            continue
+        ref = data["reference"][m]
+        out[name] = {"ratio": float(ours[m].sum() / ref.sum()), "rel_rmse": run_study.rel_rmse(ours, data["reference"], m),
+                     "mean_noise": float(np.sqrt((data["stderr"][m] ** 2).sum()) / ref.sum()), "noise": noise(data, m),
+                     "pairs": int(m.sum())}
+    return out
+
+
+def worst_ratio(surfaces: dict) -> float:
+    return max((s["ratio"] for s in surfaces.values()), key=lambda r: abs(r - 1))
+
+
+def measure(scene: str, preset: str, overrides=None, work=None) -> dict:
+    """Errors of one solve against the committed reference: run_study.errors' figures, the
+    solve's CPU seconds, per-surface figures and the worst surface's mean ratio."""
+    import run_study
+
+    data = load_reference(scene)
+    spec = {"preset": preset, **({"overrides": overrides} if overrides else {})}
+    with tempfile.TemporaryDirectory() as tmp:
+        ours, figures, valid = solve(scene, spec, data, pathlib.Path(work or tmp))
+    surfaces = per_surface(ours, data, valid)
+    return {**run_study.errors(ours, data, valid), "seconds": figures["cpu_seconds"], "wall_seconds": figures["seconds"],
+            "reference_noise": noise(data, valid), "surfaces": surfaces, "worst_surface_ratio": worst_ratio(surfaces)}
+
+
+def print_row(scene, setting, r):
+    glossy = "" if np.isnan(r["rel_rmse_glossy"]) else f", glossy {100 * r['rel_rmse_glossy']:.2f}%"
+    print(f"{scene} {setting}: {100 * r['rel_rmse']:.2f}% (diffuse {100 * r['rel_rmse_diffuse']:.2f}%{glossy}) "
+          f"in {r['seconds']:.1f} s CPU; reference noise {100 * r['reference_noise']:.2f}%", flush=True)
+    for name, s in r["surfaces"].items():
+        print(f"    {name:16s} ratio {s['ratio']:.4f} (noise {100 * s['mean_noise']:.2f}%)  rel RMSE "
+              f"{100 * s['rel_rmse']:5.2f}% (noise {100 * s['noise']:.2f}%)  {s['pairs']} pairs", flush=True)
+
+
+def markdown(figures: dict) -> str:
+    """A table row per solve: errors (all / diffuse / glossy pairs), CPU time, and per object its
+    mean ratio ours / Mitsuba and (in brackets) its relative RMSE."""
+    lines = ["| scene | preset | CPU time | error (all / diffuse / glossy) | per surface: mean ratio (rel. RMSE) |",
+             "|---|---|---|---|---|"]
+    for key, r in figures.items():
+        scene, preset = key.rsplit("_", 1)
+        errors = " / ".join("–" if np.isnan(r[k]) else f"{100 * r[k]:.1f}%"
+                            for k in ("rel_rmse", "rel_rmse_diffuse", "rel_rmse_glossy"))
+        surfaces = ", ".join(f"{n} {s['ratio']:.3f} ({100 * s['rel_rmse']:.1f}%)" for n, s in r["surfaces"].items())
+        lines.append(f"| {scene} | {preset} | {r['seconds']:.1f} s | {errors} | {surfaces} |")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("command", choices=("references", "measure"))
+    parser.add_argument("--scene", nargs="*", default=list(SCENES))
+    parser.add_argument("--preset", nargs="*", default=list(PRESETS))
+    parser.add_argument("--overrides", default=None, help='solver settings changed, JSON: \'{"max_bounces": 2}\'')
+    parser.add_argument("--markdown", action="store_true", help="end with a Markdown table (the README's)")
+    args = parser.parse_args(argv)
+    if args.command == "references":
+        make_references(args.scene)
+        return
+    overrides = json.loads(args.overrides) if args.overrides else None
+    figures = {}
+    for scene in args.scene:
+        for preset in args.preset:
+            r = measure(scene, preset, overrides)
+            print_row(scene, preset + (f" {args.overrides}" if overrides else ""), r)
+            figures[f"{scene}_{preset}"] = r
+    print(json.dumps(figures))
+    if args.markdown:
+        print(markdown(figures))
+
+
+if __name__ == "__main__":
+    main()
