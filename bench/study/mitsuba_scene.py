@@ -1,7 +1,7 @@
 """A Blender scene (as blend_scene describes it) in Mitsuba 3: the triangles Blender renders, each
 material as its nodes state it (not the solver's single-BSDF approximation, so that what the
 solver drops shows as error; anisotropic metals along the tangent Cycles gives them), and the area
-lights as one-sided emitting rectangles and discs."""
+lights as one-sided emitting rectangles and discs that rays pass through."""
 from __future__ import annotations
 
 import pathlib
@@ -75,11 +75,13 @@ def _obj_text(positions, triangles, tangents=None, rotation=0.0):
     return "\n".join(lines) + "\n"
 
 
-def scene_dict(description, max_depth: int = -1, two_sided=(), transparent_lights: bool = False) -> dict:
+def scene_dict(description, max_depth: int = -1, two_sided=()) -> dict:
     """two_sided: names of objects rendered with `twosided` (Cycles shades both sides of every
-    surface; the study's scenes leave it empty, their backs seeing no light). transparent_lights:
-    the area lights' shapes let rays through (`null` BSDF), as Blender's lights, which cast no
-    shadow; otherwise their black backs shade what lies behind them."""
+    surface; the study's scenes leave it empty, their backs seeing no light). The area lights'
+    shapes let rays through (a `null` BSDF), as Blender's lights, which cast no shadow: an opaque
+    black shape darkened the study's Cornell box by 0.85% against Cycles' bake. (Mitsuba's shadow
+    rays still stop at them: with one light per scene only rays towards that light, which end
+    short of it.)"""
     mi = load_mitsuba()
     folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-study-"))
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
@@ -108,12 +110,12 @@ def scene_dict(description, max_depth: int = -1, two_sided=(), transparent_light
         shapes[f"light{k}"] = {
             "type": "rectangle" if light.shape == "RECTANGLE" else "disk",
             "to_world": mi.ScalarTransform4f(light.matrix @ local),
-            "bsdf": {"type": "null"} if transparent_lights else {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0] * 3}},
+            "bsdf": {"type": "null"},
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": list(light.radiance)}},
         }
     return shapes
 
 
-def load_scene(description, max_depth: int = -1, two_sided=(), transparent_lights: bool = False):
+def load_scene(description, max_depth: int = -1, two_sided=()):
     mi = load_mitsuba()
-    return mi.load_dict(scene_dict(description, max_depth, two_sided, transparent_lights), optimize=False)
+    return mi.load_dict(scene_dict(description, max_depth, two_sided), optimize=False)

@@ -68,16 +68,15 @@ def load_cached(blend, quick: bool, cache=CACHE, settings=None):
 def reference(blend, quick: bool = False, cache=CACHE, settings=None) -> dict:
     """Pairs and reference for a .blend, from the cache or made now (and cached). settings:
     instead of FULL / QUICK, e.g. the validation scenes' (bench/validation), which may add
-    "two_sided" (object names seen and lit from both sides) and "transparent_lights" (see
-    mitsuba_scene.scene_dict)."""
+    "two_sided" (object names seen and lit from both sides; see mitsuba_scene.scene_dict)."""
     cached = load_cached(blend, quick, cache, settings)
     if cached is not None:
         return cached
     settings = settings or (QUICK if quick else FULL)
-    two_sided, transparent = settings.get("two_sided", ()), settings.get("transparent_lights", False)
+    two_sided = settings.get("two_sided", ())
     description = describe(blend)
-    scene = mitsuba_scene.load_scene(description, two_sided=two_sided, transparent_lights=transparent)
-    pairs = visible_pairs(description, scene, settings["pairs"], settings["seed"], two_sided, transparent)
+    scene = mitsuba_scene.load_scene(description, two_sided=two_sided)
+    pairs = visible_pairs(description, scene, settings["pairs"], settings["seed"], two_sided)
     start = time.perf_counter()
     mean, stderr = radiance_along(scene, pairs["eye"], pairs["point"], settings["spp"], seed=5)
     pairs.update(reference=mean, stderr=stderr, reference_seconds=time.perf_counter() - start,
@@ -89,7 +88,7 @@ def reference(blend, quick: bool = False, cache=CACHE, settings=None) -> dict:
 
 
 def _back_seen(si):
-    """Whether the surfaces hit may be seen from behind: transmitting, two-sided or a transparent light."""
+    """Whether the surfaces hit may be seen from behind: transmitting, two-sided or a light (transparent)."""
     mi = load_mitsuba()
     flags = si.bsdf().flags()
     return np.array(mi.has_flag(flags, mi.BSDFFlags.Transmission) | mi.has_flag(flags, mi.BSDFFlags.BackSide)
@@ -113,18 +112,6 @@ def _in_open_space(scene, eye, rng, rays: int = 8):
     return ok
 
 
-def _behind_light(points, lights):
-    """Points just behind an area light: Mitsuba's emitting shapes shade them, Blender's lights
-    (and the solver's emitters) do not, so they are left out of the comparison."""
-    out = np.zeros(len(points), bool)
-    for light in lights:
-        local = (points - light.matrix[:3, 3]) @ np.linalg.inv(light.matrix[:3, :3]).T
-        size = max(light.half_a, light.half_b)
-        out |= ((np.abs(local[:, 0]) < 2 * light.half_a) & (np.abs(local[:, 1]) < 2 * light.half_b)
-                & (local[:, 2] > -1e-6) & (local[:, 2] < size))
-    return out
-
-
 def _kind(material) -> str:
     """What the pair's surface is, for errors per kind: glass, glossy (metal) or diffuse."""
     diffuse, glossy = sum(material.albedo) / 3, sum(material.specular) / 3
@@ -133,7 +120,7 @@ def _kind(material) -> str:
     return "glossy" if glossy > diffuse else "diffuse"
 
 
-def visible_pairs(description, scene, count: int, seed: int, two_sided=(), transparent_lights: bool = False) -> dict:
+def visible_pairs(description, scene, count: int, seed: int, two_sided=()) -> dict:
     """Random points on the scene's triangles (area-weighted) with cosine-distributed outgoing
     directions, each with an eye point along its direction in open space. Transmitting surfaces
     and the objects named in two_sided are seen from both sides."""
@@ -173,8 +160,6 @@ def visible_pairs(description, scene, count: int, seed: int, two_sided=(), trans
         front = np.einsum("ij,ij->i", np.array(si.n).T, d) < 0
         front |= _back_seen(si)
         keep = (escaped | front) & (np.linalg.norm(eye - pts, axis=1) > 1e-4 * scale)
-        if not transparent_lights:
-            keep &= ~_behind_light(pts, description["lights"])
         keep &= _in_open_space(scene, eye, rng)
         for j in np.nonzero(keep)[0][: count - len(out["object"])]:
             k, t_ = tri[pick[j]]

@@ -32,7 +32,7 @@ SCENES = tuple(TWO_SIDED)
 PRESETS = ("draft", "preview", "final")
 REFERENCES = HERE / "references"
 # 3,000 pairs as the study; 32,768 samples a pair leave the noise at 0.1-0.2% (printed).
-SETTINGS = {"pairs": 3000, "spp": 32768, "seed": 11, "transparent_lights": True}
+SETTINGS = {"pairs": 3000, "spp": 32768, "seed": 11}
 # Objects with fewer pairs than this get no per-surface figures (too noisy a mean).
 MIN_PAIRS = 20
 

@@ -64,14 +64,21 @@ SurfaceOptions options(const std::string& name, const std::string& representatio
 }
 
 const char* phase_name(SolveSteps::Phase p) {
-    return p == SolveSteps::Phase::Direct ? "direct" : (p == SolveSteps::Phase::Bounce ? "bounce" : "final");
+    switch (p) {
+        case SolveSteps::Phase::Direct: return "direct";
+        case SolveSteps::Phase::Bounce: return "bounce";
+        case SolveSteps::Phase::Final: return "final";
+        case SolveSteps::Phase::Regather: return "regather";
+    }
+    return "";
 }
 
 SolveSteps::Phase phase_of(const std::string& name) {
     if (name == "direct") return SolveSteps::Phase::Direct;
     if (name == "bounce") return SolveSteps::Phase::Bounce;
     if (name == "final") return SolveSteps::Phase::Final;
-    throw std::invalid_argument("solve phase must be 'direct', 'bounce' or 'final', got '" + name + "'");
+    if (name == "regather") return SolveSteps::Phase::Regather;
+    throw std::invalid_argument("solve phase must be 'direct', 'bounce', 'final' or 'regather', got '" + name + "'");
 }
 
 const char* kind_name(Representation r) {
@@ -310,6 +317,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("final_gather", &SolverSettings::final_gather)
         .def_readwrite("final_spatial_factor", &SolverSettings::final_spatial_factor)
         .def_readwrite("final_integration_factor", &SolverSettings::final_integration_factor)
+        .def_readwrite("final_passes", &SolverSettings::final_passes)
         .def_readwrite("two_sided", &SolverSettings::two_sided)
         .def_readwrite("estimate_error", &SolverSettings::estimate_error)
         .def_readwrite("error_checks", &SolverSettings::error_checks)
@@ -540,7 +548,7 @@ void bind_scene(py::module_& m) {
             },
             py::arg("progress"), py::arg("runner") = py::none(),
             "The whole solve, once. runner(phase, input, nodes) -> (coefficients, rays), if given, gathers each phase "
-            "('direct', 'bounce', 'final') for all receivers, wherever it likes (called with the GIL); the bookkeeping "
+            "('direct', 'bounce', 'final', 'regather') for all receivers, wherever it likes (called with the GIL); the bookkeeping "
             "between phases stays here. Releases the GIL.")
         .def(
             "nodes",
@@ -548,7 +556,7 @@ void bind_scene(py::module_& m) {
                 py::gil_scoped_release release;
                 return steps.nodes(phase_of(phase), progress);
             },
-            py::arg("phase"), py::arg("progress"), "Spatial nodes of each receiver of phase 'direct', 'bounce' or 'final'.")
+            py::arg("phase"), py::arg("progress"), "Spatial nodes of each receiver of phase 'direct', 'bounce', 'final' or 'regather'.")
         .def(
             "gather",
             [](SolveSteps& steps, const std::string& phase, size_t begin, size_t end, const Array& input, Progress& progress) {
@@ -564,7 +572,8 @@ void bind_scene(py::module_& m) {
             },
             py::arg("phase"), py::arg("begin"), py::arg("end"), py::arg("input"), py::arg("progress"),
             "The gather of a phase for receivers [begin, end) given all receivers' coefficients of the previous step "
-            "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final'): (their new "
+            "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final', the finals' Le of the "
+            "previous final gather for 'regather'): (their new "
             "coefficients, rays cast). Releases the GIL; raises SolveCancelled if progress is cancelled.");
 }
 

@@ -52,6 +52,7 @@ void validate(const SolverSettings& s) {
     need(s.tolerance >= 0, "tolerance must be >= 0");
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");
     need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
+    need(s.final_passes >= 1 && s.final_passes <= 4, "final_passes must be 1 to 4");
     need(s.memory_budget_mb > 0, "memory_budget_mb must be > 0");
     need(s.error_checks >= 1 && s.error_checks <= 4096, "error_checks must be in 1..4096");
 }
@@ -679,8 +680,9 @@ private:
 }  // namespace
 
 SolverSettings SolverSettings::preset(const std::string& name) {
-    // Each iterates on a coarse representation and refines once in the final gather (paper 4.2);
-    // the README lists their measured time and error.
+    // Each iterates on a coarse representation and refines in the final gather (paper 4.2),
+    // preview and final twice (the second reading the first's fine splines); the README lists
+    // their measured time and error.
     SolverSettings s;
     s.final_gather = true;
     s.final_spatial_factor = 2;
@@ -695,11 +697,13 @@ SolverSettings SolverSettings::preset(const std::string& name) {
         s.tolerance = 1e-2;
     } else if (name == "preview") {
         s.spatial_coeffs = 12;
+        s.final_passes = 2;
         s.angular_resolution = 3.0;
         s.emitter_shadow_depth = 3;
         s.tolerance = 3e-3;
     } else if (name == "final") {
         s.spatial_coeffs = 16;
+        s.final_passes = 2;
         s.adaptive_knots = true;
         s.angular_resolution = 4.0;
         s.emitter_shadow_depth = 5;
@@ -742,7 +746,9 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
                         (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
     for (const Plan& p : final_plans) fine += set_bytes(p), fine_nodes += node_bytes(p);
-    const size_t bounce = 2 * coarse, final = final_plans.empty() ? 0 : coarse + 2 * fine + fine_nodes;
+    // A regather holds the finals' input packed and their new set beside them.
+    const size_t regather = settings.final_passes > 1 ? 2 * fine : 0;
+    const size_t bounce = 2 * coarse, final = final_plans.empty() ? 0 : std::max(coarse, regather) + 2 * fine + fine_nodes;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
     // The ray caster: a 64-byte record and about as much BVH a triangle, and an Embree geometry
@@ -816,7 +822,7 @@ int begin_solve(const Scene& scene, const SolverSettings& settings, Progress& pr
         throw std::invalid_argument("scene has no emitter: add a light, an emissive material or world light");
     // Form factors carry one scalar weight per coefficient: not the colour of albedo textures.
     const int ff_stage = settings.form_factors && !scene.has_albedo_textures() && settings.max_bounces > 0 ? 1 : 0;
-    const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? 1 : 0);
+    const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? settings.final_passes : 0);
     progress.begin_stage("building ray scene", 0, stages, 1);
     return stages;
 }
@@ -954,7 +960,7 @@ struct SolveSteps::State {
     size_t knot_rays = 0;  // of placing the knots, counted once by the solve however many steps place them
     std::vector<Receiver> receivers, finals;
     bool finals_built = false;
-    std::vector<const Receiver*> receiver_of;
+    std::vector<const Receiver*> receiver_of, final_of;
     // With form factors, Lambertian receivers keep their rows of the transport operator. A row's
     // weights are scalars: they cannot carry the colour of a textured surface its rays hit.
     bool rows_possible = false;
@@ -1020,6 +1026,7 @@ struct SolveSteps::State {
         if (finals_built || !settings.final_gather) return;
         finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays, false);
         move_hidden_nodes(finals, scene, *gather, receiver_of, settings, progress, knot_rays);
+        final_of = index_by_surface(scene, finals);
         finals_built = true;
     }
 
@@ -1041,6 +1048,11 @@ struct SolveSteps::State {
         // finals (the contact shadows blurred over a coarse grid), and that error enters each
         // surface's light through its gather, where its own splines cannot show it.
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
+        // A regather read the previous final splines, close to the result's: its gather is
+        // checked from the result's, and the coarse splines show how far the input still errs.
+        const bool regathered = settings.final_gather && settings.final_passes > 1;
+        const std::vector<const Receiver*>& last_of = regathered ? result_of : receiver_of;
+        const std::vector<const Receiver*>& other_of = regathered ? receiver_of : result_of;
         // Per (receiver, check), weighted: squared error of the spline, squared differences of the
         // gathers from the final splines and at doubled nodes, the gathered radiance, the weight.
         struct Check {
@@ -1102,9 +1114,9 @@ struct SolveSteps::State {
                         by.indirect(q, 0, from, &Receiver::Le, density, true, out.data(), local);
                         for (size_t k = 0; k < m; ++k) out[k] += direct[k];
                     };
-                    gathered(*gather, receiver_of, g);
+                    gathered(*gather, last_of, g);
                     if (input_check(i)) {
-                        if (settings.final_gather) gathered(*gather, result_of, h);
+                        if (settings.final_gather) gathered(*gather, other_of, h);
                         else h = g;  // the input was the result's own splines
                     }
                     if (fine_check(i)) gathered(*fine_gather, result_of, f);
@@ -1127,7 +1139,7 @@ struct SolveSteps::State {
                         if (behind(p.p, p.frame.z, d, local)) continue;
                         const size_t k = side * nd + (nd == 1 ? 0 : a);
                         const double weight = weight_of_point * (nd == 1 ? 1.0 / dirs.size() : 1.0);
-                        const Vec3 e = S[k] - G[k], input = I[k] - G[k], integration = F[k] - I[k];
+                        const Vec3 e = S[k] - G[k], input = I[k] - G[k], integration = F[k] - (regathered ? G[k] : I[k]);
                         c.fit += weight * dot(e, e) / 3;
                         if (input_check(i)) c.input += weight * dot(input, input) / 3;
                         if (fine_check(i)) c.integration += weight * dot(integration, integration) / 3;
@@ -1163,7 +1175,8 @@ struct SolveSteps::State {
             // spline's error converges at first order in its knot spacing, and the finals have
             // half the coarse spacing (Richardson). The doubled integration nodes' difference is
             // taken as the integration error itself (the rules converge faster where smooth).
-            const double e_input = 2 * rms(input.input, input.values);
+            // After a regather the input was the finals: the difference is their own error.
+            const double e_input = (regathered ? 1 : 2) * rms(input.input, input.values);
             const double e_int = rms(fine.integration, fine.values);
             const double e_tail = std::min(tail[k], 1.0);  // not converged: as large as the radiance
             errors[k] = std::sqrt(e_fit * e_fit + e_input * e_input + e_int * e_int + e_tail * e_tail);
@@ -1208,7 +1221,7 @@ SolveSteps::~SolveSteps() = default;
 const std::vector<SurfaceSides>& SolveSteps::sides() const { return state_->sides; }
 
 std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
-    if (phase != Phase::Final) return nodes_of(state_->receivers);
+    if (phase != Phase::Final && phase != Phase::Regather) return nodes_of(state_->receivers);
     state_->build_finals(progress);
     return nodes_of(state_->finals);
 }
@@ -1216,9 +1229,12 @@ std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
 std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                        Progress& progress, size_t& rays) {
     State& s = *state_;
-    if (phase == Phase::Final && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
-    if (phase == Phase::Final) s.build_finals(progress);
-    std::vector<Receiver>& targets = phase == Phase::Final ? s.finals : s.receivers;
+    const bool fine = phase == Phase::Final || phase == Phase::Regather;
+    if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
+    if (phase == Phase::Regather && s.settings.final_passes < 2)
+        throw std::invalid_argument("solve step: the settings have one final pass, no regather");
+    if (fine) s.build_finals(progress);
+    std::vector<Receiver>& targets = fine ? s.finals : s.receivers;
     if (begin > end || end > targets.size())
         throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
                                     " out of " + std::to_string(targets.size()));
@@ -1260,15 +1276,25 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     }
     // Final gather: finer receivers gather direct light from the emitters, and indirect light
     // from the cumulative radiance Le of the others (emitters count as non-emissive there) with
-    // the world's light along the same rays.
-    unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::Le);
-    rays += gather_all(targets, begin, end, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
+    // the world's light along the same rays: the coarse receivers' Le, or to regather, the
+    // previous final gather's (into L, held only meanwhile: the others read Le).
+    const bool regather = phase == Phase::Regather;
+    std::vector<Receiver>& sources = regather ? s.finals : s.receivers;
+    const std::vector<const Receiver*>& source_of = regather ? s.final_of : s.receiver_of;
+    unpack(input, sources, 0, sources.size(), &Receiver::Le);
+    const Receiver::Splines result = regather ? &Receiver::L : &Receiver::Le;
+    if (regather)
+        for (size_t k = begin; k < end; ++k) targets[k].L = targets[k].Le;
+    rays += gather_all(targets, begin, end, result, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
         std::vector<Vec3> direct(r.sides * r.per_node);
         gather.direct(r, j, direct.data(), n);
-        gather.indirect(r, j, s.receiver_of, &Receiver::Le, settings.final_integration_factor, true, out, n);
+        gather.indirect(r, j, source_of, &Receiver::Le, settings.final_integration_factor, true, out, n);
         for (size_t k = 0; k < direct.size(); ++k) out[k] += direct[k];
     });
-    return pack(targets, begin, end, &Receiver::Le);
+    std::vector<double> out = pack(targets, begin, end, result);
+    if (regather)
+        for (size_t k = begin; k < end; ++k) std::vector<TensorSpline>().swap(targets[k].L);
+    return out;
 }
 
 Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress) {
@@ -1355,8 +1381,14 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     if (settings.final_gather) {
         const auto t2 = std::chrono::steady_clock::now();
         st.build_finals(progress);
-        progress.begin_stage("final gather", stages - 1, stages, node_count(st.finals));
+        progress.begin_stage("final gather", stages - settings.final_passes, stages, node_count(st.finals));
         unpack(phase(Phase::Final, pack(receivers, 0, all, &Receiver::Le)), st.finals, 0, st.finals.size(), &Receiver::Le);
+        for (int pass = 2; pass <= settings.final_passes; ++pass) {
+            progress.begin_stage("final gather " + std::to_string(pass), stages - 1 - settings.final_passes + pass, stages,
+                                 node_count(st.finals));
+            unpack(phase(Phase::Regather, pack(st.finals, 0, st.finals.size(), &Receiver::Le)), st.finals, 0, st.finals.size(),
+                   &Receiver::Le);
+        }
         solution.stats.seconds_final = seconds_since(t2);
     }
     std::vector<Receiver>& result = settings.final_gather ? st.finals : receivers;

@@ -92,15 +92,37 @@ def test_every_scene_member_that_changes_it_is_kept():
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-def test_ray_solve_equals_the_local_solve(ray_cluster):
-    scene, s = room(), settings()
+@pytest.mark.parametrize("final_passes", [1, 2])
+def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes):
+    scene, s = room(), settings(final_passes=final_passes, final_spatial_factor=2)
     local = bsgi.solve(scene, s)
     kinds = {r["representation"].split(",")[0] for r in local.reports}
     assert {"diffuse 2D", "glossy 4D", "decomposed 2D + 4D (38)"} <= kinds
     executor = bsgi.RayExecutor(workers=2)
     assert_same_coefficients(local, bsgi.solve(scene, s, executor=executor))
-    # Each phase sent once: the direct light (nothing), three bounces (L), the final gather (Le).
-    assert len(executor.bytes_sent) == 5 and executor.bytes_sent[0] == 0
+    # Each phase sent once: the direct light (nothing), three bounces (L), the final gather (Le),
+    # and a regather (the finals' Le).
+    assert len(executor.bytes_sent) == 4 + final_passes and executor.bytes_sent[0] == 0
+
+
+def test_steps_gathered_in_groups_equal_the_solve_with_a_regather():
+    # What a worker does, here: another SolveSteps of the scene gathers each phase in two groups.
+    scene, s = room(), settings(final_passes=2, final_spatial_factor=2)
+    local = bsgi.solve(scene, s)
+    worker = bsgi.SolveSteps(scene, s, bsgi.Progress())
+    phases = []
+
+    def runner(phase, coefficients, nodes):
+        phases.append(phase)
+        half = len(nodes) // 2
+        parts = [worker.gather(phase, b, e, coefficients, bsgi.Progress()) for b, e in ((0, half), (half, len(nodes)))]
+        return np.concatenate([p[0] for p in parts]), sum(p[1] for p in parts)
+
+    steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
+    assert_same_coefficients(local, steps.solve(bsgi.Progress(), runner))
+    assert phases == ["direct", "bounce", "bounce", "bounce", "final", "regather"]
+    with pytest.raises(ValueError, match="one final pass, no regather"):
+        bsgi.SolveSteps(scene, settings(), bsgi.Progress()).gather("regather", 0, 1, np.zeros(0), bsgi.Progress())
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)

@@ -2,10 +2,10 @@
 Mitsuba 3 references (3,000 random visible pairs each, reference noise 0.2-0.3%; never rendered
 here): the relative RMSE and the worst object's mean radiance ratio are bounded within about 2x of
 what was measured, so a regression fails; the issue's targets (final <= 1% on diffuse scenes,
-<= 2% with GGX alpha >= 0.3, every surface's mean within 1%) are strict expected failures that
-state the measured figures. Each scene is one final solve (bench/study/solve_blend.py, in a
-process of its own; about 2 minutes of CPU, 7 minutes of wall time on the shared 2-core
-machine); the figures print with -s.
+<= 2% with GGX alpha >= 0.3, every surface's mean within 1%) are checked, as strict expected
+failures stating the measured figures where they are not met (ceiling_light meets them). Each
+scene is one final solve (bench/study/solve_blend.py, in a process of its own; about 2.5 minutes
+of CPU, more wall time on the shared 2-core machine); the figures print with -s.
 
     .venv/bin/python -m pytest tests/reference/test_validation_scenes.py -s
 """
@@ -21,12 +21,19 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 
 # Measured at the final preset (bench/validation/validate.py measure --preset final): relative RMSE,
 # worst object's mean ratio; the bounds sit within about 2x of them (the ratio's distance from 1).
-MEASURED = {"open_box": (0.0367, 1.0145),  # the GGX panel
-            "table_spheres": (0.0421, 1.0063),  # the diffuse sphere
-            "ceiling_light": (0.0108, 0.9878),  # the ceiling
-            "thin_occluder": (0.0208, 1.0022)}  # the small wall
+MEASURED = {"open_box": (0.0345, 1.0106),  # the GGX panel
+            "table_spheres": (0.0413, 1.0041),  # the diffuse sphere
+            "ceiling_light": (0.0088, 0.9907),  # the ceiling
+            "thin_occluder": (0.0209, 0.9881)}  # the small wall (26 pairs)
 # The issue's targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
 TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01}
+
+
+def meets_target(scene):
+    error, ratio = MEASURED[scene]
+    return error <= TARGET[scene] and abs(ratio - 1) <= 0.01
+
+
 _solved = {}
 
 
@@ -55,9 +62,10 @@ def test_final_preset_within_measured_bounds(scene):
 @pytest.mark.parametrize("scene", sorted(TARGET))
 def test_issue_target(scene, request):
     error, ratio = MEASURED[scene]
-    request.applymarker(pytest.mark.xfail(strict=True, reason=(
-        f"issue 15 target: final <= {100 * TARGET[scene]:.0f}% and every surface's mean within 1%; measured "
-        f"{100 * error:.1f}%, worst surface ratio {ratio:.3f} (causes in the README's validation section)")))
+    if not meets_target(scene):
+        request.applymarker(pytest.mark.xfail(strict=True, reason=(
+            f"issue 15 target: final <= {100 * TARGET[scene]:.0f}% and every surface's mean within 1%; measured "
+            f"{100 * error:.1f}%, worst surface ratio {ratio:.3f} (causes in the README's validation section)")))
     r = final(scene)
     assert r["rel_rmse"] <= TARGET[scene]
     assert abs(r["worst_surface_ratio"] - 1) <= 0.01

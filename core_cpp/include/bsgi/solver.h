@@ -97,6 +97,10 @@ struct SolverSettings {
     bool final_gather = false;
     int final_spatial_factor = 2;
     int final_integration_factor = 2;
+    // Final gathers in all: from the second on, each reads the indirect light from the previous
+    // one's finer splines instead of the coarse ones (a shadow or contact line too narrow for the
+    // coarse grid no longer lights what faces it), at the cost of another final gather each.
+    int final_passes = 1;
 
     // Cycles shades both sides of an opaque surface with the same BSDF: the back side reflects
     // light arriving from below, mirrored. Sides no light reaches get no spline (sides.h). Off:
@@ -151,7 +155,7 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings);
 // knots. Coefficients travel flat: receiver after receiver, each one's spline sides in order.
 class SolveSteps {
 public:
-    enum class Phase { Direct = 0, Bounce = 1, Final = 2 };
+    enum class Phase { Direct = 0, Bounce = 1, Final = 2, Regather = 3 };
     // Gathers a phase for every receiver (in groups wherever it likes): the coefficients of all
     // receivers of the phase, given `input` (empty, L or Le) and the nodes of each receiver (the
     // work); adds the rays cast to `rays`.
@@ -172,7 +176,8 @@ public:
     // Spatial nodes of each receiver of a phase.
     std::vector<size_t> nodes(Phase phase, Progress& progress);
     // The gather of a phase for receivers [begin, end), given the previous step's coefficients
-    // of all receivers (none for the direct light; L for a bounce; Le for the final gather):
+    // of all receivers (none for the direct light; L for a bounce; Le for the final gather; the
+    // finals' Le of the previous final gather to regather):
     // their new coefficients. Advances `progress` by nodes; throws Cancelled if it is cancelled.
     std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                Progress& progress, size_t& rays);
