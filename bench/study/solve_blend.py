@@ -122,7 +122,10 @@ def main():
     ours = radiance_at_pairs(export, solution, pairs, 1e-3 * scale)
     np.savez(out_npz, radiance=ours)
     print(json.dumps({"seconds": seconds, "cpu_seconds": cpu_seconds, "peak_mb": peak - before, "coefficients": solution.stats["coefficients"],
-                      "bounces": solution.stats["bounces"]}))
+                      "bounces": solution.stats["bounces"],
+                      # of all passes, with refine_to_error (bsgi.refine)
+                      "rays": getattr(solution, "refinement", solution.stats)["rays"],
+                      "refinement": getattr(solution, "refinement", None)}))
 
 
 if __name__ == "__main__":

@@ -54,6 +54,8 @@ void validate(const SolverSettings& s) {
     need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
     need(s.memory_budget_mb > 0, "memory_budget_mb must be > 0");
     need(s.error_checks >= 1 && s.error_checks <= 4096, "error_checks must be in 1..4096");
+    need(s.refine_to_error >= 0 && s.refine_passes >= 0 && s.refine_seconds >= 0, "refine_to_error, refine_passes and refine_seconds must be >= 0");
+    need(s.refine_factor > 1 && s.refine_factor <= 4, "refine_factor must be in (1, 4]");
 }
 
 // What the solver decided for one receiving surface, before anything is allocated.
