@@ -181,7 +181,7 @@ def summary_text(rep: dict) -> str:
         text += f"; {worst}"
     refinement = rep.get("refinement")
     if refinement:
-        text += f"; {refinement['refined']} surfaces refined in {refinement['passes']} passes"
+        text += f"; refinement: {refinement['refined']} surfaces refined in {refinement['passes']} more solves"
         if refinement["over_target"]:
             why = f", stopped by the {refinement['stopped']} budget" if refinement["stopped"] else ""
             text += f" ({len(refinement['over_target'])} still over the target{why})"

@@ -454,6 +454,10 @@ void bind_scene(py::module_& m) {
                 py::dict d;
                 d["name"] = r.name, d["representation"] = r.representation, d["shape"] = r.shape, d["reason"] = r.reason;
                 d["estimated_error"] = r.estimated_error;
+                py::dict parts;
+                parts["fit"] = r.error_parts[0], parts["input"] = r.error_parts[1];
+                parts["integration"] = r.error_parts[2], parts["tail"] = r.error_parts[3];
+                d["error_parts"] = parts;
                 out.append(d);
             }
             return out;

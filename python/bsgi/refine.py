@@ -6,8 +6,11 @@ per-surface option, as Scene.set_spatial_coeffs sets it) and the scene is solved
 every surface meets the target or a budget stops it: refine_passes solves beyond the first, the
 memory estimate of the refined scene against memory_budget_mb, and (if > 0) refine_seconds for
 all passes, the next pass's time predicted from the last one's and the growth of the
-coefficients. A surface whose estimate did not fall by a tenth after its refinement is not
-refined again (its error is not spatial: integration, the bounces' tail, the estimate's noise).
+coefficients. Only surfaces whose estimate is mostly their own spline's fit (error_parts["fit"] at
+least half the estimate) are refined: the other parts (the splines the gather read, integration,
+the bounces' tail) do not fall with the surface's own knots (the first falls with its neighbours'
+refinement). A surface whose estimate did not fall by a tenth after its refinement is not refined
+again (the estimate's noise, or a fit error the knots cannot reach).
 
 The loop is here, around a whole solve, so that it works wherever the solve runs (here or on a
 Ray cluster): each pass is a solve from scratch; the scene's options are restored afterwards.
@@ -23,7 +26,7 @@ from typing import Callable
 from . import _core
 
 # Statuses of a receiving surface in solution.refinement["surfaces"].
-MET, OVER, NO_GAIN = "met", "over target", "no gain"
+MET, OVER, NO_GAIN, NOT_FIT = "met", "over target", "no gain", "not its fit"
 GAIN = 0.9  # a refined surface's estimate must fall below GAIN times its previous one
 
 
@@ -37,6 +40,12 @@ def coarse_coeffs(report: dict, settings: _core.SolverSettings) -> int:
     final gather's are final_spatial_factor times more."""
     scale = settings.final_spatial_factor if settings.final_gather else 1
     return max(report["shape"][:2]) // scale
+
+
+def own_fit(report: dict) -> bool:
+    """Whether refining the surface's own spline can lower its estimate: its fit is at least
+    half of it (the other parts added in quadrature are then at most 0.87 of it)."""
+    return report["error_parts"]["fit"] >= 0.5 * report["estimated_error"]
 
 
 def coefficient_count(report: dict) -> int:
@@ -66,7 +75,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             index = receivers(solution)
             reports = solution.reports[:len(index)]
             over = [(i, r) for i, r in zip(index, reports)
-                    if r["estimated_error"] > target and i not in no_gain]
+                    if r["estimated_error"] > target and i not in no_gain and own_fit(r)]
             if not over:
                 break
             if passes >= settings.refine_passes:
@@ -105,9 +114,9 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
     surfaces = []
     for i, r in zip(receivers(solution), solution.reports):
         error = r["estimated_error"]
-        status = MET if error <= target else (NO_GAIN if i in no_gain else OVER)
+        status = MET if error <= target else (NO_GAIN if i in no_gain else OVER if own_fit(r) else NOT_FIT)
         surfaces.append({"name": r["name"], "index": i, "estimated_error": error, "shape": list(r["shape"]),
-                         "refined": refined.get(i, 0), "status": status})
+                         "error_parts": dict(r["error_parts"]), "refined": refined.get(i, 0), "status": status})
     solution.refinement = {"target": target, "passes": passes, "stopped": stopped, "rays": rays,
                            "estimate_rays": estimate_rays, "seconds": time.perf_counter() - start,
                            "surfaces": surfaces}

@@ -318,6 +318,20 @@ def test_custom_preset_uses_the_individual_settings(context):
     assert not got.final_gather
 
 
+def test_refine_to_error_solves_again_and_reports_it(context):
+    scenes.floor_under_lamp()
+    settings = context.scene.bsgi
+    settings.preset = "DRAFT"
+    settings.refine_to_error, settings.refine_passes = 1e-5, 1  # a target no solve meets: one more pass
+    got = settings.solver_settings()
+    assert (got.refine_to_error, got.refine_passes, got.spatial_coeffs) == (1e-5, 1, 8)
+    rep = pipeline.solve_and_bake(context)
+    assert rep["refinement"]["passes"] == 1 and rep["refinement"]["stopped"] == "passes"
+    assert rep["refinement"]["over_target"] == ["Floor: face 0"]
+    assert ("refinement: 1 surfaces refined in 1 more solves (1 still over the target, stopped by the passes budget)"
+            in pipeline.summary_text(rep))
+
+
 def test_object_panel_and_options_are_registered(context):
     assert hasattr(bpy.types, "BSGI_PT_object")
     floor = scenes.floor_under_lamp()
