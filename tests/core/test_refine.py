@@ -105,6 +105,13 @@ def test_the_memory_budget_stops_refinement():
     assert r["surfaces"][0]["shape"] == [6, 6] and r["surfaces"][0]["refined"] == 0
 
 
+def test_the_time_budget_stops_refinement():
+    # The first solve alone takes longer than the budget: no pass is predicted to fit.
+    solution = bsgi.solve(shadow_scene(), coarse_settings(refine_to_error=1e-4, refine_passes=3, refine_seconds=1e-3))
+    r = solution.refinement
+    assert r["passes"] == 0 and r["stopped"] == "time" and r["surfaces"][0]["shape"] == [6, 6]
+
+
 def test_refinement_needs_the_error_estimate():
     with pytest.raises(ValueError, match="estimate_error"):
         bsgi.solve(shadow_scene(), coarse_settings(refine_to_error=0.02, estimate_error=False))
