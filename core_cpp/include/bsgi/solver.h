@@ -114,7 +114,8 @@ struct SolverSettings {
 
     // Refinement driven by the error estimate, done by bsgi.solve (Python, around this solve, so
     // that it also runs on a Ray cluster): while a surface's estimated error is over
-    // refine_to_error (relative; 0: off), it gets refine_factor times its spatial coefficients
+    // refine_to_error (relative; 0: off) and mostly its own spline's fit (error_parts), it gets
+    // refine_factor times its spatial coefficients
     // per direction and the scene is solved again, at most refine_passes times, while the memory
     // estimate fits memory_budget_mb and (if > 0) the passes' time stays within refine_seconds.
     double refine_to_error = 0;
