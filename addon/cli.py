@@ -59,6 +59,10 @@ def main(argv=None) -> int:
     parser.add_argument("--resolution", type=int, nargs=2, default=(512, 512))
     parser.add_argument("--preset", choices=["draft", "preview", "final", "custom"],
                         help="quality preset (default: the scene's setting)")
+    parser.add_argument("--refine-to-error", type=float, metavar="ERROR",
+                        help="refine surfaces whose estimated relative error is above ERROR (e.g. 0.02) and solve "
+                             "again (default: the scene's setting; 0: off)")
+    parser.add_argument("--refine-passes", type=int, metavar="N", help="at most N solves after the first when refining")
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="solve on a Ray cluster: 'auto' (the cluster this machine joined with `ray start`), "
                              "'ray://host:10001' or host:port (needs `pip install ray`, and bsgi on every node)")
@@ -83,6 +87,10 @@ def main(argv=None) -> int:
     context = bpy.context
     if args.preset:
         context.scene.bsgi.preset = args.preset.upper()
+    if args.refine_to_error is not None:
+        context.scene.bsgi.refine_to_error = args.refine_to_error
+    if args.refine_passes is not None:
+        context.scene.bsgi.refine_passes = args.refine_passes
 
     def on_progress(fraction, stage):
         print(f"bsgi: {fraction * 100:5.1f}% {stage}", flush=True)

@@ -122,11 +122,23 @@ def report(job: Job, solution: bsgi.Solution, solve_seconds: float, bake_seconds
         "representations": representation_summary(solution.reports),
         # Per baked object: the root mean square of its surfaces' estimated relative errors.
         "estimated_errors": error_view.object_errors(job.export, solution),
+        "refinement": refinement_summary(solution),
         "warnings": job.export.warnings,
         # Per material, light, object and the world: what is approximated and how.
         "approximations": [{"owner": a.owner, "objects": a.objects, "notes": a.notes, "text": a.text()}
                            for a in job.export.approximations()],
     }
+
+
+def refinement_summary(solution: bsgi.Solution):
+    """With Refine to Error (bsgi.refine): the passes, why they stopped, the surfaces refined and
+    those still over the target; None without it."""
+    r = getattr(solution, "refinement", None)
+    if r is None:
+        return None
+    return {"passes": r["passes"], "stopped": r["stopped"], "rays": r["rays"],
+            "refined": sum(s["refined"] > 0 for s in r["surfaces"]),
+            "over_target": [s["name"] for s in r["surfaces"] if s["status"] != "met"]}
 
 
 def report_lines(rep: dict) -> list:
@@ -167,6 +179,12 @@ def summary_text(rep: dict) -> str:
     worst = error_view.worst_text(rep.get("estimated_errors", {}))
     if worst:
         text += f"; {worst}"
+    refinement = rep.get("refinement")
+    if refinement:
+        text += f"; refinement: {refinement['refined']} surfaces refined in {refinement['passes']} more solves"
+        if refinement["over_target"]:
+            why = f", stopped by the {refinement['stopped']} budget" if refinement["stopped"] else ""
+            text += f" ({len(refinement['over_target'])} still over the target{why})"
     approximated = rep.get("approximations", [])
     if approximated:
         notes = sum(len(a["notes"]) for a in approximated)

@@ -54,6 +54,14 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     hemisphere_nodes: IntProperty(
         name="Hemisphere Nodes", default=12, min=1, max=256,
         description="Integration nodes in the polar direction of the hemispherical gather (twice as many around)")
+    refine_to_error: FloatProperty(
+        name="Refine to Error", default=0.0, min=0.0, max=1.0, precision=3,
+        description="After the solve, surfaces whose estimated relative error is above this get more spatial "
+        "coefficients and the scene is solved again (each pass costs a solve), up to Refine Passes times or the "
+        "memory budget; 0: off")
+    refine_passes: IntProperty(
+        name="Refine Passes", default=2, min=0, max=8,
+        description="At most this many solves after the first while surfaces are over Refine to Error")
     chart_min_faces: IntProperty(
         name="Chart Above Faces", default=64, min=0, max=10**7,
         description="A mesh with at least this many faces (of one material) is solved as one UV chart: one "
@@ -78,6 +86,12 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
 
     def solver_settings(self) -> bsgi.SolverSettings:
         """The preset's settings, or with CUSTOM the core's defaults with the individual settings."""
+        s = self.preset_settings()
+        s.refine_to_error = self.refine_to_error
+        s.refine_passes = self.refine_passes
+        return s
+
+    def preset_settings(self) -> bsgi.SolverSettings:
         if self.preset != "CUSTOM":
             return bsgi.SolverSettings.preset(self.preset.lower())
         s = bsgi.SolverSettings()

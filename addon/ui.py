@@ -17,6 +17,11 @@ def draw_controls(layout, scene, obj=None):
     col.prop(settings, "max_bounces")
     col.prop(settings, "tolerance")
     col.prop(settings, "hemisphere_nodes")
+    row = layout.row(align=True)
+    row.prop(settings, "refine_to_error")
+    sub = row.row(align=True)
+    sub.enabled = settings.refine_to_error > 0
+    sub.prop(settings, "refine_passes", text="Passes")
     layout.prop(settings, "chart_min_faces")
     layout.prop(settings, "texture_texels")
     layout.prop(settings, "world_map_width")

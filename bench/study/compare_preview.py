@@ -41,8 +41,9 @@ def compare(blend, overrides: dict, work: pathlib.Path) -> dict:
         ours = np.load(work / "solve.npz")["radiance"]
         ok = valid & np.isfinite(ours).all(axis=1)
         out[name] = {"seconds": figures["seconds"], "cpu_seconds": figures["cpu_seconds"],
-                     "coefficients": figures["coefficients"], **run_study.errors(ours, data, ok)}
-        print(f"{blend.stem}: {name}: {out[name]['cpu_seconds']:.2f} s CPU, {out[name]['coefficients']} coefficients, "
+                     "coefficients": figures["coefficients"], "rays": figures["rays"],
+                     "refinement": figures["refinement"], **run_study.errors(ours, data, ok)}
+        print(f"{blend.stem}: {name}: {out[name]['cpu_seconds']:.2f} s CPU, {out[name]['coefficients']} coefficients, {out[name]['rays']} rays, "
               f"error {out[name]['rel_rmse']:.4f} (diffuse {out[name]['rel_rmse_diffuse']:.4f}, "
               f"glossy {out[name]['rel_rmse_glossy']:.4f})", flush=True)
     return out

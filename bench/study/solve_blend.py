@@ -60,7 +60,8 @@ def surfaces_of(export):
 
 def radiance_at_pairs(export, solution, pairs, tolerance):
     """The solution's radiance seen from each pair's eye towards its point; NaN where the solver's
-    geometry is not hit within tolerance of the point (tessellation differences at silhouettes)."""
+    geometry is not hit within tolerance of the point (tessellation differences at silhouettes).
+    Also the scene index of the surface each pair sees (-1 where NaN)."""
     import bsgi
 
     surfaces, index = surfaces_of(export)
@@ -72,13 +73,15 @@ def radiance_at_pairs(export, solution, pairs, tolerance):
     hit = caster.closest_hit(eye, d)
     ok = (hit["surface"] >= 0) & (np.abs(hit["t"] - dist) < tolerance)
     out = np.full((len(eye), 3), np.nan)
+    seen = np.full(len(eye), -1)
     frames = hit["frame"]
     for s in np.unique(hit["surface"][ok]):
         rows = np.nonzero(ok & (hit["surface"] == s))[0]
         toward_eye = -d[rows]
         local = np.einsum("nij,nj->ni", frames[rows], toward_eye)  # rows of the frame: x, y, normal
         out[rows] = solution.surfaces[int(index[s])].evaluate(hit["uv"][rows], local)
-    return out
+        seen[rows] = index[s]
+    return out, seen
 
 
 def refuse_light_the_reference_lacks(context, export):
@@ -119,10 +122,16 @@ def main():
     seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
     peak = status_mb("VmHWM")
     scale = float(np.ptp(pairs["point"], axis=0).max())
-    ours = radiance_at_pairs(export, solution, pairs, 1e-3 * scale)
-    np.savez(out_npz, radiance=ours)
+    ours, seen = radiance_at_pairs(export, solution, pairs, 1e-3 * scale)
+    estimates = np.array([r["estimated_error"] for r in solution.reports if r["shape"]])
+    np.savez(out_npz, radiance=ours, surface=seen, estimated_error=estimates,
+             receivers=np.array([i for i, r in enumerate(solution.radiance) if r is not None]),
+             names=np.array([r["name"] for r in solution.reports if r["shape"]]))
     print(json.dumps({"seconds": seconds, "cpu_seconds": cpu_seconds, "peak_mb": peak - before, "coefficients": solution.stats["coefficients"],
-                      "bounces": solution.stats["bounces"]}))
+                      "bounces": solution.stats["bounces"],
+                      # of all passes, with refine_to_error (bsgi.refine)
+                      "rays": getattr(solution, "refinement", solution.stats)["rays"],
+                      "refinement": getattr(solution, "refinement", None)}))
 
 
 if __name__ == "__main__":

@@ -167,6 +167,14 @@ void bind_scene(py::module_& m) {
         .def("set_two_sided_emission", &Scene::set_two_sided_emission, py::arg("index"), py::arg("two_sided") = true,
              "Makes emitter `index` emit from its back side too (Cycles' Emission shader on a mesh; its area "
              "lights emit from the front only).")
+        .def("set_spatial_coeffs", &Scene::set_spatial_coeffs, py::arg("index"), py::arg("spatial_coeffs"),
+             "Spatial coefficients per direction of surface `index` (0: from the settings and its size).")
+        .def(
+            "spatial_coeffs", [](const Scene& s, size_t i) {
+                if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+                return s[i].options.spatial_coeffs;
+            },
+            py::arg("index"), "The spatial coefficients per direction set on surface `index` (0: automatic).")
         .def_property(
             "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },
@@ -321,6 +329,10 @@ void bind_scene(py::module_& m) {
         .def_readwrite("two_sided", &SolverSettings::two_sided)
         .def_readwrite("estimate_error", &SolverSettings::estimate_error)
         .def_readwrite("error_checks", &SolverSettings::error_checks)
+        .def_readwrite("refine_to_error", &SolverSettings::refine_to_error)
+        .def_readwrite("refine_passes", &SolverSettings::refine_passes)
+        .def_readwrite("refine_factor", &SolverSettings::refine_factor)
+        .def_readwrite("refine_seconds", &SolverSettings::refine_seconds)
         .def_readwrite("threads", &SolverSettings::threads)
         .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb)
         .def("__repr__", [](const SolverSettings& s) {
@@ -432,7 +444,7 @@ void bind_scene(py::module_& m) {
             py::arg("uv"), py::arg("directions"),
             "Radiance leaving (u, v) along local directions (frame (1)-(3): z the surface normal), (N, 3) each.");
 
-    py::class_<Solution>(m, "Solution")
+    py::class_<Solution>(m, "Solution", py::dynamic_attr())
         .def_property_readonly("radiance", [](const Solution& s) {
             // The upper-hemisphere spline of each surface (2D or 4D), None for pure emitters.
             py::list out;
@@ -450,6 +462,10 @@ void bind_scene(py::module_& m) {
                 py::dict d;
                 d["name"] = r.name, d["representation"] = r.representation, d["shape"] = r.shape, d["reason"] = r.reason;
                 d["estimated_error"] = r.estimated_error;
+                py::dict parts;
+                parts["fit"] = r.error_parts[0], parts["input"] = r.error_parts[1];
+                parts["integration"] = r.error_parts[2], parts["tail"] = r.error_parts[3];
+                d["error_parts"] = parts;
                 out.append(d);
             }
             return out;

@@ -55,6 +55,8 @@ void validate(const SolverSettings& s) {
     need(s.final_passes >= 1 && s.final_passes <= 4, "final_passes must be 1 to 4");
     need(s.memory_budget_mb > 0, "memory_budget_mb must be > 0");
     need(s.error_checks >= 1 && s.error_checks <= 4096, "error_checks must be in 1..4096");
+    need(s.refine_to_error >= 0 && s.refine_passes >= 0 && s.refine_seconds >= 0, "refine_to_error, refine_passes and refine_seconds must be >= 0");
+    need(s.refine_factor > 1 && s.refine_factor <= 4, "refine_factor must be in (1, 4]");
 }
 
 // What the solver decided for one receiving surface, before anything is allocated.
@@ -1038,8 +1040,9 @@ struct SolveSteps::State {
     // sum Le is the fixed point of that gather) against the spline, relative RMS over the
     // visible checks; every other check gathered again from the final splines, every fourth at
     // doubled integration nodes; and `tail`, per receiver, the bounces' radiance still missing.
+    // `parts`: per receiver, the four parts added in quadrature (SurfaceReport::error_parts).
     std::vector<double> estimate_errors(const std::vector<Receiver>& result, const std::vector<double>& tail, Progress& progress,
-                                        size_t& rays) {
+                                        size_t& rays, std::vector<std::array<double, 4>>& parts) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
         const int density = settings.final_gather ? settings.final_integration_factor : 1;
         const size_t n = size_t(settings.error_checks);
@@ -1180,6 +1183,7 @@ struct SolveSteps::State {
             const double e_int = rms(fine.integration, fine.values);
             const double e_tail = std::min(tail[k], 1.0);  // not converged: as large as the radiance
             errors[k] = std::sqrt(e_fit * e_fit + e_input * e_input + e_int * e_int + e_tail * e_tail);
+            parts[k] = {e_fit, e_input, e_int, e_tail};
         }
         return errors;
     }
@@ -1394,12 +1398,13 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     std::vector<Receiver>& result = settings.final_gather ? st.finals : receivers;
     solution.stats.rays = rays + st.knot_rays;
     std::vector<double> errors(result.size(), std::nan(""));
+    std::vector<std::array<double, 4>> error_parts(result.size(), SurfaceReport().error_parts);
     if (settings.estimate_error) {
         const auto t3 = std::chrono::steady_clock::now();
         std::vector<double> tail(result.size(), 0.0);
         for (size_t k = 0; k < result.size(); ++k)
             if (const Receiver* coarse = st.receiver_of[result[k].surface]) tail[k] = convergence.error(coarse->index);
-        errors = st.estimate_errors(result, tail, progress, solution.stats.estimate_rays);
+        errors = st.estimate_errors(result, tail, progress, solution.stats.estimate_rays, error_parts);
         solution.stats.seconds_estimate = seconds_since(t3);
     }
     const std::vector<Plan>& plans = st.plans;
@@ -1457,7 +1462,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         std::vector<int> shape;
         for (size_t n : out->upper.shape()) shape.push_back(int(n));
         shape.pop_back();
-        solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason, errors[k]});
+        solution.reports.push_back({scene[r.surface].surface->name(), kind, shape, p.reason, errors[k], error_parts[k]});
         solution.radiance[r.surface] = std::move(out);
     }
     for (size_t i = 0; i < scene.size(); ++i) {

@@ -29,6 +29,9 @@ Errors are Python exceptions: ValueError for invalid input (knots, shapes, degre
 naming the surface), bsgi.MemoryBudgetError (a MemoryError) for splines over the memory budget,
 RuntimeError for a solve over its memory budget, bsgi.SolveCancelled for a cancelled solve.
 
+Refinement where the per-surface error estimate is high: ``settings.refine_to_error = 0.02`` before
+``bsgi.solve`` (bsgi.refine; ``solution.refinement`` reports it).
+
 On a Ray cluster: ``bsgi.solve(scene, settings, executor=bsgi.RayExecutor("auto"))`` (Ray is
 optional, imported then); scenes pickle, for its workers.
 """

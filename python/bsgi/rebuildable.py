@@ -110,6 +110,7 @@ SCENE_CALLS = (
     "set_albedo_texture",
     "set_emission_texture",
     "set_specular_texture",
+    "set_spatial_coeffs",
 )
 SCENE_PROPERTIES = ("world_radiance", "world_map")
 

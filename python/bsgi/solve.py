@@ -5,6 +5,7 @@ import threading
 from typing import Callable, Optional, Protocol
 
 from . import _core
+from .refine import refined_solve
 
 ProgressCallback = Callable[[float, str], Optional[bool]]
 
@@ -29,14 +30,21 @@ def solve(
     another thread. ``on_progress(fraction, stage)`` is called on this thread while the solve runs;
     returning False cancels it. A cancelled solve raises :class:`bsgi.SolveCancelled`.
     ``executor``: where the gathers run, e.g. :class:`bsgi.RayExecutor` (a Ray cluster); None: here.
+    With ``settings.refine_to_error`` > 0 the surfaces whose estimated error is over it are refined
+    and the scene solved again, under a budget (bsgi.refine); ``solution.refinement`` reports it.
     """
     settings = settings if settings is not None else _core.SolverSettings()
     progress = progress if progress is not None else _core.Progress()
 
-    def solve_here() -> _core.Solution:
+    def solve_once() -> _core.Solution:
         if executor is None:
             return _core.solve(scene, settings, progress)
         return executor.solve(scene, settings, progress)
+
+    def solve_here() -> _core.Solution:
+        if settings.refine_to_error > 0:
+            return refined_solve(scene, settings, solve_once)
+        return solve_once()
 
     if on_progress is None:
         return solve_here()

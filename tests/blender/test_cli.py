@@ -35,6 +35,17 @@ def test_python_m_entry_solves_saves_and_prints_progress(context, tmp_path):
     assert "bsgi_radiance" in floor and floor.material_slots[0].material.name == "BSGI Floor"
 
 
+def test_python_m_entry_refines_to_an_error_target(context, tmp_path):
+    floor = scenes.floor_under_lamp()
+    scenes.add_quad("Wall", [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], floor.data.materials[0])
+    source = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(source))
+    run = run_module(source, "--out", tmp_path / "solved.blend", "--preset", "draft", "--refine-to-error", "0.0001",
+                     "--refine-passes", "1")
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "surfaces refined in 1 more solves" in run.stdout, run.stdout
+
+
 def test_python_m_entry_fails_with_status_1_and_a_message_on_a_scene_without_emitters(context, tmp_path):
     scenes.add_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
     source = tmp_path / "dark.blend"

@@ -318,6 +318,22 @@ def test_custom_preset_uses_the_individual_settings(context):
     assert not got.final_gather
 
 
+def test_refine_to_error_solves_again_and_reports_it(context):
+    floor = scenes.floor_under_lamp()
+    # A wall beside the floor: light bounces between them (a lone floor's estimate is its
+    # unknown bounce tail, which refinement leaves alone).
+    scenes.add_quad("Wall", [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], floor.data.materials[0])
+    settings = context.scene.bsgi
+    settings.preset = "DRAFT"
+    settings.refine_to_error, settings.refine_passes = 1e-4, 1  # a target no solve meets: one more pass
+    got = settings.solver_settings()
+    assert (got.refine_to_error, got.refine_passes, got.spatial_coeffs) == (pytest.approx(1e-4), 1, 8)
+    rep = pipeline.solve_and_bake(context)
+    assert rep["refinement"]["passes"] == 1 and rep["refinement"]["stopped"] == "passes"
+    assert rep["refinement"]["refined"] >= 1 and "Floor: face 0" in rep["refinement"]["over_target"]
+    assert " surfaces refined in 1 more solves (2 still over the target, stopped by the passes budget)" in pipeline.summary_text(rep)
+
+
 def test_object_panel_and_options_are_registered(context):
     assert hasattr(bpy.types, "BSGI_PT_object")
     floor = scenes.floor_under_lamp()

@@ -204,6 +204,15 @@ public:
         surfaces_[i].material.two_sided_emission = two_sided;
     }
 
+    // Sets surface i's spatial coefficients per direction (0: from the settings), as the
+    // refinement of bsgi.solve does where the error estimate is over its target.
+    void set_spatial_coeffs(size_t i, int spatial_coeffs) {
+        if (i >= surfaces_.size()) throw std::out_of_range("set_spatial_coeffs: no surface " + std::to_string(i));
+        if (spatial_coeffs < 0)
+            throw std::invalid_argument("surface '" + surfaces_[i].surface->name() + "': coefficient counts must be >= 0 (0: automatic)");
+        surfaces_[i].options.spatial_coeffs = spatial_coeffs;
+    }
+
     size_t size() const { return surfaces_.size(); }
     const SceneSurface& operator[](size_t i) const { return surfaces_[i]; }
     const std::vector<SceneSurface>& surfaces() const { return surfaces_; }

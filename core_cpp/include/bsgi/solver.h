@@ -116,6 +116,17 @@ struct SolverSettings {
     bool estimate_error = true;
     int error_checks = 48;
 
+    // Refinement driven by the error estimate, done by bsgi.solve (Python, around this solve, so
+    // that it also runs on a Ray cluster): while a surface's estimated error is over
+    // refine_to_error (relative; 0: off) and mostly its own spline's fit (error_parts), it gets
+    // refine_factor times its spatial coefficients
+    // per direction and the scene is solved again, at most refine_passes times, while the memory
+    // estimate fits memory_budget_mb and (if > 0) the passes' time stays within refine_seconds.
+    double refine_to_error = 0;
+    int refine_passes = 2;
+    double refine_factor = 1.5;
+    double refine_seconds = 0;
+
     int threads = 0;  // 0: all hardware threads
     double memory_budget_mb = 4096;
 
