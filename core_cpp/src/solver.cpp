@@ -270,7 +270,7 @@ KnotVector equidistributed_knots(const std::vector<double>& density, int num_coe
 // the density stays uniform, so no span is wider than twice the uniform one: the final gather's
 // spans stay within the coarse ones where only the indirect light has detail (with a quarter
 // uniform, the Cornell box's short box face beside the other's contact line had 7.3% error at
-// the final preset instead of 2.3%). No span gets narrower than about a sixteenth of it.
+// the final preset instead of 2.3%). No span gets narrower than about an eighth of it.
 // detail_density: the probe's densities along u and v on equal cells of [eps, 1 - eps] (empty
 // where the light is flat or dark: uniform), which adaptive_knots equidistributes.
 std::array<std::vector<double>, 2> detail_density(const Gatherer& gather, const Scene& scene, const Plan& p,
