@@ -4,6 +4,7 @@ that a change of the solver's defaults costs no accuracy). Prints one line per s
 and a JSON line of the figures at the end.
 
     python bench/study/compare_preview.py '{"coeffs_from_size": true, "detail_tolerance": 0.02}' [scene ...]
+    python bench/study/compare_preview.py --preset final '{}' [scene ...]   (another preset as the base)
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ import run_study  # noqa: E402
 from references import describe, load_cached  # noqa: E402
 
 
-def compare(blend, overrides: dict, work: pathlib.Path) -> dict:
+def compare(blend, overrides: dict, work: pathlib.Path, preset: str = "preview") -> dict:
     data = load_cached(blend, False, HERE / "references")
     if data is None:
         # Stale (a source file or the .blend changed since): both solves still meet the same
@@ -33,7 +34,9 @@ def compare(blend, overrides: dict, work: pathlib.Path) -> dict:
     np.savez(pairs, **{k: data[k] for k in ("object", "polygon", "point", "eye")})
     valid = ~np.isin(data["object"], run_study.emitting_objects(describe(blend)))
     out = {}
-    for name, spec in (("preview", {"preset": "preview"}), ("changed", {"preset": "preview", "overrides": overrides})):
+    for name, spec in ((preset, {"preset": preset}), ("changed", {"preset": preset, "overrides": overrides})):
+        if name == "changed" and not overrides:
+            continue  # the preset alone
         (work / "settings.json").write_text(json.dumps(spec))
         result = subprocess.run([sys.executable, str(HERE / "solve_blend.py"), str(blend), str(work / "settings.json"),
                                  str(pairs), str(work / "solve.npz")], capture_output=True, text=True, check=True)
@@ -50,8 +53,12 @@ def compare(blend, overrides: dict, work: pathlib.Path) -> dict:
 
 
 if __name__ == "__main__":
-    overrides = json.loads(sys.argv[1])
-    figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / f"study_compare_{os.getpid()}")  # runs side by side
-               for blend in run_study.scenes(sys.argv[2:] or None)
+    args = sys.argv[1:]
+    preset = "preview"
+    if args[:1] == ["--preset"]:
+        preset, args = args[1], args[2:]
+    overrides = json.loads(args[0])
+    figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / f"study_compare_{os.getpid()}", preset)  # runs side by side
+               for blend in run_study.scenes(args[1:] or None)
                if (HERE / "references" / f"{blend.stem}.npz").exists()}  # the study's scenes
     print(json.dumps(figures))

@@ -116,16 +116,16 @@ def test_shadow_splitting_resolves_umbra_penumbra_and_lit_region(reference):
     assert err["umbra"] <= 0.01 and err["penumbra"] <= 0.01 and err["lit"] <= 0.01 and abs(err["width"]) <= 0.1
     # Within about 2x of what is measured (umbra 0: knots of multiplicity 2 on its edges).
     assert err["umbra"] <= 1e-6
-    assert err["penumbra"] <= 3e-3  # measured 1.4e-3
-    assert err["lit"] <= 2e-3  # measured 9e-4
-    assert abs(err["width"]) <= 0.01  # measured +0.003
+    assert err["penumbra"] <= 6e-3  # measured 2.9e-3 (1.4e-3 with a quarter of the knots uniform, not half)
+    assert err["lit"] <= 2e-3  # measured 8e-4
+    assert abs(err["width"]) <= 0.03  # measured +0.016 (+0.003 with a quarter uniform)
 
 
 def test_knots_alone_leave_the_penumbra_a_staircase(reference):
     # Without the shadow splitting the knots make the umbra exact, but the penumbra's node values
     # come from 3 x 3 shadow rays to the light: a staircase that no knot placement smooths.
     # Issue #15's 1% is not reached this way.
-    sol = solve(discontinuity_knots=True)
+    sol = solve(discontinuity_knots=True, emitter_shadow_depth=0)  # the preset splits to depth 5
     err = errors(sol, reference)
     # Kinks (the occluder's edges parallel to the light's): double knots at the umbra's and the
     # penumbra's edges, x = +-0.35 and +-0.85, in u and in v.
@@ -135,9 +135,9 @@ def test_knots_alone_leave_the_penumbra_a_staircase(reference):
     print(f"\nfinal preset, discontinuity knots: umbra {err['umbra']:.2e}, penumbra {err['penumbra']:.2e}, lit {err['lit']:.2e}, "
           f"width {err['width']:+.3f}")
     assert err["umbra"] <= 1e-6
-    assert err["penumbra"] <= 0.14  # measured 0.094
+    assert err["penumbra"] <= 0.2  # measured 0.104
     assert err["lit"] <= 0.004  # measured 0.0020
-    assert abs(err["width"]) <= 0.5  # measured -0.35
+    assert abs(err["width"]) <= 0.75  # measured -0.375
 
 
 @pytest.mark.slow
@@ -213,10 +213,12 @@ def test_contact_lines_of_a_box_on_the_floor_against_mitsuba():
         print(f"\n{label}: NRMSE {err[label][0]:.4f}, within 5 cm of the box {err[label][1]:.4f} (reference noise {noise:.4f})", end="")
     assert noise < 0.01  # measured 0.005
     print()
-    # measured: without the contact-line nodes and the shadow splitting 0.062 (0.153 within 5 cm);
-    # the final preset (both) 0.0084 (0.0205); with discontinuity knots too 0.0097 (0.0159)
-    assert err["final preset"][0] <= 0.016 and err["final preset"][1] <= 0.04
+    # measured: without the contact-line nodes and the shadow splitting 0.073 (0.191 within 5 cm);
+    # the final preset (both) 0.0126 (0.0408); with discontinuity knots too 0.0152 (0.0177). With
+    # a quarter of the adaptive knots' density uniform instead of half: 0.0084 (0.0205), 0.0097
+    # (0.0159): more knots went to the contact lines' shadow.
+    assert err["final preset"][0] <= 0.025 and err["final preset"][1] <= 0.08
     assert err["no contact nodes, no shadow splitting"][0] >= 3 * err["final preset"][0]
     knots = err["final preset + discontinuity knots"]
-    assert knots[0] <= 0.02 and knots[1] <= 0.032
-    assert knots[1] <= 0.9 * err["final preset"][1]  # measured 0.78: sharper at the contact lines
+    assert knots[0] <= 0.03 and knots[1] <= 0.035
+    assert knots[1] <= 0.9 * err["final preset"][1]  # measured 0.43: sharper at the contact lines

@@ -21,10 +21,10 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 
 # Measured at the final preset (bench/validation/validate.py measure --preset final): relative RMSE,
 # worst object's mean ratio; the bounds sit within about 2x of them (the ratio's distance from 1).
-MEASURED = {"open_box": (0.0345, 1.0106),  # the GGX panel
-            "table_spheres": (0.0413, 1.0041),  # the diffuse sphere
-            "ceiling_light": (0.0088, 0.9907),  # the ceiling
-            "thin_occluder": (0.0209, 0.9881)}  # the small wall (26 pairs)
+MEASURED = {"open_box": (0.0376, 1.0077),  # the GGX panel
+            "table_spheres": (0.0413, 1.0052),  # the diffuse sphere
+            "ceiling_light": (0.0081, 0.9913),  # the ceiling
+            "thin_occluder": (0.0225, 1.0053)}  # the small wall (26 pairs)
 # The targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
 TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01}
 
