@@ -6,20 +6,10 @@ import numpy as np
 import pytest
 
 import bsgi
-from closed_forms import shadowed_square_irradiance
 
-ALBEDO = 0.6
-HALF_FLOOR, LIGHT_HEIGHT, LIGHT_HALF, OCCLUDER_HEIGHT, OCCLUDER_HALF = 1.5, 2.0, 0.25, 1.0, 0.3
-
-
-def rect(center, half_u, half_v):
-    c, a, b = (np.asarray(x, float) for x in (center, half_u, half_v))
-    return np.array([c - a - b, c + a - b, c + a + b, c - a + b])
-
-
-FLOOR = rect([0, 0, 0], [HALF_FLOOR, 0, 0], [0, HALF_FLOOR, 0])
-LIGHT = rect([0, 0, LIGHT_HEIGHT], [0, LIGHT_HALF, 0], [LIGHT_HALF, 0, 0])  # normal -z
-OCCLUDER = rect([0, 0, OCCLUDER_HEIGHT], [OCCLUDER_HALF, 0, 0], [0, OCCLUDER_HALF, 0])
+# The square occluder of test_solver_shadow_boundary (its closed form there).
+from test_solver_shadow_boundary import ALBEDO, FLOOR, HALF_FLOOR, LIGHT, OCCLUDER  # noqa: E402
+from test_solver_shadow_boundary import exact as exact_radiance  # noqa: E402
 
 
 def shadow_scene():
@@ -50,10 +40,7 @@ def exact():
     U, V = np.meshgrid(g, g, indexing="ij")
     uv = np.stack([U.ravel(), V.ravel()], 1)
     x, y = (2 * uv - 1).T * HALF_FLOOR
-    square = (-LIGHT_HALF, LIGHT_HALF, -LIGHT_HALF, LIGHT_HALF)
-    hole = (-OCCLUDER_HALF, OCCLUDER_HALF, -OCCLUDER_HALF, OCCLUDER_HALF)
-    want = np.array([ALBEDO / np.pi * shadowed_square_irradiance(a, b, square, LIGHT_HEIGHT, hole, OCCLUDER_HEIGHT)
-                     for a, b in zip(x, y)])
+    want = np.array([exact_radiance(a, b) for a, b in zip(x, y)])
     return uv, want
 
 
