@@ -8,7 +8,7 @@ import pytest
 import bsgi
 
 # The square occluder of test_solver_shadow_boundary (its closed form there).
-from test_solver_shadow_boundary import ALBEDO, FLOOR, HALF_FLOOR, LIGHT, OCCLUDER  # noqa: E402
+from test_solver_shadow_boundary import ALBEDO, FLOOR, LIGHT, OCCLUDER, floor_grid  # noqa: E402
 from test_solver_shadow_boundary import exact as exact_radiance  # noqa: E402
 
 
@@ -36,10 +36,7 @@ def coarse_settings(**overrides):
 
 @pytest.fixture(scope="module")
 def exact():
-    g = np.linspace(0.005, 0.995, 41)
-    U, V = np.meshgrid(g, g, indexing="ij")
-    uv = np.stack([U.ravel(), V.ravel()], 1)
-    x, y = (2 * uv - 1).T * HALF_FLOOR
+    uv, x, y = floor_grid(41)
     want = np.array([exact_radiance(a, b) for a, b in zip(x, y)])
     return uv, want
 

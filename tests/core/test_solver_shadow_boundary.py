@@ -51,12 +51,18 @@ def solve(**overrides):
     return bsgi.solve(scene, s)
 
 
-@pytest.fixture(scope="module")
-def reference():
-    g = np.linspace(0.005, 0.995, 61)
+def floor_grid(count):
+    """(u, v) on a count x count grid just inside the floor's parameter square, and their (x, y)."""
+    g = np.linspace(0.005, 0.995, count)
     U, V = np.meshgrid(g, g, indexing="ij")
     uv = np.stack([U.ravel(), V.ravel()], 1)
     x, y = (2 * uv - 1).T * HALF_FLOOR
+    return uv, x, y
+
+
+@pytest.fixture(scope="module")
+def reference():
+    uv, x, y = floor_grid(61)
     ref = {"uv": uv, "exact": np.array([exact(a, b) for a, b in zip(x, y)]),
            "free": np.array([unshadowed(a, b) for a, b in zip(x, y)])}
     ax, ay = np.abs(x), np.abs(y)
