@@ -1226,8 +1226,15 @@ SolveSteps::~SolveSteps() = default;
 
 const std::vector<SurfaceSides>& SolveSteps::sides() const { return state_->sides; }
 
+namespace {
+// The final gather and a regather gather into the finer receivers, the others into the coarse ones.
+bool on_finals(SolveSteps::Phase phase) {
+    return phase == SolveSteps::Phase::Final || phase == SolveSteps::Phase::Regather;
+}
+}  // namespace
+
 std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
-    if (phase != Phase::Final && phase != Phase::Regather) return nodes_of(state_->receivers);
+    if (!on_finals(phase)) return nodes_of(state_->receivers);
     state_->build_finals(progress);
     return nodes_of(state_->finals);
 }
@@ -1235,7 +1242,7 @@ std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
 std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                        Progress& progress, size_t& rays) {
     State& s = *state_;
-    const bool fine = phase == Phase::Final || phase == Phase::Regather;
+    const bool fine = on_finals(phase);
     if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
     if (phase == Phase::Regather && s.settings.final_passes < 2)
         throw std::invalid_argument("solve step: the settings have one final pass, no regather");
