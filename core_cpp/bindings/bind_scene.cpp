@@ -69,6 +69,7 @@ const char* phase_name(SolveSteps::Phase p) {
         case SolveSteps::Phase::Bounce: return "bounce";
         case SolveSteps::Phase::Final: return "final";
         case SolveSteps::Phase::Regather: return "regather";
+        case SolveSteps::Phase::LateBounce: return "late bounce";
     }
     return "";
 }
@@ -78,7 +79,8 @@ SolveSteps::Phase phase_of(const std::string& name) {
     if (name == "bounce") return SolveSteps::Phase::Bounce;
     if (name == "final") return SolveSteps::Phase::Final;
     if (name == "regather") return SolveSteps::Phase::Regather;
-    throw std::invalid_argument("solve phase must be 'direct', 'bounce', 'final' or 'regather', got '" + name + "'");
+    if (name == "late bounce") return SolveSteps::Phase::LateBounce;
+    throw std::invalid_argument("solve phase must be 'direct', 'bounce', 'late bounce', 'final' or 'regather', got '" + name + "'");
 }
 
 const char* kind_name(Representation r) {
@@ -319,6 +321,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("world_bright_factor", &SolverSettings::world_bright_factor)
         .def_readwrite("world_bright_samples", &SolverSettings::world_bright_samples)
         .def_readwrite("max_bounces", &SolverSettings::max_bounces)
+        .def_readwrite("late_bounces_after", &SolverSettings::late_bounces_after)
         .def_readwrite("form_factors", &SolverSettings::form_factors)
         .def_readwrite("tolerance", &SolverSettings::tolerance)
         .def_readwrite("extrapolate", &SolverSettings::extrapolate)

@@ -44,6 +44,9 @@ void stratified(int m, int n, double* u) {
     u[2] = std::fmod((m + 0.5) * 0.6180339887498949, 1.0);
 }
 
+// Integration nodes along an axis at a density (rounded, at least one).
+int nodes_along(int count, double density) { return std::max(1, int(std::lround(count * density))); }
+
 }  // namespace
 
 Vec3 directional_albedo(const Bsdf& b) {
@@ -258,8 +261,9 @@ Vec3 Gatherer::texel_seen(const Texture& texture, const SurfaceHit& hit, const V
 }
 
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
-                        Receiver::Splines which, int density, bool with_world, Vec3* out, size_t& rays) const {
-    const double solid_angle = 2 * kPi / (double(settings_.hemisphere_nodes_theta) * settings_.hemisphere_nodes_phi * density * density);
+                        Receiver::Splines which, double density, bool with_world, Vec3* out, size_t& rays) const {
+    const double solid_angle = 2 * kPi / (double(nodes_along(settings_.hemisphere_nodes_theta, density)) *
+                                          nodes_along(settings_.hemisphere_nodes_phi, density));
     hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
         if (hit.surface < 0) return with_world ? world_along(dir) : Vec3{0, 0, 0};
         const Receiver* h = receiver_of[hit.surface];
@@ -325,12 +329,12 @@ void Gatherer::through_panes(const Vec3& o, const Vec3& dir, double weight, int 
 }
 
 template <typename Incoming>
-void Gatherer::hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out,
+void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&& radiance_along, Vec3* out,
                           size_t& rays) const {
     const SurfacePoint& p = r.nodes[j];
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
-    const int nt = settings_.hemisphere_nodes_theta * density, np = settings_.hemisphere_nodes_phi * density;
+    const int nt = nodes_along(settings_.hemisphere_nodes_theta, density), np = nodes_along(settings_.hemisphere_nodes_phi, density);
     // Incoming radiance along a local direction (pointing away from the surface).
     auto incoming = [&](const Vec3& wi) -> Vec3 {
         const Vec3 dir = p.frame.to_world(wi);
@@ -369,11 +373,11 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, int density, Incoming&& r
 // transmits; for the mirrored back side of an opaque surface, everything is computed as on the
 // front and `incoming` mirrors the directions.
 template <typename Incoming>
-void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, int density,
+void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                             Incoming&& incoming, Vec3* out) const {
     const int in_sides = r.bsdf->transmits() ? 2 : 1;
     const double n_cos = double(nt) * np;
-    const int nb = settings_.bsdf_samples * density;
+    const int nb = nodes_along(settings_.bsdf_samples, density);
     // The cosine nodes as one strategy over the sides sampled: n_cos nodes on each side, so
     // in_sides * n_cos samples of density |cos| / (pi * in_sides).
     const double n_strategy = in_sides * n_cos;

@@ -49,6 +49,7 @@ void validate(const SolverSettings& s) {
     need(s.world_bright_factor > 1, "world_bright_factor must be > 1");
     need(s.world_bright_samples >= 1, "world_bright_samples must be >= 1");
     need(s.max_bounces >= 0, "max_bounces must be >= 0");
+    need(s.late_bounces_after >= 0, "late_bounces_after must be >= 0 (0: every bounce with all hemisphere nodes)");
     need(s.tolerance >= 0, "tolerance must be >= 0");
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");
     need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
@@ -1265,14 +1266,15 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
         });
         return pack(targets, begin, end, &Receiver::L);
     }
-    if (phase == Phase::Bounce) {
+    if (phase == Phase::Bounce || phase == Phase::LateBounce) {
         // Gather the incremental radiance L of all surfaces into Ltmp.
+        const double density = phase == Phase::LateBounce ? 0.5 : 1.0;
         unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::L);
         s.build_rows(begin, end, progress, rays);
         rays += gather_all(targets, begin, end, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             const size_t k = size_t(r.index);
             if (!s.uses_rows(r)) {
-                gather.indirect(r, j, s.receiver_of, &Receiver::L, 1, false, out, n);
+                gather.indirect(r, j, s.receiver_of, &Receiver::L, density, false, out, n);
                 return;
             }
             for (int side = 0; side < r.sides; ++side) {
@@ -1358,7 +1360,9 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     for (int bounce = 0; bounce < settings.max_bounces; ++bounce) {
         progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + st.ff_stage + bounce, stages,
                              node_count(receivers));
-        unpack(phase(Phase::Bounce, pack(receivers, 0, all, &Receiver::L)), receivers, 0, all, &Receiver::Ltmp);
+        const bool late = settings.late_bounces_after > 0 && bounce >= settings.late_bounces_after;
+        unpack(phase(late ? Phase::LateBounce : Phase::Bounce, pack(receivers, 0, all, &Receiver::L)), receivers, 0, all,
+               &Receiver::Ltmp);
         for (auto& r : receivers)
             for (int side = 0; side < r.sides; ++side) {
                 auto& le = r.Le[side].coeffs();

@@ -92,9 +92,9 @@ def test_every_scene_member_that_changes_it_is_kept():
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-@pytest.mark.parametrize("final_passes", [1, 2])
-def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes):
-    scene, s = room(), settings(final_passes=final_passes, final_spatial_factor=2)
+@pytest.mark.parametrize("final_passes, late_bounces_after", [(1, 0), (2, 1)])
+def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounces_after):
+    scene, s = room(), settings(final_passes=final_passes, final_spatial_factor=2, late_bounces_after=late_bounces_after)
     local = bsgi.solve(scene, s)
     kinds = {r["representation"].split(",")[0] for r in local.reports}
     assert {"diffuse 2D", "glossy 4D", "decomposed 2D + 4D (38)"} <= kinds
@@ -105,9 +105,10 @@ def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes):
     assert len(executor.bytes_sent) == 4 + final_passes and executor.bytes_sent[0] == 0
 
 
-def test_steps_gathered_in_groups_equal_the_solve_with_a_regather():
+@pytest.mark.parametrize("late_bounces_after", [0, 2])
+def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_after):
     # What a worker does, here: another SolveSteps of the scene gathers each phase in two groups.
-    scene, s = room(), settings(final_passes=2, final_spatial_factor=2)
+    scene, s = room(), settings(final_passes=2, final_spatial_factor=2, late_bounces_after=late_bounces_after)
     local = bsgi.solve(scene, s)
     worker = bsgi.SolveSteps(scene, s, bsgi.Progress())
     phases = []
@@ -120,7 +121,8 @@ def test_steps_gathered_in_groups_equal_the_solve_with_a_regather():
 
     steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
     assert_same_coefficients(local, steps.solve(bsgi.Progress(), runner))
-    assert phases == ["direct", "bounce", "bounce", "bounce", "final", "regather"]
+    bounces = ["bounce", "bounce", "late bounce"] if late_bounces_after else ["bounce"] * 3
+    assert phases == ["direct", *bounces, "final", "regather"]
     with pytest.raises(ValueError, match="one final pass, no regather"):
         bsgi.SolveSteps(scene, settings(), bsgi.Progress()).gather("regather", 0, 1, np.zeros(0), bsgi.Progress())
 

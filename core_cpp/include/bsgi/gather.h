@@ -93,10 +93,10 @@ public:
     void direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     // Light arriving from the other surfaces' splines `which` at node j of r, scattered, and
     // with `with_world` the world's light along the rays no occluder stops (the final gather:
-    // one set of rays for both). `density` multiplies the integration nodes (the final gather
-    // uses more).
+    // one set of rays for both). `density` scales the integration nodes along each axis (the
+    // final gather uses more, late bounces fewer).
     void indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of, Receiver::Splines which,
-                  int density, bool with_world, Vec3* out, size_t& rays) const;
+                  double density, bool with_world, Vec3* out, size_t& rays) const;
     // The world's light at node j of r, scattered: the hemispherical integral (26)-(32) over
     // the directions no occluder stops, of the constant world or of the world map's smooth
     // remainder (its bright part is among the distant samples of direct()). Same layout as direct().
@@ -117,7 +117,7 @@ private:
     // The hemispherical integral at node j of r of radiance_along(hit, world direction), the
     // radiance arriving along each integration direction given what its ray hit.
     template <typename Incoming>
-    void hemisphere(const Receiver& r, size_t j, int density, Incoming&& radiance_along, Vec3* out, size_t& rays) const;
+    void hemisphere(const Receiver& r, size_t j, double density, Incoming&& radiance_along, Vec3* out, size_t& rays) const;
     Vec3 texel_seen(const Texture& texture, const SurfaceHit& hit, const Vec3& dir, double solid_angle) const;
     // Follows a gathering ray through window panes (thin glass): visit(hit, direction, weight)
     // for each end of the ray tree, the ray straight on and the reflected one at each pane hit.
@@ -128,7 +128,7 @@ private:
     // the constant, or the world map without its bright part.
     Vec3 world_along(const Vec3& dir) const { return world_smooth_ ? world_smooth_->radiance(dir) : scene_.world_radiance(); }
     template <typename Incoming>
-    void gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, int density,
+    void gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                       Incoming&& incoming, Vec3* out) const;
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,

@@ -84,6 +84,10 @@ struct SolverSettings {
     // extrapolate, that missing geometric tail is added instead of bounced, which makes albedos
     // near 1 converge in a few bounces.
     int max_bounces = 64;
+    // Bounces after the first late_bounces_after gather with half the hemisphere nodes (and BSDF
+    // samples) along each axis, a quarter of the rays: a late bounce's increment is smooth and a
+    // small share of the light, so its coarser integration costs little (0: every bounce full).
+    int late_bounces_after = 0;
     // Generalized form factors (36)-(37) for Lambertian receivers: their gathering rays are cast
     // once and kept as rows of the transport operator; later bounces are sparse products. Not
     // used in scenes with albedo textures (a row's scalar weights cannot carry a texel's colour).
@@ -166,7 +170,7 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings);
 // knots. Coefficients travel flat: receiver after receiver, each one's spline sides in order.
 class SolveSteps {
 public:
-    enum class Phase { Direct = 0, Bounce = 1, Final = 2, Regather = 3 };
+    enum class Phase { Direct = 0, Bounce = 1, Final = 2, Regather = 3, LateBounce = 4 };
     // Gathers a phase for every receiver (in groups wherever it likes): the coefficients of all
     // receivers of the phase, given `input` (empty, L or Le) and the nodes of each receiver (the
     // work); adds the rays cast to `rays`.
@@ -187,7 +191,7 @@ public:
     // Spatial nodes of each receiver of a phase.
     std::vector<size_t> nodes(Phase phase, Progress& progress);
     // The gather of a phase for receivers [begin, end), given the previous step's coefficients
-    // of all receivers (none for the direct light; L for a bounce; Le for the final gather; the
+    // of all receivers (none for the direct light; L for a bounce, late or not; Le for the final gather; the
     // finals' Le of the previous final gather to regather):
     // their new coefficients. Advances `progress` by nodes; throws Cancelled if it is cancelled.
     std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
