@@ -8,13 +8,13 @@ file is still used: the pairs and the scene's geometry are the same). Figures:
 - acc_<scene>_<preset>_worst_surface_ratio: the mean radiance ratio (ours / Mitsuba) of the object
   farthest from 1 among those with at least 20 pairs,
 - acc_<scene>_<preset>_cycles_seconds: the CPU time a Cycles bake of the same surfaces needed to
-  reach that error in the committed study (bench/study/results.csv, 16 to 1,024 samples,
-  interpolated in log time; absent if no bake reached it),
+  reach that error, from the committed bakes at 16 to 1,024 samples against the same reference
+  (the study's scenes: bench/study/results.csv; the validation scenes: bench/validation/cycles.csv,
+  `validate.py cycles`), interpolated in log time; absent if no bake reached it,
 - acc_<scene>_worst_surface_ratio: the final preset's worst object ratio.
 
 Scenes: the study's and the validation scenes (bench/validation: open_box, table_spheres,
-ceiling_light, thin_occluder, with their own committed references, 3,000 pairs each; no Cycles
-bake of them in the study, so no cycles_seconds).
+ceiling_light, thin_occluder, with their own committed references, 3,000 pairs each).
 BSGI_BENCH_ACCURACY=cornell_box,mug chooses the scenes (default: the diffuse study scenes, the
 glossy-wall box and the validation scenes; the near-mirror box, the spheres and the glass sheet
 take many minutes each).
@@ -45,10 +45,16 @@ PRESETS = ("draft", "preview", "final")
 
 
 def cycles_seconds(scene: str, error: float) -> float | None:
-    """CPU seconds of the committed study's Cycles bake at the given error: the cheapest bake that
-    reached it, interpolated in log time from the one before it."""
-    rows = [r for r in csv.DictReader(open(STUDY / "results.csv")) if r["scene"] == scene and r["method"] == "cycles bake"]
-    bakes = sorted((float(r["cpu_seconds"]), float(r["rel_rmse"])) for r in rows)  # by time
+    """CPU seconds of the scene's committed Cycles bakes (the validation scenes' cycles.csv, else
+    the study's results.csv) at the given error: the cheapest bake that reached it, interpolated
+    in log time from the one before it."""
+    import validate
+
+    if scene in validate.SCENES:
+        rows = list(csv.DictReader(open(validate.CYCLES_CSV)))
+    else:
+        rows = [r for r in csv.DictReader(open(STUDY / "results.csv")) if r["method"] == "cycles bake"]
+    bakes = sorted((float(r["cpu_seconds"]), float(r["rel_rmse"])) for r in rows if r["scene"] == scene)  # by time
     for k, (t1, e1) in enumerate(bakes):
         if e1 > error:
             continue

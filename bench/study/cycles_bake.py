@@ -5,8 +5,11 @@ atlas at several sample counts, each bake timed, then the atlas looked up at eac
     python bench/study/cycles_bake.py scene.blend pairs.npz out.npz RESOLUTION SAMPLES...
 
 A Cycles bake is view-independent: glossy surfaces are baked as seen along their normal, whatever
-the direction a pair looks from. The scene's copy in this process is changed (atlas UV map,
-image nodes, NURBS objects turned into meshes), never saved."""
+the direction a pair looks from. A bake sees each surface's front only: objects that pairs.npz
+names in "two_sided" (optional; the validation scenes' planes lit and seen on both sides) are
+baked a second time with their normals flipped, as a user would bake a plane's back side, and the
+pairs seen from behind read that bake; a bake's time is the sum of both. The scene's copy in this
+process is changed (atlas UV map, image nodes, NURBS objects turned into meshes), never saved."""
 from __future__ import annotations
 
 import json
@@ -157,6 +160,33 @@ def set_cycles(scene, samples):
     scene.render.bake.target = "IMAGE_TEXTURES"
 
 
+def bake(context, objects, image, resolution):
+    """One COMBINED bake of the objects into the atlas: (its pixels (RGB), seconds, CPU seconds)."""
+    import bpy
+
+    for obj in context.scene.objects:
+        obj.select_set(obj in objects.values())
+    context.view_layer.objects.active = next(iter(objects.values()))
+    start, cpu = time.perf_counter(), time.process_time()
+    bpy.ops.object.bake(type="COMBINED", uv_layer=UV_NAME, margin=MARGIN, use_clear=True)
+    seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
+    pixels = np.empty(resolution * resolution * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    return pixels.reshape(resolution, resolution, 4)[..., :3].astype(float), seconds, cpu_seconds
+
+
+def seen_from_behind(objects, pairs):
+    """Mask of the pairs on the given objects whose eye is behind their polygon's normal."""
+    out = np.zeros(len(pairs["point"]), bool)
+    for j, (name, poly) in enumerate(zip(pairs["object"], pairs["polygon"])):
+        obj = objects.get(str(name))
+        if obj is not None:
+            m = np.array(obj.matrix_world, float)
+            normal = np.linalg.inv(m[:3, :3]).T @ np.array(obj.data.polygons[int(poly)].normal)
+            out[j] = normal @ (pairs["eye"][j] - pairs["point"][j]) < 0
+    return out
+
+
 def lookup(objects, pixels, resolution, pairs):
     """The atlas bilinearly interpolated at each pair's point (found in its polygon's triangles)."""
     out = np.full((len(pairs["point"]), 3), np.nan)
@@ -204,19 +234,22 @@ def main():
     image = bpy.data.images.new("Study atlas", resolution, resolution, float_buffer=True, alpha=False)
     image.colorspace_settings.name = "Non-Color"
     attach_image(objects, image)
-    for obj in context.scene.objects:
-        obj.select_set(obj in objects.values())
-    context.view_layer.objects.active = next(iter(objects.values()))
+    backs = {name: obj for name, obj in objects.items() if name in {str(n) for n in pairs.get("two_sided", ())}}
+    behind = seen_from_behind(backs, pairs)
     results = {}
     for n in map(int, samples):
         set_cycles(context.scene, n)
-        start, cpu = time.perf_counter(), time.process_time()
-        bpy.ops.object.bake(type="COMBINED", uv_layer=UV_NAME, margin=MARGIN, use_clear=True)
-        seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
-        pixels = np.empty(resolution * resolution * 4, np.float32)
-        image.pixels.foreach_get(pixels)
-        pixels = pixels.reshape(resolution, resolution, 4)[..., :3].astype(float)
-        results[f"radiance_{n}"] = lookup(objects, pixels, resolution, pairs)
+        pixels, seconds, cpu_seconds = bake(context, objects, image, resolution)
+        radiance = lookup(objects, pixels, resolution, pairs)
+        if backs:
+            for obj in backs.values():
+                obj.data.flip_normals()
+            pixels, back_seconds, back_cpu_seconds = bake(context, backs, image, resolution)
+            for obj in backs.values():
+                obj.data.flip_normals()
+            radiance[behind] = lookup(objects, pixels, resolution, pairs)[behind]
+            seconds, cpu_seconds = seconds + back_seconds, cpu_seconds + back_cpu_seconds
+        results[f"radiance_{n}"] = radiance
         results[f"seconds_{n}"], results[f"cpu_seconds_{n}"] = seconds, cpu_seconds
         print(json.dumps({"samples": n, "seconds": seconds, "cpu_seconds": cpu_seconds}), flush=True)
     np.savez(out_npz, **results)

@@ -96,6 +96,18 @@ def errors(ours, data, valid):
             "pairs": int(valid.sum())}
 
 
+def cycles_bakes(blend, pairs_npz, work, samples, resolution):
+    """Cycles bakes of the scene at each sample count (cycles_bake.py, in a process of its own),
+    looked up at the pairs: [(samples, seconds, CPU seconds, radiance (n, 3))]."""
+    out = pathlib.Path(work) / "cycles.npz"
+    result = subprocess.run([sys.executable, str(HERE / "cycles_bake.py"), str(blend), str(pairs_npz), str(out),
+                             str(resolution), *map(str, samples)], capture_output=True, text=True)
+    if result.returncode:
+        raise RuntimeError(f"{pathlib.Path(blend).stem}: Cycles bake failed:\n{result.stderr[-3000:]}")
+    baked = np.load(out)
+    return [(n, float(baked[f"seconds_{n}"]), float(baked[f"cpu_seconds_{n}"]), baked[f"radiance_{n}"]) for n in samples]
+
+
 def run_scene(blend, work, quick, cache, log):
     name = blend.stem
     work.mkdir(parents=True, exist_ok=True)
@@ -156,18 +168,11 @@ def run_scene(blend, work, quick, cache, log):
     samples = QUICK["cycles_samples"] if quick else CYCLES_SAMPLES
     resolution = QUICK["cycles_resolution"] if quick else CYCLES_RESOLUTION
     log(f"{name}: Cycles bake at {', '.join(map(str, samples))} samples, {resolution}x{resolution} atlas")
-    out = work / "cycles.npz"
-    result = subprocess.run([sys.executable, str(HERE / "cycles_bake.py"), str(blend), str(pairs_npz), str(out),
-                             str(resolution), *map(str, samples)], capture_output=True, text=True)
-    if result.returncode:
-        raise RuntimeError(f"{name}: Cycles bake failed:\n{result.stderr[-3000:]}")
-    baked = np.load(out)
-    for n in samples:
+    for n, seconds, cpu_seconds, radiance in cycles_bakes(blend, pairs_npz, work, samples, resolution):
         row = {"scene": name, "method": "cycles bake", "setting": f"Cycles bake {n} samples", "knob": "samples",
-               "value": n, "seconds": round(float(baked[f"seconds_{n}"]), 3),
-               "cpu_seconds": round(float(baked[f"cpu_seconds_{n}"]), 3), "peak_mb": "",
+               "value": n, "seconds": round(seconds, 3), "cpu_seconds": round(cpu_seconds, 3), "peak_mb": "",
                "coefficients": resolution * resolution, "reference_noise": round(noise, 4)}
-        rows.append((row, baked[f"radiance_{n}"]))
+        rows.append((row, radiance))
     out_rows = []
     for row, radiance in rows:
         row.update({k: (round(v, 4) if isinstance(v, float) else v) for k, v in errors(radiance, data, valid).items()})

@@ -2,17 +2,22 @@
 references made by bench/study/references.py (committed in references/), solves by
 bench/study/solve_blend.py in a process of their own, errors by run_study.errors. Adds what the
 study does not print: per object (per surface) the mean radiance ratio ours / Mitsuba, the
-relative RMSE and the reference's noise there.
+relative RMSE and the reference's noise there. `cycles`: the study's Cycles bake (run_study.cycles_bakes,
+its sample counts and atlas) of each scene, the same errors, written to cycles.csv (which
+bench/bench_accuracy.py reads for the time a bake needs to reach a solve's error).
 
     .venv/bin/python bench/validation/validate.py references            (make missing or stale references)
     .venv/bin/python bench/validation/validate.py measure [--scene S ...] [--preset P ...] [--overrides JSON] [--markdown]
+    .venv/bin/python bench/validation/validate.py cycles [--scene S ...] [--samples N ...] [--markdown]
 
 The references render the objects make_scenes.TWO_SIDED names two-sided and the lights
-transparent (Blender's lights cast no shadow), as Cycles and the solver see the scenes.
+transparent (Blender's lights cast no shadow), as Cycles and the solver see the scenes; the Cycles
+bake bakes those objects' back sides too (cycles_bake.py).
 """
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import pathlib
 import subprocess
@@ -35,6 +40,9 @@ REFERENCES = HERE / "references"
 SETTINGS = {"pairs": 3000, "spp": 32768, "seed": 11}
 # Objects with fewer pairs than this get no per-surface figures (too noisy a mean).
 MIN_PAIRS = 20
+CYCLES_CSV = HERE / "cycles.csv"
+CYCLES_FIELDS = ["scene", "samples", "seconds", "cpu_seconds", "rel_rmse", "rel_rmse_diffuse", "rel_rmse_glossy", "pairs",
+                 "reference_noise", "worst_surface", "worst_surface_ratio"]
 
 
 def blend_path(scene: str) -> pathlib.Path:
@@ -65,6 +73,20 @@ def noise(data, mask=None) -> float:
     return float(np.sqrt((data["stderr"][mask] ** 2).sum() / (data["reference"][mask] ** 2).sum()))
 
 
+def write_pairs(scene: str, data: dict, work: pathlib.Path) -> pathlib.Path:
+    """The reference's pairs for solve_blend.py and cycles_bake.py, with the scene's two-sided objects."""
+    work.mkdir(parents=True, exist_ok=True)
+    np.savez(work / "pairs.npz", two_sided=np.array(TWO_SIDED[scene], str),
+             **{k: data[k] for k in ("object", "polygon", "point", "eye")})
+    return work / "pairs.npz"
+
+
+def compared(emitting, data, radiance):
+    """The pairs compared: those a method returns (finite) off the emitting objects (whose
+    emission every method returns exactly), as run_study compares them."""
+    return ~np.isin(data["object"], emitting) & np.isfinite(radiance).all(axis=1)
+
+
 def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
     """One solve of the scene (solve_blend.py, its own process) and its radiance at the pairs:
     (radiance (n, 3), the solve's figures, mask of the pairs compared)."""
@@ -72,8 +94,7 @@ def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
     from references import describe
 
     blend = blend_path(scene)
-    work.mkdir(parents=True, exist_ok=True)
-    np.savez(work / "pairs.npz", **{k: data[k] for k in ("object", "polygon", "point", "eye")})
+    write_pairs(scene, data, work)
     (work / "settings.json").write_text(json.dumps(spec))
     out = subprocess.run([sys.executable, str(STUDY / "solve_blend.py"), str(blend), str(work / "settings.json"),
                           str(work / "pairs.npz"), str(work / "solve.npz")], capture_output=True, text=True)
@@ -81,8 +102,7 @@ def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
         raise RuntimeError(f"{scene}: solve failed:\n{out.stderr[-3000:]}")
     figures = json.loads(out.stdout.strip().splitlines()[-1])
     ours = np.load(work / "solve.npz")["radiance"]
-    valid = ~np.isin(data["object"], run_study.emitting_objects(describe(blend))) & np.isfinite(ours).all(axis=1)
-    return ours, figures, valid
+    return ours, figures, compared(run_study.emitting_objects(describe(blend)), data, ours)
 
 
 def per_surface(ours, data, valid) -> dict:
@@ -120,6 +140,52 @@ def measure(scene: str, preset: str, overrides=None, work=None) -> dict:
             "reference_noise": noise(data, valid), "surfaces": surfaces, "worst_surface_ratio": worst_ratio(surfaces)}
 
 
+def cycles(scene: str, samples, resolution, work=None) -> list:
+    """The study's Cycles bakes of the scene (one process, the sample counts in turn) against the
+    committed reference: per sample count a cycles.csv row (run_study.errors' figures, seconds,
+    the worst surface's mean ratio) with the per-surface figures under "surfaces"."""
+    import run_study
+    from references import describe
+
+    data = load_reference(scene)
+    emitting = run_study.emitting_objects(describe(blend_path(scene)))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        work = pathlib.Path(work or tmp)
+        pairs = write_pairs(scene, data, work)
+        for n, seconds, cpu_seconds, baked in run_study.cycles_bakes(blend_path(scene), pairs, work, samples, resolution):
+            valid = compared(emitting, data, baked)
+            surfaces = per_surface(baked, data, valid)
+            worst = max(surfaces, key=lambda name: abs(surfaces[name]["ratio"] - 1))
+            rows.append({"scene": scene, "samples": n, "seconds": seconds, "cpu_seconds": cpu_seconds,
+                         **run_study.errors(baked, data, valid), "reference_noise": noise(data, valid),
+                         "worst_surface": worst, "worst_surface_ratio": surfaces[worst]["ratio"], "surfaces": surfaces})
+    return rows
+
+
+def write_cycles_csv(rows):
+    """cycles.csv with these rows, keeping an earlier run's rows of the other scenes."""
+    done = {r["scene"] for r in rows}
+    kept = [r for r in csv.DictReader(open(CYCLES_CSV)) if r["scene"] not in done] if CYCLES_CSV.exists() else []
+    with open(CYCLES_CSV, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=CYCLES_FIELDS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(kept)
+        writer.writerows({k: round(v, 4) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
+
+
+def cycles_markdown(rows) -> str:
+    """A table row per bake: samples, CPU time, errors (all / diffuse / glossy), worst surface."""
+    lines = ["| scene | samples | CPU time | error (all / diffuse / glossy) | worst surface: mean ratio |",
+             "|---|---|---|---|---|"]
+    for r in rows:
+        errors = " / ".join("–" if np.isnan(float(r[k])) else f"{100 * float(r[k]):.1f}%"
+                            for k in ("rel_rmse", "rel_rmse_diffuse", "rel_rmse_glossy"))
+        lines.append(f"| {r['scene']} | {r['samples']} | {float(r['cpu_seconds']):.1f} s | {errors} | "
+                     f"{r['worst_surface']} {float(r['worst_surface_ratio']):.3f} |")
+    return "\n".join(lines)
+
+
 def print_row(scene, setting, r):
     glossy = "" if np.isnan(r["rel_rmse_glossy"]) else f", glossy {100 * r['rel_rmse_glossy']:.2f}%"
     print(f"{scene} {setting}: {100 * r['rel_rmse']:.2f}% (diffuse {100 * r['rel_rmse_diffuse']:.2f}%{glossy}) "
@@ -144,15 +210,29 @@ def markdown(figures: dict) -> str:
 
 
 def main(argv=None):
+    import run_study
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("command", choices=("references", "measure"))
+    parser.add_argument("command", choices=("references", "measure", "cycles"))
     parser.add_argument("--scene", nargs="*", default=list(SCENES))
     parser.add_argument("--preset", nargs="*", default=list(PRESETS))
     parser.add_argument("--overrides", default=None, help='solver settings changed, JSON: \'{"max_bounces": 2}\'')
+    parser.add_argument("--samples", nargs="*", type=int, default=list(run_study.CYCLES_SAMPLES),
+                        help="cycles: the bakes' sample counts (default the study's)")
     parser.add_argument("--markdown", action="store_true", help="end with a Markdown table (the README's)")
     args = parser.parse_args(argv)
     if args.command == "references":
         make_references(args.scene)
+        return
+    if args.command == "cycles":
+        rows = []
+        for scene in args.scene:
+            rows += cycles(scene, args.samples, run_study.CYCLES_RESOLUTION)
+            for r in rows[-len(args.samples):]:
+                print_row(scene, f"Cycles bake {r['samples']} samples", {**r, "seconds": r["cpu_seconds"]})
+            write_cycles_csv(rows)
+        if args.markdown:
+            print(cycles_markdown(rows))
         return
     overrides = json.loads(args.overrides) if args.overrides else None
     figures = {}
