@@ -65,6 +65,21 @@ void bind_bsdf(py::module_& m) {
             },
             py::arg("wo"), py::arg("wi"), "Solid-angle density of sample() drawing wi given wo.")
         .def(
+            "eval_pdf",
+            [](const Bsdf& b, const Array& wo, const Array& wi) {
+                const size_t n = vectors(wo, "wo");
+                if (vectors(wi, "wi") != n) throw std::invalid_argument("wo and wi differ in length");
+                py::array_t<double> values({py::ssize_t(n), py::ssize_t(3)});
+                py::array_t<double> pdf(static_cast<py::ssize_t>(n));
+                double *v = values.mutable_data(), *p = pdf.mutable_data();
+                {
+                    py::gil_scoped_release release;
+                    for (size_t i = 0; i < n; ++i) put(v + 3 * i, b.eval_pdf(at(wo, i), at(wi, i), p[i]));
+                }
+                return py::make_tuple(values, pdf);
+            },
+            py::arg("wo"), py::arg("wi"), "(eval, pdf) at once, as the gather's multiple importance sampling takes them.")
+        .def(
             "sample",
             [](const Bsdf& b, const Array& wo, const Array& u) {
                 const size_t n = vectors(wo, "wo");

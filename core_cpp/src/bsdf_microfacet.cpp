@@ -51,6 +51,17 @@ double GgxReflection::pdf(const Vec3& wo_local, const Vec3& wi_local) const {
     return oh > 0 ? D_.visible_pdf(wo, h) / (4 * oh) : 0;  // reflection's Jacobian 1 / (4 wo.h)
 }
 
+Vec3 GgxReflection::eval_pdf(const Vec3& wo_local, const Vec3& wi_local, double& pdf_out) const {
+    pdf_out = 0;
+    if (wo_local.z <= 0 || wi_local.z <= 0) return {0, 0, 0};
+    const Vec3 wo = to_lobe(wo_local), wi = to_lobe(wi_local);
+    const Vec3 h = normalize(wo + wi);
+    const double d = D_.D(h), g_o = D_.G1(wo, h), oh = dot(wo, h);
+    // visible_pdf(wo, h) / (4 wo.h) = G1(wo, h) D(h) / (4 wo.z), for wo.h > 0.
+    if (oh > 0) pdf_out = g_o * d / (4 * wo.z);
+    return fresnel_schlick(f0_, dot(wi, h)) * (d * g_o * D_.G1(wi, h) / (4 * wo.z * wi.z));
+}
+
 bool GgxReflection::sample(const Vec3& wo, double, double u1, double u2, BsdfSample& out) const {
     if (wo.z <= 0) return false;
     const Vec3 m = from_lobe(D_.sample_visible(to_lobe(wo), u1, u2));
@@ -84,6 +95,15 @@ Vec3 DiffuseGgx::eval(const Vec3& wo, const Vec3& wi) const {
 double DiffuseGgx::pdf(const Vec3& wo, const Vec3& wi) const {
     if (wo.z <= 0 || wi.z <= 0) return 0;
     return p_diffuse_ * wi.z / kPiD + (1 - p_diffuse_) * coat_->pdf(wo, wi);
+}
+
+Vec3 DiffuseGgx::eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const {
+    pdf_out = 0;
+    if (wo.z <= 0 || wi.z <= 0) return {0, 0, 0};
+    double coat_pdf;
+    const Vec3 coat = coat_->eval_pdf(wo, wi, coat_pdf);
+    pdf_out = p_diffuse_ * wi.z / kPiD + (1 - p_diffuse_) * coat_pdf;
+    return albedo_ / kPiD + coat;
 }
 
 bool DiffuseGgx::sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const {

@@ -395,9 +395,10 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
                 for (int side = first; side < last; ++side)
                     for (size_t a = 0; a < r.per_node; ++a) {
                         const Vec3 wo = outgoing(side, a);
-                        const Vec3 f = r.bsdf->eval(wo, wi);
+                        double pb;
+                        const Vec3 f = r.bsdf->eval_pdf(wo, wi, pb);
                         if (max_component(f) <= 0) continue;
-                        out[side * r.per_node + a] += L * f * (std::abs(wi.z) / (pc + nb * r.bsdf->pdf(wo, wi)));
+                        out[side * r.per_node + a] += L * f * (std::abs(wi.z) / (pc + nb * pb));
                     }
             }
     for (int side = first; side < last; ++side)
@@ -414,9 +415,9 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
                     out[side * r.per_node + a] += L * s.weight / double(nb);
                     continue;
                 }
-                const double pb = r.bsdf->pdf(wo, s.wi);
-                out[side * r.per_node + a] +=
-                    L * r.bsdf->eval(wo, s.wi) * (std::abs(s.wi.z) / (n_strategy * cosine_pdf(s.wi) + nb * pb));
+                double pb;
+                const Vec3 f = r.bsdf->eval_pdf(wo, s.wi, pb);
+                out[side * r.per_node + a] += L * f * (std::abs(s.wi.z) / (n_strategy * cosine_pdf(s.wi) + nb * pb));
             }
         }
 }

@@ -686,8 +686,9 @@ private:
 
 SolverSettings SolverSettings::preset(const std::string& name) {
     // Each iterates on a coarse representation and refines in the final gather (paper 4.2),
-    // preview and final twice (the second reading the first's fine splines); the README lists
-    // their measured time and error.
+    // preview and final twice (the second reading the first's fine splines), their late bounces
+    // with a quarter of the rays (draft's few nodes would be too few); the README lists their
+    // measured time and error.
     SolverSettings s;
     s.final_gather = true;
     s.final_spatial_factor = 2;
@@ -703,12 +704,14 @@ SolverSettings SolverSettings::preset(const std::string& name) {
     } else if (name == "preview") {
         s.spatial_coeffs = 12;
         s.final_passes = 2;
+        s.late_bounces_after = 1;
         s.angular_resolution = 3.0;
         s.emitter_shadow_depth = 3;
         s.tolerance = 3e-3;
     } else if (name == "final") {
         s.spatial_coeffs = 16;
         s.final_passes = 2;
+        s.late_bounces_after = 2;
         s.adaptive_knots = true;
         s.angular_resolution = 4.0;
         s.emitter_shadow_depth = 5;

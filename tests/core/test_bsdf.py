@@ -37,6 +37,21 @@ REFLECTORS = {
 }
 
 
+@pytest.mark.parametrize("name", [*REFLECTORS, "rough_dielectric"])
+def test_eval_pdf_is_eval_and_pdf(name):
+    # The gather takes both at once (GGX shares its half vector and D): the same as apart.
+    b = REFLECTORS[name]() if name in REFLECTORS else bsgi.RoughDielectric(1.5, 0.3, 0.3)
+    rng = np.random.default_rng(5)
+    wo = np.vstack([random_directions(rng, 300), random_directions(rng, 50, lower=True)])
+    wi = np.vstack([random_directions(rng, 300), random_directions(rng, 50, lower=True)])
+    n = min(len(wo), len(wi))
+    wo, wi = wo[:n], rng.permutation(wi[:n])
+    values, pdf = b.eval_pdf(wo, wi)
+    assert (pdf > 0).sum() > n // 3
+    np.testing.assert_allclose(values, b.eval(wo, wi), rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(pdf, b.pdf(wo, wi), rtol=1e-12, atol=1e-300)
+
+
 @pytest.mark.parametrize("name", REFLECTORS)
 def test_reflection_is_reciprocal(name):
     b = REFLECTORS[name]()

@@ -30,6 +30,12 @@ public:
     virtual ~Bsdf() = default;
     virtual Vec3 eval(const Vec3& wo, const Vec3& wi) const = 0;
     virtual double pdf(const Vec3& wo, const Vec3& wi) const = 0;
+    // eval and pdf at once, as multiple importance sampling needs them: a microfacet lobe finds
+    // its half vector and D once (the glossy gather calls this for every pair of directions).
+    virtual Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const {
+        pdf_out = pdf(wo, wi);
+        return eval(wo, wi);
+    }
     // Draws wi from three uniform numbers in [0, 1); false if this draw scatters nothing
     // (e.g. a lobe direction below the surface): the missing probability.
     virtual bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const = 0;
@@ -117,6 +123,7 @@ public:
     GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
+    Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     std::string name() const override { return "ggx"; }
     double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
@@ -142,6 +149,7 @@ public:
     DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
+    Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
     std::string name() const override { return "diffuse_ggx"; }
     double lobe_width() const override { return coat_->lobe_width(); }
