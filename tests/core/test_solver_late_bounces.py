@@ -2,28 +2,15 @@
 quarter of the hemisphere's rays. A late increment is smooth and a small share of the light, so
 the solve's error against Mitsuba 3 must not grow while its rays fall (the Cornell box of
 test_error_estimate at the preview preset, its reference shared)."""
-import numpy as np
 import pytest
 
-import bsgi
-from reference import scene_spec
-from test_error_estimate import reference
-from test_solver_final_passes import per_surface
+from test_solver_final_passes import preview_against_mitsuba
 
 
 @pytest.mark.slow
 def test_late_bounces_cost_rays_not_accuracy():
-    spec, pairs, ref, _ = reference("cornell")
-    scene = scene_spec.to_bsgi(spec)
-    figures = {}
-    for after in (0, 1):
-        settings = bsgi.SolverSettings.preset("preview")
-        settings.late_bounces_after = after
-        solution = bsgi.solve(scene, settings)
-        ours = scene_spec.solved_radiance(scene, solution, pairs)
-        figures[after] = (per_surface(spec, pairs, ours, ref), np.sqrt(((ours - ref) ** 2).mean()) / ref.mean(),
-                          solution.stats["rays"], solution.stats["bounces"])
-    (full, e0, rays0, b0), (late, e1, rays1, b1) = figures[0], figures[1]
+    (full, e0, stats0), (late, e1, stats1) = (preview_against_mitsuba(late_bounces_after=k) for k in (0, 1))
+    rays0, b0, rays1, b1 = stats0["rays"], stats0["bounces"], stats1["rays"], stats1["bounces"]
     print(f"\nall bounces full: {e0:.4f} error, {rays0} rays, {b0} bounces; late after 1: {e1:.4f}, {rays1} rays, "
           f"{b1} bounces ({rays1 / rays0:.3f} of the rays)")
     for name in full:
