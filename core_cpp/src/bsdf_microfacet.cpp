@@ -71,9 +71,9 @@ bool GgxReflection::sample(const Vec3& wo, double, double u1, double u2, BsdfSam
     if (wi.z <= 0) return false;
     out.wi = wi;
     out.delta = false;
-    out.pdf = pdf(wo, wi);
+    const Vec3 f = eval_pdf(wo, wi, out.pdf);
     if (!(out.pdf > 0)) return false;
-    out.weight = eval(wo, wi) * (wi.z / out.pdf);
+    out.weight = f * (wi.z / out.pdf);
     return true;
 }
 
@@ -115,9 +115,9 @@ bool DiffuseGgx::sample(const Vec3& wo, double u0, double u1, double u2, BsdfSam
         return false;
     }
     out.delta = false;
-    out.pdf = pdf(wo, out.wi);
+    const Vec3 f = eval_pdf(wo, out.wi, out.pdf);
     if (!(out.pdf > 0) || out.wi.z <= 0) return false;
-    out.weight = eval(wo, out.wi) * (out.wi.z / out.pdf);
+    out.weight = f * (out.wi.z / out.pdf);
     return true;
 }
 

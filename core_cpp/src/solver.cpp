@@ -643,6 +643,14 @@ public:
                 error = std::max(error, channel_error);
                 errors_[k] = std::max(errors_[k], channel_error);
             }
+        if (last_increment == 0) {
+            // No receiver got light this bounce, so none will: the series has ended and nothing
+            // is missing (a lone floor under a lamp), whatever the decay could not yet be judged from.
+            for (auto& channels : state_)
+                for (Channel& c : channels) c.tail = 0;
+            errors_.assign(errors_.size(), 0.0);
+            return 0;
+        }
         return error;
     }
 
