@@ -97,6 +97,9 @@ def refuse_light_the_reference_lacks(context, export):
                          "them to study this scene")
 
 
+ERROR_PARTS = ("fit", "input", "integration", "tail")  # the estimate's parts, the columns of error_parts
+
+
 def main():
     blend, settings_json, pairs_npz, out_npz = blend_scene.main_argv()
     import bpy
@@ -124,7 +127,8 @@ def main():
     scale = float(np.ptp(pairs["point"], axis=0).max())
     ours, seen = radiance_at_pairs(export, solution, pairs, 1e-3 * scale)
     estimates = np.array([r["estimated_error"] for r in solution.reports if r["shape"]])
-    np.savez(out_npz, radiance=ours, surface=seen, estimated_error=estimates,
+    parts = np.array([[r["error_parts"][k] for k in ERROR_PARTS] for r in solution.reports if r["shape"]]).reshape(-1, 4)
+    np.savez(out_npz, radiance=ours, surface=seen, estimated_error=estimates, error_parts=parts,
              receivers=np.array([i for i, r in enumerate(solution.radiance) if r is not None]),
              names=np.array([r["name"] for r in solution.reports if r["shape"]]))
     print(json.dumps({"seconds": seconds, "cpu_seconds": cpu_seconds, "peak_mb": peak - before, "coefficients": solution.stats["coefficients"],

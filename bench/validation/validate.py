@@ -106,10 +106,12 @@ def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
     # The solver's own estimate of its error, per pair that of the surface the pair lies on.
     of_surface = dict(zip(solved["receivers"].tolist(), solved["estimated_error"].tolist()))
     figures["estimate_at_pairs"] = np.array([of_surface.get(int(k), np.nan) for k in solved["surface"]])
+    parts_of = dict(zip(solved["receivers"].tolist(), solved["error_parts"].tolist()))
+    figures["parts_at_pairs"] = np.array([parts_of.get(int(k), [np.nan] * 4) for k in solved["surface"]])
     return ours, figures, compared(run_study.emitting_objects(describe(blend)), data, ours)
 
 
-def per_surface(ours, data, valid, estimate=None) -> dict:
+def per_surface(ours, data, valid, estimate=None, parts=None) -> dict:
     """Per object with at least MIN_PAIRS pairs: mean ratio (sum of ours / sum of the reference,
     RGB), relative RMSE, reference noise (of the mean and per pair) and the pair count; with the
     solver's per-pair `estimate`, its RMS over the object's pairs (`estimated`) beside the relative
@@ -129,6 +131,8 @@ def per_surface(ours, data, valid, estimate=None) -> dict:
             s = out[name]
             s["estimated"] = float(np.sqrt(np.nanmean(estimate[m] ** 2)))
             s["measured"] = float(np.sqrt(max(s["rel_rmse"] ** 2 - s["noise"] ** 2, 0.0)))
+        if parts is not None:  # the estimate's parts (solve_blend.ERROR_PARTS), each its RMS over the pairs
+            out[name]["parts"] = [float(np.sqrt(np.nanmean(parts[m, k] ** 2))) for k in range(parts.shape[1])]
     return out
 
 
@@ -145,7 +149,7 @@ def measure(scene: str, preset: str, overrides=None, work=None) -> dict:
     spec = {"preset": preset, **({"overrides": overrides} if overrides else {})}
     with tempfile.TemporaryDirectory() as tmp:
         ours, figures, valid = solve(scene, spec, data, pathlib.Path(work or tmp))
-    surfaces = per_surface(ours, data, valid, figures["estimate_at_pairs"])
+    surfaces = per_surface(ours, data, valid, figures["estimate_at_pairs"], figures["parts_at_pairs"])
     return {**run_study.errors(ours, data, valid), "seconds": figures["cpu_seconds"], "wall_seconds": figures["seconds"],
             "reference_noise": noise(data, valid), "surfaces": surfaces, "worst_surface_ratio": worst_ratio(surfaces)}
 
@@ -203,7 +207,8 @@ def print_row(scene, setting, r):
     for name, s in r["surfaces"].items():
         print(f"    {name:16s} ratio {s['ratio']:.4f} (noise {100 * s['mean_noise']:.2f}%)  rel RMSE "
               f"{100 * s['rel_rmse']:5.2f}% (noise {100 * s['noise']:.2f}%)  {s['pairs']} pairs"
-              + (f"  estimated {100 * s['estimated']:.2f}% against {100 * s['measured']:.2f}%" if "estimated" in s else ""),
+              + (f"  estimated {100 * s['estimated']:.2f}% against {100 * s['measured']:.2f}%" if "estimated" in s else "")
+              + (" (fit, input, integration, tail: " + ", ".join(f"{100 * x:.2f}%" for x in s["parts"]) + ")" if "parts" in s else ""),
               flush=True)
 
 
