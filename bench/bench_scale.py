@@ -2,7 +2,10 @@
 with the core API, each size in a process of its own: wall time, the process's peak resident
 memory, the solve's own memory estimate before it starts (bsgi.estimate_solve_bytes), and the
 growth exponent of time and memory between sizes. 100 and 1,000 objects by default;
-BSGI_BENCH_SCALE=100,1000,10000 sets the sizes (10,000 objects take hours today).
+BSGI_BENCH_SCALE=100,1000,10000 sets the sizes (10,000 objects take hours today). With
+BSGI_BENCH_SCALE_OVERRIDES='{"coeffs_from_size": true, "detail_tolerance": 0.005}' the preset's
+settings are changed and the keys are scale_custom_<objects>_* (scale_custom_overrides says how).
+Each row also gives the phases' seconds and the estimate's own seconds.
 
     python bench/run.py scale
 """
@@ -17,6 +20,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 SIZES = [int(n) for n in os.environ.get("BSGI_BENCH_SCALE", "100,1000").split(",")]
+OVERRIDES = os.environ.get("BSGI_BENCH_SCALE_OVERRIDES", "")
 
 
 def measure(objects: int) -> dict:
@@ -30,34 +34,41 @@ def measure(objects: int) -> dict:
     import bsgi
 
     settings = bsgi.SolverSettings.preset("preview")
+    for name, value in (json.loads(OVERRIDES) if OVERRIDES else {}).items():
+        setattr(settings, name, value)
     start = time.perf_counter()
     scene, _ = interior_core.build_scene(objects)
+    estimated = time.perf_counter()
     estimate = bsgi.estimate_solve_bytes(scene, settings)
+    solving = time.perf_counter()
     solution = bsgi.solve(scene, settings)
     seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
     stats = solution.stats
     return {"objects": objects, "surfaces": len(scene), "seconds": seconds, "peak_mb": peak,
             "estimate_mb": estimate / 2**20, "coefficients": stats["coefficients"], "rays": stats["rays"],
-            "bounces": stats["bounces"]}
+            "bounces": stats["bounces"], "estimate_seconds": solving - estimated,
+            **{k: stats[k] for k in ("seconds_direct", "seconds_indirect", "seconds_final")}}
 
 
 def run() -> dict:
-    figures, rows = {}, []
+    prefix = "scale_custom" if OVERRIDES else "scale"
+    figures, rows = ({"scale_custom_overrides": OVERRIDES} if OVERRIDES else {}), []
     for objects in SIZES:
         out = subprocess.run([sys.executable, __file__, "--one", str(objects)], capture_output=True, text=True, check=True)
         row = json.loads(out.stdout.strip().splitlines()[-1])
         rows.append(row)
-        print(f"  {objects} objects, {row['surfaces']} surfaces: {row['seconds']:.1f} s, peak {row['peak_mb']:.0f} MB, "
-              f"estimate {row['estimate_mb']:.0f} MB", flush=True)
-        figures[f"scale_{objects}_seconds"] = row["seconds"]
-        figures[f"scale_{objects}_peak_mb"] = row["peak_mb"]
-        figures[f"scale_{objects}_estimate_mb"] = row["estimate_mb"]
-        figures[f"scale_{objects}_surfaces"] = row["surfaces"]
-        figures[f"scale_{objects}_rays_per_surface"] = row["rays"] / row["surfaces"]
+        print(f"  {objects} objects, {row['surfaces']} surfaces: {row['seconds']:.1f} s (estimate {row['estimate_seconds']:.1f} s, "
+              f"direct {row['seconds_direct']:.1f} s, {row['bounces']} bounces {row['seconds_indirect']:.1f} s, final "
+              f"{row['seconds_final']:.1f} s), peak {row['peak_mb']:.0f} MB, estimate {row['estimate_mb']:.0f} MB", flush=True)
+        figures[f"{prefix}_{objects}_seconds"] = row["seconds"]
+        figures[f"{prefix}_{objects}_peak_mb"] = row["peak_mb"]
+        figures[f"{prefix}_{objects}_estimate_mb"] = row["estimate_mb"]
+        figures[f"{prefix}_{objects}_surfaces"] = row["surfaces"]
+        figures[f"{prefix}_{objects}_rays_per_surface"] = row["rays"] / row["surfaces"]
     for a, b in zip(rows, rows[1:]):
         ratio = math.log(b["objects"] / a["objects"])
-        figures[f"scale_growth_exponent_{a['objects']}_{b['objects']}"] = math.log(b["seconds"] / a["seconds"]) / ratio
+        figures[f"{prefix}_growth_exponent_{a['objects']}_{b['objects']}"] = math.log(b["seconds"] / a["seconds"]) / ratio
     return figures
 
 
