@@ -148,10 +148,13 @@ engines = scene.render.bl_rna.properties["engine"].enum_items.keys()
 scene.render.engine = "BLENDER_EEVEE" if "BLENDER_EEVEE" in engines else "BLENDER_EEVEE_NEXT"
 scene.eevee.taa_render_samples = 1
 scene.render.filter_size = 0.0
-scene.camera.location = tuple(float(x) for x in sys.argv[5:8])
-scene.camera.rotation_euler = tuple(math.radians(float(x)) for x in sys.argv[8:11])
-scene.render.filepath = sys.argv[4]
-bpy.ops.render.render(write_still=True)
+# One render per view (output, camera location, rotation in degrees): one start, one shader compile.
+views = sys.argv[4:]
+for k in range(0, len(views), 7):
+    scene.camera.location = tuple(float(x) for x in views[k + 1:k + 4])
+    scene.camera.rotation_euler = tuple(math.radians(float(x)) for x in views[k + 4:k + 7])
+    scene.render.filepath = views[k]
+    bpy.ops.render.render(write_still=True)
 result = scene.render.engine
 """
 
@@ -171,12 +174,11 @@ def test_material_preview_shows_the_back_side_as_cycles_does(context, tmp_path, 
     cycles = render_exr(context.scene, tmp_path / "cycles.exr", samples=16, bounces=0)
     blend = tmp_path / "baked.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
-    shown = {}
-    for view, (location, rotation) in views.items():
-        out = tmp_path / f"eevee_{view}.exr"
-        run = run_bpy(EEVEE_RENDER, args=[str(blend), str(out), *map(str, location), *map(str, rotation)])
-        assert run.ok, run.log
-        shown[view] = read_exr(out)
+    outputs = {view: tmp_path / f"eevee_{view}.exr" for view in views}
+    run = run_bpy(EEVEE_RENDER, args=[str(blend)] + [str(x) for view, (location, rotation) in views.items()
+                                                     for x in (outputs[view], *location, *rotation)])
+    assert run.ok, run.log
+    shown = {view: read_exr(out) for view, out in outputs.items()}
     lit = cycles.mean(axis=2) > 0.02 * np.percentile(cycles.mean(axis=2), 99)
     mean = shown["below"][lit].mean() / cycles[lit].mean() - 1
     print(f"\n{material} plane lit from below, EEVEE vs Cycles of the bake from below: mean {mean:+.4f} over "
