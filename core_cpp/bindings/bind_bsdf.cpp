@@ -20,6 +20,13 @@ size_t vectors(const Array& a, const char* what) {
     return size_t(a.shape(0));
 }
 
+// Pairs of directions (wo, wi), each (N, 3): N.
+size_t direction_pairs(const Array& wo, const Array& wi) {
+    const size_t n = vectors(wo, "wo");
+    if (vectors(wi, "wi") != n) throw std::invalid_argument("wo and wi differ in length");
+    return n;
+}
+
 Vec3 at(const Array& a, size_t i) { return {a.data()[3 * i], a.data()[3 * i + 1], a.data()[3 * i + 2]}; }
 
 Vec3 rgb(const Array& a, const char* what) {
@@ -39,8 +46,7 @@ void bind_bsdf(py::module_& m) {
         .def(
             "eval",
             [](const Bsdf& b, const Array& wo, const Array& wi) {
-                const size_t n = vectors(wo, "wo");
-                if (vectors(wi, "wi") != n) throw std::invalid_argument("wo and wi differ in length");
+                const size_t n = direction_pairs(wo, wi);
                 py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
                 double* o = out.mutable_data();
                 {
@@ -53,8 +59,7 @@ void bind_bsdf(py::module_& m) {
         .def(
             "pdf",
             [](const Bsdf& b, const Array& wo, const Array& wi) {
-                const size_t n = vectors(wo, "wo");
-                if (vectors(wi, "wi") != n) throw std::invalid_argument("wo and wi differ in length");
+                const size_t n = direction_pairs(wo, wi);
                 py::array_t<double> out(static_cast<py::ssize_t>(n));
                 double* o = out.mutable_data();
                 {
@@ -67,8 +72,7 @@ void bind_bsdf(py::module_& m) {
         .def(
             "eval_pdf",
             [](const Bsdf& b, const Array& wo, const Array& wi) {
-                const size_t n = vectors(wo, "wo");
-                if (vectors(wi, "wi") != n) throw std::invalid_argument("wo and wi differ in length");
+                const size_t n = direction_pairs(wo, wi);
                 py::array_t<double> values({py::ssize_t(n), py::ssize_t(3)});
                 py::array_t<double> pdf(static_cast<py::ssize_t>(n));
                 double *v = values.mutable_data(), *p = pdf.mutable_data();

@@ -1239,6 +1239,8 @@ SolveSteps::~SolveSteps() = default;
 const std::vector<SurfaceSides>& SolveSteps::sides() const { return state_->sides; }
 
 namespace {
+// A late bounce's integration nodes per axis, against a bounce's (SolverSettings::late_bounces_after).
+constexpr double kLateBounceDensity = 0.5;
 // The final gather and a regather gather into the finer receivers, the others into the coarse ones.
 bool on_finals(SolveSteps::Phase phase) {
     return phase == SolveSteps::Phase::Final || phase == SolveSteps::Phase::Regather;
@@ -1279,7 +1281,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     }
     if (phase == Phase::Bounce || phase == Phase::LateBounce) {
         // Gather the incremental radiance L of all surfaces into Ltmp.
-        const double density = phase == Phase::LateBounce ? 0.5 : 1.0;
+        const double density = phase == Phase::LateBounce ? kLateBounceDensity : 1.0;
         unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::L);
         s.build_rows(begin, end, progress, rays);
         rays += gather_all(targets, begin, end, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
