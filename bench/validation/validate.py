@@ -103,11 +103,13 @@ def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
     figures = json.loads(out.stdout.strip().splitlines()[-1])
     solved = np.load(work / "solve.npz")
     ours = solved["radiance"]
-    # The solver's own estimate of its error, per pair that of the surface the pair lies on.
-    of_surface = dict(zip(solved["receivers"].tolist(), solved["estimated_error"].tolist()))
-    figures["estimate_at_pairs"] = np.array([of_surface.get(int(k), np.nan) for k in solved["surface"]])
-    parts_of = dict(zip(solved["receivers"].tolist(), solved["error_parts"].tolist()))
-    figures["parts_at_pairs"] = np.array([parts_of.get(int(k), [np.nan] * 4) for k in solved["surface"]])
+    # The solver's own estimate of its error and its parts, per pair those of the surface the pair
+    # lies on (NaN where it lies on none).
+    row_of = {k: i for i, k in enumerate(solved["receivers"].tolist())}
+    rows = np.array([row_of.get(int(k), -1) for k in solved["surface"]], dtype=int)
+    known = rows >= 0
+    figures["estimate_at_pairs"] = np.where(known, solved["estimated_error"][rows], np.nan)
+    figures["parts_at_pairs"] = np.where(known[:, None], solved["error_parts"][rows], np.nan)
     return ours, figures, compared(run_study.emitting_objects(describe(blend)), data, ours)
 
 
@@ -128,11 +130,11 @@ def per_surface(ours, data, valid, estimate=None, parts=None) -> dict:
                      "mean_noise": float(np.sqrt((data["stderr"][m] ** 2).sum()) / ref.sum()), "noise": noise(data, m),
                      "pairs": int(m.sum())}
         if estimate is not None:
-            s = out[name]
-            s["estimated"] = float(np.sqrt(np.nanmean(estimate[m] ** 2)))
-            s["measured"] = float(np.sqrt(max(s["rel_rmse"] ** 2 - s["noise"] ** 2, 0.0)))
+            surface = out[name]
+            surface["estimated"] = float(np.sqrt(np.nanmean(estimate[m] ** 2)))
+            surface["measured"] = float(np.sqrt(max(surface["rel_rmse"] ** 2 - surface["noise"] ** 2, 0.0)))
         if parts is not None:  # the estimate's parts (solve_blend.ERROR_PARTS), each its RMS over the pairs
-            out[name]["parts"] = [float(np.sqrt(np.nanmean(parts[m, k] ** 2))) for k in range(parts.shape[1])]
+            out[name]["parts"] = np.sqrt(np.nanmean(parts[m] ** 2, axis=0)).tolist()
     return out
 
 
