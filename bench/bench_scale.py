@@ -5,7 +5,8 @@ growth exponent of time and memory between sizes. 100 and 1,000 objects by defau
 BSGI_BENCH_SCALE=100,1000,10000 sets the sizes (10,000 objects take hours today). With
 BSGI_BENCH_SCALE_OVERRIDES='{"coeffs_from_size": true, "detail_tolerance": 0.005}' the preset's
 settings are changed and the keys are scale_custom_<objects>_* (scale_custom_overrides says how).
-Each row also gives the phases' seconds and the estimate's own seconds.
+Each row also gives the phases' seconds, the sides probe's (once, for the estimate and the
+solve) and the estimate's own seconds.
 
     python bench/run.py scale
 """
@@ -38,16 +39,18 @@ def measure(objects: int) -> dict:
         setattr(settings, name, value)
     start = time.perf_counter()
     scene, _ = interior_core.build_scene(objects)
-    estimated = time.perf_counter()
-    estimate = bsgi.estimate_solve_bytes(scene, settings)
+    probing = time.perf_counter()
+    sides = bsgi.probe_sides(scene, settings)[0]  # once, for the estimate and the solve
+    estimating = time.perf_counter()
+    estimate = bsgi.estimate_solve_bytes(scene, settings, sides)
     solving = time.perf_counter()
-    solution = bsgi.solve(scene, settings)
+    solution = bsgi.solve(scene, settings, sides=sides)
     seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
     stats = solution.stats
     return {"objects": objects, "surfaces": len(scene), "seconds": seconds, "peak_mb": peak,
             "estimate_mb": estimate / 2**20, "coefficients": stats["coefficients"], "rays": stats["rays"],
-            "bounces": stats["bounces"], "estimate_seconds": solving - estimated,
+            "bounces": stats["bounces"], "probe_seconds": estimating - probing, "estimate_seconds": solving - estimating,
             **{k: stats[k] for k in ("seconds_direct", "seconds_indirect", "seconds_final")}}
 
 
@@ -58,7 +61,7 @@ def run() -> dict:
         out = subprocess.run([sys.executable, __file__, "--one", str(objects)], capture_output=True, text=True, check=True)
         row = json.loads(out.stdout.strip().splitlines()[-1])
         rows.append(row)
-        print(f"  {objects} objects, {row['surfaces']} surfaces: {row['seconds']:.1f} s (estimate {row['estimate_seconds']:.1f} s, "
+        print(f"  {objects} objects, {row['surfaces']} surfaces: {row['seconds']:.1f} s (sides probe {row['probe_seconds']:.1f} s, estimate {row['estimate_seconds']:.1f} s, "
               f"direct {row['seconds_direct']:.1f} s, {row['bounces']} bounces {row['seconds_indirect']:.1f} s, final "
               f"{row['seconds_final']:.1f} s), peak {row['peak_mb']:.0f} MB, estimate {row['estimate_mb']:.0f} MB", flush=True)
         figures[f"{prefix}_{objects}_seconds"] = row["seconds"]

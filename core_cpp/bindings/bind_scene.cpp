@@ -83,6 +83,23 @@ SolveSteps::Phase phase_of(const std::string& name) {
     throw std::invalid_argument("solve phase must be 'direct', 'bounce', 'late bounce', 'final' or 'regather', got '" + name + "'");
 }
 
+// Sides travel to Python as (front solved, back solved, why, why, encloses its emission) per surface.
+py::list sides_to_list(const std::vector<SurfaceSides>& sides) {
+    py::list out;
+    for (const SurfaceSides& s : sides) out.append(py::make_tuple(s.live[0], s.live[1], s.why[0], s.why[1], s.encloses_emission));
+    return out;
+}
+
+std::optional<std::vector<SurfaceSides>> sides_from_list(const std::optional<py::list>& sides) {
+    if (!sides) return std::nullopt;
+    std::vector<SurfaceSides> out;
+    for (const auto& item : *sides) {
+        const auto t = item.cast<std::tuple<bool, bool, std::string, std::string, bool>>();
+        out.push_back({{std::get<0>(t), std::get<1>(t)}, {std::get<2>(t), std::get<3>(t)}, std::get<4>(t)});
+    }
+    return out;
+}
+
 const char* kind_name(Representation r) {
     return r == Representation::Glossy ? "glossy" : (r == Representation::Decomposed ? "decomposed" : "diffuse");
 }
@@ -491,7 +508,16 @@ void bind_scene(py::module_& m) {
             return d;
         });
 
-    m.def("estimate_solve_bytes", &estimate_solve_bytes, py::arg("scene"), py::arg("settings"));
+    m.def(
+        "estimate_solve_bytes",
+        [](const Scene& scene, const SolverSettings& settings, std::optional<py::list> sides) {
+            const std::optional<std::vector<SurfaceSides>> probed = sides_from_list(sides);
+            py::gil_scoped_release release;
+            return estimate_solve_bytes(scene, settings, probed ? &*probed : nullptr);
+        },
+        py::arg("scene"), py::arg("settings"), py::arg("sides") = py::none(),
+        "Bytes the solve allocates at its peak. `sides`: probed already (probe_sides()[0], SolveSteps.sides) for a "
+        "solve given them, not probed again; none: probed here (the probe's peak counted). Releases the GIL.");
     m.def(
         "probe_sides",
         [](const Scene& scene, const SolverSettings& settings) {
@@ -501,34 +527,27 @@ void bind_scene(py::module_& m) {
                 py::gil_scoped_release release;
                 sides = probe_sides(scene, settings, &bytes);
             }
-            py::list out;
-            for (const SurfaceSides& s : sides) out.append(py::make_tuple(s.live[0], s.live[1], s.why[0], s.why[1], s.encloses_emission));
-            return py::make_tuple(out, bytes);
+            return py::make_tuple(sides_to_list(sides), bytes);
         },
         py::arg("scene"), py::arg("settings"),
         "The sides probe alone (bsgi/sides.h): per surface (front solved, back solved, why, why, encloses its emission) "
         "as SolveSteps.sides, and the bytes the probe held at its peak. Releases the GIL.");
     m.def(
         "solve",
-        [](const Scene& scene, const SolverSettings& settings, Progress& progress) {
+        [](const Scene& scene, const SolverSettings& settings, Progress& progress, std::optional<py::list> sides) {
+            const std::optional<std::vector<SurfaceSides>> probed = sides_from_list(sides);
             py::gil_scoped_release release;
-            return solve(scene, settings, progress);
+            return solve(scene, settings, progress, probed ? &*probed : nullptr);
         },
-        py::arg("scene"), py::arg("settings"), py::arg("progress"),
-        "Algorithm 1: direct light by the surface integral, indirect bounces by gathering. Releases the GIL.");
+        py::arg("scene"), py::arg("settings"), py::arg("progress"), py::arg("sides") = py::none(),
+        "Algorithm 1: direct light by the surface integral, indirect bounces by gathering. `sides`: probed already "
+        "(probe_sides()[0], SolveSteps.sides), not probed again. Releases the GIL.");
 
     py::class_<SolveSteps>(m, "SolveSteps",
                            "Algorithm 1 in phases for a solve split over workers: each worker holds SolveSteps of the "
                            "same scene and settings (the same receivers and knots) and gathers groups of receivers.")
         .def(py::init([](const Scene& scene, const SolverSettings& settings, Progress& progress, std::optional<py::list> sides) {
-                 std::optional<std::vector<SurfaceSides>> probed;
-                 if (sides) {
-                     probed.emplace();
-                     for (const auto& item : *sides) {
-                         const auto t = item.cast<std::tuple<bool, bool, std::string, std::string, bool>>();
-                         probed->push_back({{std::get<0>(t), std::get<1>(t)}, {std::get<2>(t), std::get<3>(t)}, std::get<4>(t)});
-                     }
-                 }
+                 const std::optional<std::vector<SurfaceSides>> probed = sides_from_list(sides);
                  py::gil_scoped_release release;
                  return std::make_unique<SolveSteps>(scene, settings, progress, probed ? &*probed : nullptr);
              }),
@@ -537,12 +556,7 @@ void bind_scene(py::module_& m) {
              "and places their knots (the scene is kept alive with the steps). Releases the GIL.")
         .def_property_readonly(
             "sides",
-            [](const SolveSteps& steps) {
-                py::list out;
-                for (const SurfaceSides& s : steps.sides())
-                    out.append(py::make_tuple(s.live[0], s.live[1], s.why[0], s.why[1], s.encloses_emission));
-                return out;
-            },
+            [](const SolveSteps& steps) { return sides_to_list(steps.sides()); },
             "Per surface: (front solved, back solved, why, why, encloses its emission), as the constructor takes them.")
         .def(
             "solve",

@@ -780,14 +780,16 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const SolverSettings& 
     return probe_sides(scene, ray_caster_of(scene), settings, bytes);
 }
 
-size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings) {
+size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<SurfaceSides>* probed) {
     validate(settings);  // the plan's arithmetic assumes valid settings (UBSan found an int overflow)
-    const RayCaster caster = ray_caster_of(scene);
+    if (probed && probed->size() != scene.size())
+        throw std::invalid_argument("estimate_solve_bytes: sides of " + std::to_string(probed->size()) +
+                                    " surfaces given for a scene of " + std::to_string(scene.size()));
     // The direct light's detail is only known after probing it: at most spatial_coeffs each.
     SolverSettings bound = settings;
     if (settings.detail_tolerance > 0) bound.coeffs_from_size = false;
     size_t probe = 0;
-    const std::vector<SurfaceSides> sides = probe_sides(scene, caster, bound, &probe);
+    const std::vector<SurfaceSides> sides = probed ? *probed : probe_sides(scene, bound, &probe);
     const size_t solve = estimate_bytes(scene, bound, plan_scene(scene, bound, 1, sides),
                                         bound.final_gather ? plan_scene(scene, bound, bound.final_spatial_factor, sides)
                                                            : std::vector<Plan>{});
@@ -1325,8 +1327,8 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     return out;
 }
 
-Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress) {
-    return SolveSteps(scene, settings, progress).solve(progress);
+Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress, const std::vector<SurfaceSides>* sides) {
+    return SolveSteps(scene, settings, progress, sides).solve(progress);
 }
 
 Solution SolveSteps::solve(Progress& progress, const Runner& run) {

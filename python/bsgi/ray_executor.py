@@ -102,7 +102,8 @@ class RayExecutor:
                 raise RuntimeError(f"cannot connect to the Ray cluster at '{self.address}' ({error!r})") from None
         return ray
 
-    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> _core.Solution:
+    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress,
+              sides: Optional[list] = None) -> _core.Solution:
         ray = self.connect()
         cpus = int(ray.cluster_resources().get("CPU", 0))
         count = self.workers or max(1, cpus // self.threads_per_worker)
@@ -113,8 +114,8 @@ class RayExecutor:
         fields["threads"] = self.threads_per_worker
         actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
                            max_task_retries=self.max_retries, max_concurrency=2)(SolveWorker)
-        # The driver probes the sides once; the workers take them (and place the same knots).
-        steps = _core.SolveSteps(scene, settings, progress)
+        # The driver probes the sides once (unless given them); the workers take them (and place the same knots).
+        steps = _core.SolveSteps(scene, settings, progress, sides)
         scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
         self.actors = [actor.remote(scene_ref, fields, steps.sides) for _ in range(count)]
         self.bytes_sent = []

@@ -14,6 +14,8 @@ again (the estimate's noise, or a fit error the knots cannot reach).
 
 The loop is here, around a whole solve, so that it works wherever the solve runs (here or on a
 Ray cluster): each pass is a solve from scratch; the scene's options are restored afterwards.
+Which sides of each surface are solved does not change with its coefficients: they are probed
+once, for every pass and every memory estimate.
 The solution carries ``refinement``: the passes, why refinement stopped, the rays and seconds of
 all passes, and per receiving surface its final estimate, coefficients and status.
 """
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from typing import Callable, Optional
 
 from . import _core
 
@@ -53,8 +55,9 @@ def coefficient_count(report: dict) -> int:
 
 
 def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
-                  solve_once: Callable[[], _core.Solution]) -> _core.Solution:
-    """Solves with solve_once() and again with refined surfaces, as the module says."""
+                  solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None) -> _core.Solution:
+    """Solves with solve_once(sides) and again with refined surfaces, as the module says (``sides``
+    probed here if not given)."""
     if not settings.estimate_error:
         raise ValueError("solver settings: refine_to_error needs estimate_error")
     target = settings.refine_to_error
@@ -66,7 +69,9 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
     stopped = None
     try:
         pass_start = time.perf_counter()
-        solution = solve_once()
+        if sides is None:
+            sides = _core.probe_sides(scene, settings)[0]
+        solution = solve_once(sides)
         passes = 0
         while True:
             last_seconds = time.perf_counter() - pass_start
@@ -86,7 +91,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             before = {i: scene.spatial_coeffs(i) for i in counts}
             for i, n in counts.items():
                 scene.set_spatial_coeffs(i, n)
-            if _core.estimate_solve_bytes(scene, settings) > settings.memory_budget_mb * 1024 * 1024:
+            if _core.estimate_solve_bytes(scene, settings, sides) > settings.memory_budget_mb * 1024 * 1024:
                 stopped = "memory"
             elif settings.refine_seconds > 0:
                 old = sum(coefficient_count(r) for r in reports)
@@ -100,7 +105,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
                 break
             previous = {i: r["estimated_error"] for i, r in over}
             pass_start = time.perf_counter()
-            solution = solve_once()
+            solution = solve_once(sides)
             passes += 1
             errors = {i: r["estimated_error"] for i, r in zip(receivers(solution), solution.reports)}
             for i in counts:

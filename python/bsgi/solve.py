@@ -11,9 +11,11 @@ ProgressCallback = Callable[[float, str], Optional[bool]]
 
 
 class Executor(Protocol):
-    """Runs a solve's gathers elsewhere (bsgi.RayExecutor): solve() as _core.solve does."""
+    """Runs a solve's gathers elsewhere (bsgi.RayExecutor): solve() as _core.solve does (``sides``:
+    probed already, as _core.probe_sides returns them first, or None)."""
 
-    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> _core.Solution: ...
+    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress,
+              sides: Optional[list] = None) -> _core.Solution: ...
 
 
 def solve(
@@ -23,6 +25,7 @@ def solve(
     on_progress: Optional[ProgressCallback] = None,
     poll_seconds: float = 0.1,
     executor: Optional[Executor] = None,
+    sides: Optional[list] = None,
 ) -> _core.Solution:
     """Solve the scene's light transport (paper Algorithm 1).
 
@@ -32,19 +35,21 @@ def solve(
     ``executor``: where the gathers run, e.g. :class:`bsgi.RayExecutor` (a Ray cluster); None: here.
     With ``settings.refine_to_error`` > 0 the surfaces whose estimated error is over it are refined
     and the scene solved again, under a budget (bsgi.refine); ``solution.refinement`` reports it.
+    ``sides``: which sides of each surface are solved, probed already (``bsgi.probe_sides(scene,
+    settings)[0]``, e.g. for bsgi.estimate_solve_bytes beforehand): not probed again.
     """
     settings = settings if settings is not None else _core.SolverSettings()
     progress = progress if progress is not None else _core.Progress()
 
-    def solve_once() -> _core.Solution:
+    def solve_once(probed: Optional[list]) -> _core.Solution:
         if executor is None:
-            return _core.solve(scene, settings, progress)
-        return executor.solve(scene, settings, progress)
+            return _core.solve(scene, settings, progress, probed)
+        return executor.solve(scene, settings, progress, probed)
 
     def solve_here() -> _core.Solution:
         if settings.refine_to_error > 0:
-            return refined_solve(scene, settings, solve_once)
-        return solve_once()
+            return refined_solve(scene, settings, solve_once, sides)
+        return solve_once(sides)
 
     if on_progress is None:
         return solve_here()

@@ -115,3 +115,15 @@ def test_refinement_on_ray_equals_the_local_refinement(ray_cluster):
     for a, b in zip(local.radiance, remote.radiance):
         if a is not None:
             np.testing.assert_allclose(b.coefficients, a.coefficients, rtol=1e-12, atol=0)
+
+
+def test_refinement_probes_the_sides_once(monkeypatch):
+    # Issue 16: every pass solves the same sides (they do not change with the coefficients); the
+    # probe (minutes at a thousand objects) runs once, its answer given to each pass and estimate.
+    probes, passed = [], []
+    probe, solve = bsgi._core.probe_sides, bsgi._core.solve
+    monkeypatch.setattr(bsgi._core, "probe_sides", lambda *a: probes.append(1) or probe(*a))
+    monkeypatch.setattr(bsgi._core, "solve", lambda scene, s, p, sides: passed.append(sides) or solve(scene, s, p, sides))
+    solution = bsgi.solve(shadow_scene(), coarse_settings(refine_to_error=1e-4, refine_passes=1))
+    assert solution.refinement["passes"] == 1
+    assert len(probes) == 1 and len(passed) == 2 and passed[0] is not None and passed[1] is passed[0]

@@ -308,3 +308,28 @@ def test_probe_of_the_furnished_interior_and_its_bytes():
     # Measured 2026-12-02: 21.1 kB a surface (41.6 kB holding each ray's end as a 4-byte cell id,
     # 131 kB as 24 bytes with each end asked the cells its 72 rays reach, 4 bytes each).
     assert per_surface < 42e3
+
+
+def test_sides_probed_once_serve_the_estimate_and_the_solve():
+    # Issue 16: the sides probe (minutes at a thousand objects) runs once for the memory estimate
+    # and the solve when the caller hands its answer on; the solve is the same.
+    scene = room_scene()
+    s = settings(spatial_coeffs=6)
+    sides, held = bsgi.probe_sides(scene, s)
+    own = bsgi.solve(scene, s)
+    given = bsgi.solve(scene, s, sides=sides)
+    for a, b in zip(own.radiance, given.radiance):
+        if a is not None:
+            np.testing.assert_array_equal(b.coefficients, a.coefficients)
+    assert [r["reason"] for r in given.reports] == [r["reason"] for r in own.reports]
+    # Without sides the estimate also holds the probe's peak (freed before the solve allocates).
+    solve_bytes = bsgi.estimate_solve_bytes(scene, s, sides)
+    assert solve_bytes == own.stats["bytes"]
+    assert bsgi.estimate_solve_bytes(scene, s) == max(held, solve_bytes)
+    # Other sides than the probe's are the caller's answer: both sides of every wall cost more.
+    both = [(True, True, "given", "given", False)] * len(scene)
+    assert bsgi.estimate_solve_bytes(scene, s, both) > solve_bytes
+    with pytest.raises(ValueError, match="sides of 2 surfaces given for a scene of 7"):
+        bsgi.estimate_solve_bytes(scene, s, sides[:2])
+    with pytest.raises(ValueError, match="sides of 2 surfaces given for a scene of 7"):
+        bsgi.solve(scene, s, sides=sides[:2])

@@ -159,8 +159,10 @@ struct Solution {
     SolveStats stats;
 };
 
-// Bytes the solve will allocate for the given scene and settings.
-size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings);
+// Bytes the solve will allocate for the given scene and settings. `sides`: the sides already
+// probed (probe_sides, SolveSteps::sides) for a solve that takes them; null: probed here, and the
+// probe's own peak counted (a solve that probes holds it first).
+size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<SurfaceSides>* sides = nullptr);
 
 // Algorithm 1 in its phases, each a gather that every receiving surface does on its own from
 // the previous step's coefficients of all receivers: the direct light, each indirect bounce
@@ -208,7 +210,8 @@ private:
 
 // Throws std::invalid_argument on unusable input (naming the surface), Cancelled if progress is
 // cancelled, std::runtime_error when the memory estimate exceeds the budget (naming the surface
-// that needs the most).
-Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress);
+// that needs the most). `sides`: as SolveSteps takes them (a refinement's passes probe once).
+Solution solve(const Scene& scene, const SolverSettings& settings, Progress& progress,
+               const std::vector<SurfaceSides>* sides = nullptr);
 
 }  // namespace bsgi
