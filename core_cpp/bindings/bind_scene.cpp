@@ -606,7 +606,7 @@ void bind_scene(py::module_& m) {
             py::arg("phase"), py::arg("begin"), py::arg("end"), py::arg("input"), py::arg("progress"),
             "The gather of a phase for receivers [begin, end) given all receivers' coefficients of the previous step "
             "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final', the finals' Le of the "
-            "previous final gather for 'regather'): (their new "
+            "final gather followed by the coarse Le it read for 'regather'): (their new "
             "coefficients, rays cast). Releases the GIL; raises SolveCancelled if progress is cancelled.");
 }
 

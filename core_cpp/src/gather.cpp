@@ -260,20 +260,42 @@ Vec3 Gatherer::texel_seen(const Texture& texture, const SurfaceHit& hit, const V
     return texture.filtered(hit.u, hit.v, su > 0 ? 0.5 * side / su : 0.5, sv > 0 ? 0.5 * side / sv : 0.5);
 }
 
+double Gatherer::ray_solid_angle(double density) const {
+    return 2 * kPi / (double(nodes_along(settings_.hemisphere_nodes_theta, density)) * nodes_along(settings_.hemisphere_nodes_phi, density));
+}
+
+Vec3 Gatherer::seen_radiance(const Receiver& h, Receiver::Splines which, const SurfaceHit& hit, const Vec3& dir,
+                             double solid_angle) const {
+    const Texture* detail = h.albedo ? h.albedo : h.tint;
+    const Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
+    // A tinted pair: f0 = 1 weighed by the texel, f0 = 0 by its complement.
+    return h.radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel, h.tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
+}
+
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
                         Receiver::Splines which, double density, bool with_world, Vec3* out, size_t& rays) const {
-    const double solid_angle = 2 * kPi / (double(nodes_along(settings_.hemisphere_nodes_theta, density)) *
-                                          nodes_along(settings_.hemisphere_nodes_phi, density));
+    const double solid_angle = ray_solid_angle(density);
     hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
         if (hit.surface < 0) return with_world ? world_along(dir) : Vec3{0, 0, 0};
         const Receiver* h = receiver_of[hit.surface];
-        if (!h) return {0, 0, 0};
-        const Texture* detail = h->albedo ? h->albedo : h->tint;
-        const Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
-        // A tinted pair: f0 = 1 weighed by the texel, f0 = 0 by its complement.
-        return h->radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel,
-                           h->tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
+        return h ? seen_radiance(*h, which, hit, dir, solid_angle) : Vec3{0, 0, 0};
     }, out, rays);
+}
+
+bool Gatherer::indirect_change(const Receiver& r, size_t j, const std::vector<const Receiver*>& now_of,
+                               const std::vector<const Receiver*>& before_of, double density, double lobe_width, Vec3* out,
+                               size_t& rays) const {
+    const double solid_angle = ray_solid_angle(density);
+    bool glossy = false;
+    hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
+        if (hit.surface < 0) return {0, 0, 0};
+        const Receiver *now = now_of[hit.surface], *before = before_of[hit.surface];
+        Vec3 change{0, 0, 0};
+        if (now) change += seen_radiance(*now, &Receiver::Le, hit, dir, solid_angle), glossy |= now->kind != Representation::Diffuse && now->bsdf->lobe_width() < lobe_width;
+        if (before) change -= seen_radiance(*before, &Receiver::Le, hit, dir, solid_angle);
+        return change;
+    }, out, rays);
+    return glossy;
 }
 
 bool Gatherer::enclosed(const SurfacePoint& p, int side, const std::vector<const Receiver*>& receiver_of,
@@ -390,7 +412,7 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
                 Vec3 wi = cosine_node(i, k, nt, np);
                 if (side_in) wi.z = -wi.z;
                 const Vec3 L = incoming(wi);
-                if (max_component(L) <= 0) continue;
+                if (L.x == 0 && L.y == 0 && L.z == 0) continue;  // (a regather's change is signed)
                 const double pc = n_strategy * cosine_pdf(wi);
                 for (int side = first; side < last; ++side)
                     for (size_t a = 0; a < r.per_node; ++a) {
@@ -410,7 +432,7 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
                 BsdfSample s;
                 if (!r.bsdf->sample(wo, u[0], u[1], u[2], s)) continue;
                 const Vec3 L = incoming(s.wi);
-                if (max_component(L) <= 0) continue;
+                if (L.x == 0 && L.y == 0 && L.z == 0) continue;
                 if (s.delta) {
                     out[side * r.per_node + a] += L * s.weight / double(nb);
                     continue;

@@ -1,6 +1,7 @@
 #include "bsgi/sides.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 
@@ -28,8 +29,8 @@ constexpr int kNoLight = -1;
 // What the centre of one cell of one side sees: light, and whether its rays reach surfaces. A
 // cell not lit directly asks its rays' ends whether they carry light; a large scene's probe
 // would hold millions of them, so the rays are cast again when asked (the probe is
-// deterministic), at each pass of the fixed point. Cells are numbered (surface * 2 + side) *
-// kCells + cell.
+// deterministic), at a pass of the fixed point where a cell they depend on was lit. Cells are
+// numbered (surface * 2 + side) * kCells + cell.
 struct CellView {
     int light = kNoLight;
     bool asks = false;     // in the surface's domain and not lit directly
@@ -38,6 +39,11 @@ struct CellView {
     // Per ray, once its end is asked: whether the end sees light directly (kLitDirectly), else
     // where in the probe's `seen` pool the cells its own probe rays reach are listed.
     std::vector<int32_t> checked;
+    // If it asks: the distinct receiving cells its rays end in, and when it was last asked (the
+    // count of cells lit before; -1: never). Until one of these or of its checked ends' cells is
+    // lit, asking again would give the same answer.
+    std::vector<uint32_t> ends;
+    int32_t asked_at = -1;
 };
 
 // Why a cell is lit: it emits, receives light directly (`source` a light as above) or
@@ -150,8 +156,16 @@ std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, in
                 continue;
             }
             view.others |= hit.surface != i;
+            if (scene[hit.surface].receiver) view.ends.push_back(end_cell(hit, dir));
         }
         view.asks = view.light == kNoLight;
+        if (!view.asks) {
+            std::vector<uint32_t>().swap(view.ends);
+            continue;
+        }
+        std::sort(view.ends.begin(), view.ends.end());
+        view.ends.erase(std::unique(view.ends.begin(), view.ends.end()), view.ends.end());
+        view.ends.shrink_to_fit();
     }
     return cells;
 }
@@ -159,14 +173,14 @@ std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, in
 // What the probe holds at its end, its peak: the cells' views with what their rays' ends see,
 // and each cell's reason. A heap block costs its capacity and about 16 bytes.
 size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views, const std::vector<Reason>& why,
-                  const std::vector<uint32_t>& seen) {
+                  const std::vector<int32_t>& lit_as, const std::vector<uint32_t>& seen) {
     constexpr size_t kBlock = 16;
     auto block = [](const auto& v) { return v.capacity() * sizeof(v[0]) + (v.capacity() ? kBlock : 0); };
-    size_t bytes = block(views) + block(why) + block(seen);
+    size_t bytes = block(views) + block(why) + block(lit_as) + block(seen);
     for (const auto& surface : views)
         for (const std::vector<CellView>& cells : surface) {
             bytes += block(cells);
-            for (const CellView& c : cells) bytes += block(c.checked);
+            for (const CellView& c : cells) bytes += block(c.checked) + block(c.ends);
         }
     return bytes;
 }
@@ -224,35 +238,56 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     // end sees is kept as the distinct cells its rays reach, each with its count of rays, in
     // `seen`: a count, then (cell, rays) pairs.
     std::vector<uint32_t> seen;
-    std::vector<uint32_t> reached(kRays);
+    // The order in which the fixed point lit each cell (1, 2, ...; 0: lit from the start or dark).
+    std::vector<int32_t> lit_as(why.size(), 0);
+    int32_t lit_count = 0;
+    // Whether a cell lit since the view was last asked is one its answer depends on: where its
+    // rays end, or what a checked end's rays reach.
+    auto changed_for = [&](const CellView& view) {
+        if (view.asked_at < 0) return true;
+        auto after = [&](uint32_t id) { return lit_as[id] > view.asked_at; };
+        if (std::any_of(view.ends.begin(), view.ends.end(), after)) return true;
+        for (const int32_t checked : view.checked) {
+            if (checked < 0) continue;
+            const uint32_t* cells = &seen[size_t(checked)];
+            for (uint32_t j = 0; j < cells[0]; ++j)
+                if (after(cells[1 + 2 * j])) return true;
+        }
+        return false;
+    };
+    // What the end h of a ray, in cell `end`, sees: true if light directly; else appends to
+    // `out` the count of distinct cells its own rays reach, then (cell, rays) pairs.
+    auto check_end = [&](uint32_t end, const SurfaceHit& h, std::vector<uint32_t>& out) {
+        const int surface = int(end / (2 * kCells)), end_side = (end / kCells) % 2;
+        const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
+        if (direct_light(scene, caster, surface, p, end_side, true) != kNoLight) return true;
+        std::array<uint32_t, kRays> reached;
+        size_t m = 0;
+        for (int r = 0; r < kRays; ++r) {
+            const Vec3 dir = probe_direction(p, end_side, r, 0.5);
+            const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+            if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, dir);
+        }
+        std::sort(reached.begin(), reached.begin() + m);
+        const size_t count = out.size();
+        out.push_back(0);
+        for (size_t r = 0; r < m;) {
+            size_t next = r;
+            while (next < m && reached[next] == reached[r]) ++next;
+            out.insert(out.end(), {reached[r], uint32_t(next - r)});
+            ++out[count];
+            r = next;
+        }
+        return false;
+    };
     // Whether the end h of ray k of a cell's view, in cell `end`, carries light.
     auto carries_light = [&](CellView& view, int k, uint32_t end, const SurfaceHit& h) {
         if (!lit(end)) return false;
         if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
         int32_t& checked = view.checked[k];
         if (checked == kNotChecked) {
-            const int surface = int(end / (2 * kCells)), end_side = (end / kCells) % 2;
-            const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
-            if (direct_light(scene, caster, surface, p, end_side, true) != kNoLight) {
-                checked = kLitDirectly;
-            } else {
-                size_t m = 0;
-                for (int r = 0; r < kRays; ++r) {
-                    const Vec3 dir = probe_direction(p, end_side, r, 0.5);
-                    const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
-                    if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, dir);
-                }
-                std::sort(reached.begin(), reached.begin() + m);
-                checked = int32_t(seen.size());
-                seen.push_back(0);
-                for (size_t r = 0; r < m;) {
-                    size_t next = r;
-                    while (next < m && reached[next] == reached[r]) ++next;
-                    seen.insert(seen.end(), {reached[r], uint32_t(next - r)});
-                    ++seen[size_t(checked)];
-                    r = next;
-                }
-            }
+            const size_t at = seen.size();
+            checked = check_end(end, h, seen) ? kLitDirectly : int32_t(at);
         }
         if (checked == kLitDirectly) return true;
         uint32_t rays = 0;
@@ -260,27 +295,95 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         for (uint32_t j = 0; j < cells[0]; ++j) rays += lit(cells[1 + 2 * j]) ? cells[2 + 2 * j] : 0;
         return rays >= kRaysToCarry;
     };
+    // The rays of cell c of a side of surface i, in order: visit(k, hit, end cell) for those
+    // that end on a receiver, until it returns true.
+    auto cell_rays = [&](int i, int side, int c, auto&& visit) {
+        const SurfacePoint p = cell_centre(*scene[i].surface, c);
+        const double turn = cell_turn(i, c, side);
+        for (int k = 0; k < kRays; ++k) {
+            const Vec3 dir = probe_direction(p, side, k, turn);
+            const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+            if (hit.surface < 0 || !scene[hit.surface].receiver) continue;
+            if (visit(k, hit, end_cell(hit, dir))) return;
+        }
+    };
+    // Each pass asks, in order, every dark cell whose answer may have changed (Gauss-Seidel: a
+    // cell lit early in a pass counts for the cells after it). Checking a ray's end is most of
+    // the work: first, on all threads, the ends the cells due when the pass begins would check
+    // given the cells lit then (those lit during it add a few, checked in order).
+    struct Due {
+        int i, side, c;
+    };
+    std::vector<Due> due;
+    std::vector<std::vector<uint32_t>> found;  // per due cell: (ray, kLitDirectly or count, pairs) records
     for (bool changed = true; changed;) {
         changed = false;
+        due.clear();
+        for (int i : probed)
+            for (int side = 0; side < 2; ++side)
+                for (int c = 0; c < kCells; ++c) {
+                    const CellView& view = views[i][side][c];
+                    if (!lit((2 * size_t(i) + side) * kCells + c) && view.asks && changed_for(view)) due.push_back({i, side, c});
+                }
+        found.assign(due.size(), {});
+        parallel_for(due.size(), 4, settings.threads, [&](size_t begin, size_t end) {
+            for (size_t d = begin; d < end; ++d) {
+                const CellView& view = views[due[d].i][due[d].side][due[d].c];
+                std::vector<uint32_t>& out = found[d];
+                int carrying = 0;
+                cell_rays(due[d].i, due[d].side, due[d].c, [&](int k, const SurfaceHit& hit, uint32_t end) {
+                    if (!lit(end)) return false;
+                    int32_t checked = view.checked.empty() ? kNotChecked : view.checked[k];
+                    const uint32_t* cells = checked >= 0 ? &seen[size_t(checked)] : nullptr;
+                    if (checked == kNotChecked) {
+                        out.push_back(uint32_t(k));
+                        const size_t at = out.size();
+                        if (check_end(end, hit, out)) out.push_back(uint32_t(kLitDirectly)), checked = kLitDirectly;
+                        else cells = &out[at];
+                    }
+                    if (checked == kLitDirectly) return ++carrying == kRaysToCarry;
+                    uint32_t rays = 0;
+                    for (uint32_t j = 0; j < cells[0]; ++j) rays += lit(cells[1 + 2 * j]) ? cells[2 + 2 * j] : 0;
+                    return rays >= kRaysToCarry && ++carrying == kRaysToCarry;
+                });
+            }
+        });
+        for (size_t d = 0; d < due.size(); ++d) {
+            CellView& view = views[due[d].i][due[d].side][due[d].c];
+            const std::vector<uint32_t>& records = found[d];
+            for (size_t r = 0; r < records.size();) {
+                if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
+                const int k = int(records[r]);
+                if (int32_t(records[r + 1]) == kLitDirectly) {
+                    view.checked[k] = kLitDirectly;
+                    r += 2;
+                    continue;
+                }
+                const uint32_t count = records[r + 1];
+                view.checked[k] = int32_t(seen.size());
+                seen.insert(seen.end(), records.begin() + ptrdiff_t(r + 1), records.begin() + ptrdiff_t(r + 2 + 2 * count));
+                r += 2 + 2 * count;
+            }
+            std::vector<uint32_t>().swap(found[d]);
+        }
         for (int i : probed)
             for (int side = 0; side < 2; ++side)
                 for (int c = 0; c < kCells; ++c) {
                     const size_t id = (2 * size_t(i) + side) * kCells + c;
                     CellView& view = views[i][side][c];
-                    if (lit(id) || !view.asks) continue;
-                    const SurfacePoint p = cell_centre(*scene[i].surface, c);
-                    const double turn = cell_turn(i, c, side);
+                    if (lit(id) || !view.asks || !changed_for(view)) continue;
+                    view.asked_at = lit_count;
                     int carrying = 0;
-                    for (int k = 0; k < kRays; ++k) {
-                        const Vec3 dir = probe_direction(p, side, k, turn);
-                        const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
-                        if (hit.surface < 0 || !scene[hit.surface].receiver) continue;
-                        const uint32_t end = end_cell(hit, dir);
-                        if (carries_light(view, k, end, hit) && ++carrying == kRaysToCarry) {
-                            why[id] = {Reason::kReflected, hit.surface};
-                            changed = true;
-                            break;
-                        }
+                    cell_rays(i, side, c, [&](int k, const SurfaceHit& hit, uint32_t end) {
+                        if (!carries_light(view, k, end, hit) || ++carrying < kRaysToCarry) return false;
+                        why[id] = {Reason::kReflected, hit.surface};
+                        lit_as[id] = ++lit_count;
+                        changed = true;
+                        return true;
+                    });
+                    if (lit(id)) {  // never asked again
+                        std::vector<uint32_t>().swap(view.ends);
+                        std::vector<int32_t>().swap(view.checked);
                     }
                 }
     }
@@ -310,7 +413,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                                        ? "emits, but only into itself (the inside of a closed mesh)"
                                        : escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
         }
-    if (bytes) *bytes = held_bytes(views, why, seen);
+    if (bytes) *bytes = held_bytes(views, why, lit_as, seen);
     return out;
 }
 

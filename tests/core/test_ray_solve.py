@@ -204,6 +204,10 @@ def test_solve_steps_check_what_they_are_given():
         steps.gather("bounce", 0, 1, np.zeros(5), bsgi.Progress())
     with pytest.raises(ValueError, match="phase must be"):
         steps.gather("indirect", 0, 1, np.zeros(0), bsgi.Progress())
+    # A regather reads the finals' Le and the coarse Le it corrects, both whole.
+    two = bsgi.SolveSteps(scene, settings(max_bounces=1, final_passes=2), bsgi.Progress())
+    with pytest.raises(ValueError, match=r"a regather reads the finals' Le \(\d+ coefficients\) and the coarse Le"):
+        two.gather("regather", 0, 1, np.zeros(7), bsgi.Progress())
     steps.solve(bsgi.Progress())
     with pytest.raises(RuntimeError, match="runs once"):
         steps.solve(bsgi.Progress())

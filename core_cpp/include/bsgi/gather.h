@@ -97,6 +97,13 @@ public:
     // final gather uses more, late bounces fewer).
     void indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of, Receiver::Splines which,
                   double density, bool with_world, Vec3* out, size_t& rays) const;
+    // The same gathered from the change of the others' radiance: the splines Le of `now_of`
+    // less those of `before_of` (a second final gather's correction; the world cancels).
+    // Returns whether a ray met a glossy surface whose lobe is narrower than `lobe_width`
+    // (Bsdf::lobe_width: its reflections' change is view-dependent and sharp).
+    bool indirect_change(const Receiver& r, size_t j, const std::vector<const Receiver*>& now_of,
+                         const std::vector<const Receiver*>& before_of, double density, double lobe_width, Vec3* out,
+                         size_t& rays) const;
     // The world's light at node j of r, scattered: the hemispherical integral (26)-(32) over
     // the directions no occluder stops, of the constant world or of the world map's smooth
     // remainder (its bright part is among the distant samples of direct()). Same layout as direct().
@@ -119,6 +126,11 @@ private:
     template <typename Incoming>
     void hemisphere(const Receiver& r, size_t j, double density, Incoming&& radiance_along, Vec3* out, size_t& rays) const;
     Vec3 texel_seen(const Texture& texture, const SurfaceHit& hit, const Vec3& dir, double solid_angle) const;
+    // The radiance of h's splines `which` seen along dir at the hit, its textures filtered over
+    // the footprint of a ray of that solid angle.
+    Vec3 seen_radiance(const Receiver& h, Receiver::Splines which, const SurfaceHit& hit, const Vec3& dir,
+                       double solid_angle) const;
+    double ray_solid_angle(double density) const;
     // Follows a gathering ray through window panes (thin glass): visit(hit, direction, weight)
     // for each end of the ray tree, the ray straight on and the reflected one at each pane hit.
     template <typename Visit>

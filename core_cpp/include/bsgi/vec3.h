@@ -15,6 +15,7 @@ struct Vec3 {
     constexpr Vec3 operator/(double s) const { return {x / s, y / s, z / s}; }
     constexpr Vec3 operator*(const Vec3& o) const { return {x * o.x, y * o.y, z * o.z}; }  // per channel
     Vec3& operator+=(const Vec3& o) { x += o.x; y += o.y; z += o.z; return *this; }
+    Vec3& operator-=(const Vec3& o) { x -= o.x; y -= o.y; z -= o.z; return *this; }
     Vec3& operator*=(double s) { x *= s; y *= s; z *= s; return *this; }
     double operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
 };
