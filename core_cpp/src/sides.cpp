@@ -280,6 +280,12 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         }
         return false;
     };
+    // Rays of a checked end (its `seen` record) that reach lit cells.
+    auto rays_to_lit = [&](const uint32_t* cells) {
+        uint32_t rays = 0;
+        for (uint32_t j = 0; j < cells[0]; ++j) rays += lit(cells[1 + 2 * j]) ? cells[2 + 2 * j] : 0;
+        return rays;
+    };
     // Whether the end h of ray k of a cell's view, in cell `end`, carries light.
     auto carries_light = [&](CellView& view, int k, uint32_t end, const SurfaceHit& h) {
         if (!lit(end)) return false;
@@ -289,11 +295,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             const size_t at = seen.size();
             checked = check_end(end, h, seen) ? kLitDirectly : int32_t(at);
         }
-        if (checked == kLitDirectly) return true;
-        uint32_t rays = 0;
-        const uint32_t* cells = &seen[size_t(checked)];
-        for (uint32_t j = 0; j < cells[0]; ++j) rays += lit(cells[1 + 2 * j]) ? cells[2 + 2 * j] : 0;
-        return rays >= kRaysToCarry;
+        return checked == kLitDirectly || rays_to_lit(&seen[size_t(checked)]) >= kRaysToCarry;
     };
     // The rays of cell c of a side of surface i, in order: visit(k, hit, end cell) for those
     // that end on a receiver, until it returns true.
@@ -341,10 +343,8 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                         if (check_end(end, hit, out)) out.push_back(uint32_t(kLitDirectly)), checked = kLitDirectly;
                         else cells = &out[at];
                     }
-                    if (checked == kLitDirectly) return ++carrying == kRaysToCarry;
-                    uint32_t rays = 0;
-                    for (uint32_t j = 0; j < cells[0]; ++j) rays += lit(cells[1 + 2 * j]) ? cells[2 + 2 * j] : 0;
-                    return rays >= kRaysToCarry && ++carrying == kRaysToCarry;
+                    const bool carries = checked == kLitDirectly || rays_to_lit(cells) >= kRaysToCarry;
+                    return carries && ++carrying == kRaysToCarry;
                 });
             }
         });
