@@ -44,7 +44,7 @@ CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '
 
 # The packaging tests (slow) install the extension zips, on Python 3.11 (.venv) and 3.13 ($(VENV313)).
 test: build extension venv313
-	BSGI_SKIP_PY313=$(SKIP_PY313) $(PY) -m pytest $(PYTEST_ARGS)
+	BSGI_SKIP_PY313=$(SKIP_PY313) $(PY) -m pytest --durations=30 $(PYTEST_ARGS)
 	$(MAKE) test-sanitize
 
 # The core with -fsanitize=address,undefined in build/sanitize, preloaded into .venv's Python

@@ -40,9 +40,9 @@ print(json.dumps({"faces": len(grid.data.polygons), "seconds": result.textures["
 
 
 def bake(mesh_surfaces: str) -> dict:
-    env = {**os.environ, "HOME": tempfile.mkdtemp(prefix="bsgi-bench-home-")}
-    out = subprocess.run([sys.executable, "-c", SCRIPT, str(ROOT / "addon"), mesh_surfaces], cwd=ROOT, env=env,
-                         check=True, capture_output=True, text=True).stdout
+    with tempfile.TemporaryDirectory(prefix="bsgi-bench-home-") as home:
+        out = subprocess.run([sys.executable, "-c", SCRIPT, str(ROOT / "addon"), mesh_surfaces], cwd=ROOT,
+                             env={**os.environ, "HOME": home}, check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 

@@ -4,7 +4,9 @@ solver drops shows as error; anisotropic metals along the tangent Cycles gives t
 lights as one-sided emitting rectangles and discs that rays pass through."""
 from __future__ import annotations
 
+import atexit
 import pathlib
+import shutil
 import sys
 import tempfile
 
@@ -84,6 +86,7 @@ def scene_dict(description, max_depth: int = -1, two_sided=()) -> dict:
     short of it.)"""
     mi = load_mitsuba()
     folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-study-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)  # the dict names its files: kept until exit
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
     for k, obj in enumerate(description["objects"]):
         for m, material in enumerate(obj.materials):

@@ -805,13 +805,30 @@ size_t packed_size(const std::vector<Receiver>& receivers, size_t begin, size_t 
     return size;
 }
 
-// Coefficients of a spline set of receivers [begin, end), flat: receiver after receiver, sides in order.
-std::vector<double> pack(const std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
-    std::vector<double> flat;
-    flat.reserve(packed_size(receivers, begin, end, which));  // growing by doubling would hold up to three times the set
+// Coefficients of a spline set of receivers [begin, end), flat: receiver after receiver, sides in
+// order, appended to `flat` (whose caller reserved room: growing by doubling would hold up to
+// three times the set).
+void pack_onto(std::vector<double>& flat, const std::vector<Receiver>& receivers, size_t begin, size_t end,
+               Receiver::Splines which) {
     for (size_t k = begin; k < end; ++k)
         for (const TensorSpline& side : receivers[k].*which) flat.insert(flat.end(), side.coeffs().begin(), side.coeffs().end());
+}
+
+std::vector<double> pack(const std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
+    std::vector<double> flat;
+    flat.reserve(packed_size(receivers, begin, end, which));
+    pack_onto(flat, receivers, begin, end, which);
     return flat;
+}
+
+// to += from, coefficient by coefficient, on every side of receivers [begin, end).
+void add_onto(std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines to, Receiver::Splines from) {
+    for (size_t k = begin; k < end; ++k)
+        for (int side = 0; side < receivers[k].sides; ++side) {
+            auto& sum = (receivers[k].*to)[side].coeffs();
+            const auto& term = (receivers[k].*from)[side].coeffs();
+            for (size_t c = 0; c < sum.size(); ++c) sum[c] += term[c];
+        }
 }
 
 void unpack(const double* flat, size_t count, std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
@@ -1347,12 +1364,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
         if (gather.indirect_change(r, j, s.final_of, s.receiver_of, kRegatherDensity * full, kSharpLobe, out, n))
             gather.indirect_change(r, j, s.final_of, s.receiver_of, full, kSharpLobe, out, n);
     });
-    for (size_t k = begin; k < end; ++k)
-        for (int side = 0; side < targets[k].sides; ++side) {
-            auto& l = targets[k].L[side].coeffs();
-            const auto& le = targets[k].Le[side].coeffs();
-            for (size_t c = 0; c < l.size(); ++c) l[c] += le[c];
-        }
+    add_onto(targets, begin, end, &Receiver::L, &Receiver::Le);
     std::vector<double> out = pack(targets, begin, end, &Receiver::L);
     for (size_t k = begin; k < end; ++k) std::vector<TensorSpline>().swap(targets[k].L);
     return out;
@@ -1409,13 +1421,9 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         const bool late = settings.late_bounces_after > 0 && bounce >= settings.late_bounces_after;
         unpack(phase(late ? Phase::LateBounce : Phase::Bounce, pack(receivers, 0, all, &Receiver::L)), receivers, 0, all,
                &Receiver::Ltmp);
+        add_onto(receivers, 0, all, &Receiver::Le, &Receiver::Ltmp);
         for (auto& r : receivers)
-            for (int side = 0; side < r.sides; ++side) {
-                auto& le = r.Le[side].coeffs();
-                const auto& tmp = r.Ltmp[side].coeffs();
-                for (size_t c = 0; c < le.size(); ++c) le[c] += tmp[c];
-                std::swap(r.L[side], r.Ltmp[side]);  // receiver_of points at the receivers: still valid
-            }
+            for (int side = 0; side < r.sides; ++side) std::swap(r.L[side], r.Ltmp[side]);  // receiver_of points at the receivers: still valid
         solution.stats.bounces = bounce + 1;
         const double error = convergence.update(receivers, settings.extrapolate, solution.stats.last_increment);
         solution.stats.estimated_error = error;
@@ -1449,9 +1457,10 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         for (int pass = 2; pass <= settings.final_passes; ++pass) {
             progress.begin_stage("final gather " + std::to_string(pass), stages - 1 - settings.final_passes + pass, stages,
                                  node_count(st.finals));
-            std::vector<double> input = pack(st.finals, 0, st.finals.size(), &Receiver::Le);
-            const std::vector<double> coarse = pack(receivers, 0, all, &Receiver::Le);
-            input.insert(input.end(), coarse.begin(), coarse.end());
+            std::vector<double> input;
+            input.reserve(packed_size(st.finals, 0, st.finals.size(), &Receiver::Le) + packed_size(receivers, 0, all, &Receiver::Le));
+            pack_onto(input, st.finals, 0, st.finals.size(), &Receiver::Le);
+            pack_onto(input, receivers, 0, all, &Receiver::Le);
             unpack(phase(Phase::Regather, input), st.finals, 0, st.finals.size(), &Receiver::Le);
         }
         solution.stats.seconds_final = seconds_since(t2);

@@ -1,6 +1,8 @@
 """Headless Blender (the `bpy` module) with the add-on registered, a fresh scene per test."""
+import atexit
 import os
 import pathlib
+import shutil
 import sys
 import tempfile
 
@@ -8,6 +10,7 @@ import pytest
 
 # Blender writes its config under HOME and Mesa its shader cache: keep both out of the user's.
 _home = tempfile.mkdtemp(prefix="bsgi-home-")
+atexit.register(shutil.rmtree, _home, ignore_errors=True)
 os.environ["HOME"] = _home
 os.environ.setdefault("MESA_SHADER_CACHE_DIR", os.path.join(_home, "mesa"))
 bpy = pytest.importorskip("bpy")

@@ -2,8 +2,9 @@
 
 GPU engines (EEVEE, Workbench) need an EGL driver; without one Blender aborts the whole process
 instead of raising, which would take pytest down with it. A child process turns that into a
-non-zero exit status the test can report. The child also gets its own HOME, Blender user folder
-and Mesa shader cache, so nothing leaks into the user's configuration.
+non-zero exit status the test can report. The child also gets its own HOME and Blender user
+folder, and the test session's Mesa shader cache (llvmpipe's compiled shaders: about a third of
+an EEVEE child's first render), so nothing leaks into the user's configuration.
 
     run = run_bpy("import bpy\\nresult = bpy.app.version_string")
     assert run.ok, run.log
@@ -11,9 +12,11 @@ and Mesa shader cache, so nothing leaks into the user's configuration.
 """
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -27,6 +30,11 @@ exec(compile(open(sys.argv[1]).read(), "<snippet>", "exec"), namespace)
 with open(sys.argv[2], "w") as f:
     json.dump(namespace.get("result"), f)
 """
+
+
+# One per test session, gone at its end.
+_SHADER_CACHE = tempfile.mkdtemp(prefix="bsgi-mesa-")
+atexit.register(shutil.rmtree, _SHADER_CACHE, ignore_errors=True)
 
 
 @dataclass
@@ -47,12 +55,13 @@ class BpyRun:
 
 
 def isolated_env(folder: pathlib.Path, extra: dict | None = None) -> dict:
-    """The environment for a Blender child: HOME, user resources and shader cache under `folder`."""
+    """The environment for a Blender child: HOME and user resources under `folder`, the session's
+    shader cache."""
     env = dict(os.environ)
     env.update({
         "HOME": str(folder / "home"),
         "BLENDER_USER_RESOURCES": str(folder / "blender"),
-        "MESA_SHADER_CACHE_DIR": str(folder / "mesa"),
+        "MESA_SHADER_CACHE_DIR": _SHADER_CACHE,
     })
     env.update(extra or {})
     for key in ("HOME", "BLENDER_USER_RESOURCES", "MESA_SHADER_CACHE_DIR"):

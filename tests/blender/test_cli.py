@@ -12,10 +12,10 @@ import scenes
 
 def run_module(*args, timeout=300):
     """`python -m addon ARGS` from the repository root, with its own HOME (Blender's config)."""
-    home = tempfile.mkdtemp(prefix="bsgi-cli-home-")
-    env = dict(os.environ, HOME=home, MESA_SHADER_CACHE_DIR=os.path.join(home, "mesa"))
-    return subprocess.run([sys.executable, "-m", "addon", *map(str, args)], cwd=scenes.ROOT, env=env,
-                          capture_output=True, text=True, timeout=timeout)
+    with tempfile.TemporaryDirectory(prefix="bsgi-cli-home-") as home:
+        env = dict(os.environ, HOME=home, MESA_SHADER_CACHE_DIR=os.path.join(home, "mesa"))
+        return subprocess.run([sys.executable, "-m", "addon", *map(str, args)], cwd=scenes.ROOT, env=env,
+                              capture_output=True, text=True, timeout=timeout)
 
 
 def test_python_m_entry_solves_saves_and_prints_progress(context, tmp_path):

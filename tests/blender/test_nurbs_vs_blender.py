@@ -2,8 +2,6 @@
 carries a UV map of normalised (u, v) parameters, so each mesh corner is a point of Blender's own
 evaluation at known parameters. Our evaluation at those parameters must land on it."""
 import itertools
-import os
-import tempfile
 
 import numpy as np
 import pytest
@@ -17,10 +15,7 @@ TOLERANCE = 1e-5  # of the object's size; Blender evaluates in float
 
 @pytest.fixture(scope="module")
 def bpy():
-    home = tempfile.mkdtemp(prefix="bsgi-home-")
-    os.environ.setdefault("HOME", home)
-    os.environ.setdefault("MESA_SHADER_CACHE_DIR", os.path.join(home, "mesa"))
-    bpy = pytest.importorskip("bpy")
+    bpy = pytest.importorskip("bpy")  # with conftest.py's HOME
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return bpy
 

@@ -47,21 +47,22 @@ def mitsuba_stripes_reference():
     mi = mitsuba_reference.load_mitsuba()
     import pathlib
     import tempfile
-    folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-specular-"))
-    floor = folder / "floor.obj"
-    floor.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in FLOOR) + "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
-                     "f 1/1 2/2 3/3 4/4\n")
-    lamp = folder / "lamp.obj"
-    lamp.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in LAMP) + "f 1 2 3 4\n")
-    texture = {"type": "bitmap", "data": mi.TensorXf(stripes()), "raw": True, "filter_type": "nearest"}
-    scene = mi.load_dict({
-        "type": "scene", "integrator": {"type": "path", "max_depth": 2},
-        "floor": {"type": "obj", "filename": str(floor), "face_normals": True,
-                  "bsdf": {"type": "roughconductor", "distribution": "ggx", "alpha": ALPHA, "material": "none",
-                           "specular_reflectance": texture}},
-        "lamp": {"type": "obj", "filename": str(lamp), "face_normals": True,
-                 "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [3.0] * 3}}},
-    }, optimize=False)
+    with tempfile.TemporaryDirectory(prefix="bsgi-specular-") as name:  # read while Mitsuba loads
+        folder = pathlib.Path(name)
+        floor = folder / "floor.obj"
+        floor.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in FLOOR) + "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                         "f 1/1 2/2 3/3 4/4\n")
+        lamp = folder / "lamp.obj"
+        lamp.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in LAMP) + "f 1 2 3 4\n")
+        texture = {"type": "bitmap", "data": mi.TensorXf(stripes()), "raw": True, "filter_type": "nearest"}
+        scene = mi.load_dict({
+            "type": "scene", "integrator": {"type": "path", "max_depth": 2},
+            "floor": {"type": "obj", "filename": str(floor), "face_normals": True,
+                      "bsdf": {"type": "roughconductor", "distribution": "ggx", "alpha": ALPHA, "material": "none",
+                               "specular_reflectance": texture}},
+            "lamp": {"type": "obj", "filename": str(lamp), "face_normals": True,
+                     "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [3.0] * 3}}},
+        }, optimize=False)
     rng = np.random.default_rng(4)
     u = (np.repeat(np.arange(4), 6) + 0.5) / 4 + rng.uniform(-0.08, 0.08, 24)
     uv = np.column_stack([u, rng.uniform(0.2, 0.8, 24)])

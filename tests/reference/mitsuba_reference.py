@@ -32,36 +32,38 @@ def load_mitsuba():
 def to_mitsuba(spec: SceneSpec, max_depth: int = -1):
     """One-sided diffuse patches and area emitters, as the solver models them."""
     mi = load_mitsuba()
-    folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-mitsuba-"))
-    shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
-    for i, p in enumerate(spec.patches):
-        path = folder / f"patch{i}.obj"
-        faces = "f 1 2 3 4" if len(p.corners) == 4 else "f 1 2 3"
-        text = "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in p.corners)
-        if p.ggx_anisotropic:
-            # The solver's tangent on a patch is its first edge (ds/du), turned by the rotation.
-            c = np.asarray(p.corners, float)
-            uv = lobe_coordinates(c, c[1] - c[0], p.ggx_anisotropic[2])
-            text += "".join(f"vt {s:.17g} {t:.17g}\n" for s, t in uv)
-            faces = " ".join(f"{k}/{k}" for k in faces.split()[1:])
-            faces = "f " + faces
-        path.write_text(text + faces + "\n")
-        bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(p.albedo)}}
-        if p.ggx_alpha > 0:
-            bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha": p.ggx_alpha, "material": "none"}
-        if p.ggx_anisotropic:
-            bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha_u": p.ggx_anisotropic[0],
-                    "alpha_v": p.ggx_anisotropic[1], "material": "none"}
-        if p.dielectric:
-            bsdf = {"type": "roughdielectric", "distribution": "ggx", "alpha": p.dielectric[1],
-                    "int_ior": p.dielectric[0], "ext_ior": 1.0}
-        if p.thin_glass:
-            bsdf = {"type": "thindielectric", "int_ior": p.thin_glass, "ext_ior": 1.0}
-        shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": bsdf}
-        if max(p.emission) > 0:
-            shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(p.emission)}}
-        shapes[f"patch{i}"] = shape
-    return mi.load_dict(shapes, optimize=False)
+    # Mitsuba reads the OBJ files while it loads the scene: the folder goes with the load.
+    with tempfile.TemporaryDirectory(prefix="bsgi-mitsuba-") as name:
+        folder = pathlib.Path(name)
+        shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
+        for i, p in enumerate(spec.patches):
+            path = folder / f"patch{i}.obj"
+            faces = "f 1 2 3 4" if len(p.corners) == 4 else "f 1 2 3"
+            text = "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in p.corners)
+            if p.ggx_anisotropic:
+                # The solver's tangent on a patch is its first edge (ds/du), turned by the rotation.
+                c = np.asarray(p.corners, float)
+                uv = lobe_coordinates(c, c[1] - c[0], p.ggx_anisotropic[2])
+                text += "".join(f"vt {s:.17g} {t:.17g}\n" for s, t in uv)
+                faces = " ".join(f"{k}/{k}" for k in faces.split()[1:])
+                faces = "f " + faces
+            path.write_text(text + faces + "\n")
+            bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(p.albedo)}}
+            if p.ggx_alpha > 0:
+                bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha": p.ggx_alpha, "material": "none"}
+            if p.ggx_anisotropic:
+                bsdf = {"type": "roughconductor", "distribution": "ggx", "alpha_u": p.ggx_anisotropic[0],
+                        "alpha_v": p.ggx_anisotropic[1], "material": "none"}
+            if p.dielectric:
+                bsdf = {"type": "roughdielectric", "distribution": "ggx", "alpha": p.dielectric[1],
+                        "int_ior": p.dielectric[0], "ext_ior": 1.0}
+            if p.thin_glass:
+                bsdf = {"type": "thindielectric", "int_ior": p.thin_glass, "ext_ior": 1.0}
+            shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": bsdf}
+            if max(p.emission) > 0:
+                shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(p.emission)}}
+            shapes[f"patch{i}"] = shape
+        return mi.load_dict(shapes, optimize=False)
 
 
 def visible_pairs(spec: SceneSpec, count: int, seed: int = 0, margin: float = 0.02):
