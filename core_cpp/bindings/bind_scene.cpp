@@ -339,6 +339,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("world_bright_samples", &SolverSettings::world_bright_samples)
         .def_readwrite("max_bounces", &SolverSettings::max_bounces)
         .def_readwrite("late_bounces_after", &SolverSettings::late_bounces_after)
+        .def_readwrite("settle_factor", &SolverSettings::settle_factor)
         .def_readwrite("form_factors", &SolverSettings::form_factors)
         .def_readwrite("tolerance", &SolverSettings::tolerance)
         .def_readwrite("extrapolate", &SolverSettings::extrapolate)
@@ -505,6 +506,7 @@ void bind_scene(py::module_& m) {
             d["transport_terms"] = s.stats.transport_terms;
             d["seconds_estimate"] = s.stats.seconds_estimate;
             d["estimate_rays"] = s.stats.estimate_rays;
+            d["settled_nodes"] = s.stats.settled_nodes;
             return d;
         });
 
@@ -581,8 +583,9 @@ void bind_scene(py::module_& m) {
             },
             py::arg("progress"), py::arg("runner") = py::none(),
             "The whole solve, once. runner(phase, input, nodes) -> (coefficients, rays), if given, gathers each phase "
-            "('direct', 'bounce', 'final', 'regather') for all receivers, wherever it likes (called with the GIL); the bookkeeping "
-            "between phases stays here. Releases the GIL.")
+            "('direct', 'bounce', 'final', 'regather') for all receivers, wherever it likes (called with the GIL); a receiver "
+            "of 0 nodes has settled and does not gather (its coefficients are not read). The bookkeeping between phases "
+            "stays here. Releases the GIL.")
         .def(
             "nodes",
             [](SolveSteps& steps, const std::string& phase, Progress& progress) {
@@ -592,22 +595,25 @@ void bind_scene(py::module_& m) {
             py::arg("phase"), py::arg("progress"), "Spatial nodes of each receiver of phase 'direct', 'bounce', 'final' or 'regather'.")
         .def(
             "gather",
-            [](SolveSteps& steps, const std::string& phase, size_t begin, size_t end, const Array& input, Progress& progress) {
+            [](SolveSteps& steps, const std::string& phase, size_t begin, size_t end, const Array& input, Progress& progress,
+               const std::vector<size_t>& settled) {
                 const SolveSteps::Phase p = phase_of(phase);
                 std::vector<double> in(input.data(), input.data() + input.size());
                 size_t rays = 0;
                 std::vector<double> out;
                 {
                     py::gil_scoped_release release;
-                    out = steps.gather(p, begin, end, in, progress, rays);
+                    out = steps.gather(p, begin, end, in, progress, rays, settled);
                 }
                 return py::make_tuple(py::array_t<double>(out.size(), out.data()), rays);
             },
             py::arg("phase"), py::arg("begin"), py::arg("end"), py::arg("input"), py::arg("progress"),
+            py::arg("settled") = std::vector<size_t>{},
             "The gather of a phase for receivers [begin, end) given all receivers' coefficients of the previous step "
             "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final', the finals' Le of the "
             "final gather followed by the coarse Le it read for 'regather'): (their new "
-            "coefficients, rays cast). Releases the GIL; raises SolveCancelled if progress is cancelled.");
+            "coefficients, rays cast). `settled`: receivers of a bounce that do not gather (the runner's 0 nodes; their "
+            "coefficients come back as they were). Releases the GIL; raises SolveCancelled if progress is cancelled.");
 }
 
 }  // namespace bsgi::bindings

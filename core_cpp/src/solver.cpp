@@ -51,6 +51,9 @@ void validate(const SolverSettings& s) {
     need(s.max_bounces >= 0, "max_bounces must be >= 0");
     need(s.late_bounces_after >= 0, "late_bounces_after must be >= 0 (0: every bounce with all hemisphere nodes)");
     need(s.tolerance >= 0, "tolerance must be >= 0");
+    need(s.settle_factor >= 0 && s.settle_factor <= 1,
+         "settle_factor must be in [0, 1] (0: every receiver gathers every bounce; above 1 a receiver would settle with "
+         "its tail less certain than the tolerance)");
     need(s.final_spatial_factor >= 1 && s.final_integration_factor >= 1, "final gather factors must be >= 1");
     need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
     need(s.final_passes >= 1 && s.final_passes <= 2, "final_passes must be 1 or 2");
@@ -515,10 +518,11 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
 // and writes the values into the receivers' spline set `target`.
 template <typename Work>
 size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines target,
-                  const SolverSettings& settings, Progress& progress, Work&& work) {
+                  const SolverSettings& settings, Progress& progress, Work&& work,
+                  const std::vector<uint8_t>& skip = {}) {
     std::vector<std::pair<int, int>> items;
     for (size_t k = begin; k < end; ++k)
-        for (size_t j = 0; j < receivers[k].nodes.size(); ++j) items.emplace_back(int(k), int(j));
+        for (size_t j = 0; j < receivers[k].nodes.size() && (skip.empty() || !skip[k]); ++j) items.emplace_back(int(k), int(j));
     std::atomic<size_t> rays{0};
     parallel_for(items.size(), 4, settings.threads, [&](size_t begin, size_t end) {
         size_t local_rays = 0;
@@ -604,7 +608,7 @@ std::vector<const Receiver*> index_by_surface(const Scene& scene, const std::vec
 class BounceConvergence {
 public:
     // Starts from the direct light, increment 0 (in L).
-    explicit BounceConvergence(const std::vector<Receiver>& receivers) : state_(receivers.size()) {
+    explicit BounceConvergence(const std::vector<Receiver>& receivers) : state_(receivers.size()), held_(receivers.size(), 0.0) {
         const auto sums = maxima(receivers);
         for (size_t k = 0; k < receivers.size(); ++k)
             for (int c = 0; c < 3; ++c) state_[k][c].increment = state_[k][c].pair[0] = sums[k][c];
@@ -618,6 +622,8 @@ public:
         double brightest[3] = {0, 0, 0};
         for (const auto& m : sums)
             for (int c = 0; c < 3; ++c) brightest[c] = std::max(brightest[c], m[3 + c]);
+        std::copy(brightest, brightest + 3, brightest_.begin());
+        double pairs[3] = {0, 0, 0};
         double error = 0;
         last_increment = 0;
         errors_.assign(receivers.size(), 0.0);
@@ -629,6 +635,8 @@ public:
                 // rho2 of this bounce; 2 (unknown) until two pairs exist.
                 const double rho2 = s.pair[1] > 0 ? pair / s.pair[1] : 2.0;
                 s.increment = increment;
+                s.total = total;
+                pairs[c] += pair;
                 s.pair[1] = s.pair[0], s.pair[0] = pair;
                 s.rho2[2] = s.rho2[1], s.rho2[1] = s.rho2[0], s.rho2[0] = rho2;
                 s.tail = 0;
@@ -643,6 +651,14 @@ public:
                 error = std::max(error, channel_error);
                 errors_[k] = std::max(errors_[k], channel_error);
             }
+        for (size_t k = 0; k < receivers.size(); ++k) {
+            errors_[k] = std::max(errors_[k], held_[k]);
+            error = std::max(error, held_[k]);
+        }
+        for (int c = 0; c < 3; ++c) {
+            scene_rho2_[c] = scene_pairs_[1][c] > 0 ? pairs[c] / scene_pairs_[1][c] : 2.0;
+            scene_pairs_[1][c] = scene_pairs_[0][c], scene_pairs_[0][c] = pairs[c];
+        }
         if (last_increment == 0) {
             // No receiver got light this bounce, so none will: the series has ended and nothing
             // is missing (a lone floor under a lamp), whatever the decay could not yet be judged from.
@@ -662,10 +678,42 @@ public:
     // What update() returned, for receiver k alone (0 before the first bounce).
     double error(int k) const { return errors_.empty() ? 0.0 : errors_[size_t(k)]; }
 
+    // Whether receiver k's light has settled: its next increments follow from its last ones
+    // (decay()) to within `bound`. Every channel that has light anywhere in the scene must have
+    // light here (one still dark may be lit by a later bounce: the faces of books pressed
+    // against a shelf, dark after the direct light, "settled" on no light at all and stayed
+    // black), its rho2 below 1 for the last three bounces and steady within kSteady, and the
+    // receiver's tail uncertainty below `bound`.
+    bool settled(int k, double bound) const {
+        if (errors_.empty() || !(errors_[size_t(k)] < bound)) return false;
+        bool lit = false;
+        for (int c = 0; c < 3; ++c) {
+            const Channel& s = state_[size_t(k)][c];
+            if (!(brightest_[c] > 0)) continue;
+            if (!(s.total > kNegligible * brightest_[c]) || s.pair[0] == 0) return false;
+            for (double rho2 : s.rho2)
+                if (!(rho2 < 1)) return false;
+            if (std::abs(s.rho2[0] - s.rho2[1]) > kSteady * s.rho2[1]) return false;
+            if (std::abs(s.rho2[0] - scene_rho2_[c]) > kSteady * scene_rho2_[c]) return false;
+            lit = true;
+        }
+        return lit;
+    }
+    // rho2 per channel of receiver k, which settles: each of its next increments is this times
+    // its increment two bounces before. Its error stays what it was when it settled (the
+    // extrapolated increments' own rho2 is steady, and would claim none).
+    std::array<double, 3> settle(int k) {
+        held_[size_t(k)] = std::max(held_[size_t(k)], errors_[size_t(k)]);
+        const auto& s = state_[size_t(k)];
+        return {s[0].rho2[0], s[1].rho2[0], s[2].rho2[0]};
+    }
+
 private:
     static constexpr double kNegligible = 1e-12;
+    static constexpr double kSteady = 0.05;  // of rho2, from one bounce to the next, to settle
     struct Channel {
         double increment = 0;          // I_(k-1): largest |coefficient| of the last increment
+        double total = 0;              // largest |coefficient| of Le
         double pair[2] = {0, 0};       // P_(k-1), P_(k-2)
         double rho2[3] = {2, 2, 2};    // rho2 of the last three bounces, newest first
         double tail = 0;
@@ -688,6 +736,12 @@ private:
     }
     std::vector<std::array<Channel, 3>> state_;
     std::vector<double> errors_;
+    std::vector<double> held_;  // a settled receiver's error when it settled
+    std::array<double, 3> brightest_{};  // largest |coefficient| of Le over all receivers, per channel
+    // rho2 of the whole scene's increments (their pairs summed over receivers), per channel, and
+    // the last two sums: late increments everywhere decay as the slowest mode of the transport.
+    std::array<double, 3> scene_rho2_{2, 2, 2};
+    std::array<std::array<double, 3>, 2> scene_pairs_{};
 };
 
 }  // namespace
@@ -831,7 +885,9 @@ void add_onto(std::vector<Receiver>& receivers, size_t begin, size_t end, Receiv
         }
 }
 
-void unpack(const double* flat, size_t count, std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
+// The inverse of pack; receivers with `skip` set keep their coefficients.
+void unpack(const double* flat, size_t count, std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which,
+            const std::vector<uint8_t>& skip = {}) {
     const size_t size = packed_size(receivers, begin, end, which);
     if (count != size)
         throw std::invalid_argument("solve step: " + std::to_string(count) + " coefficients given for receivers " +
@@ -839,13 +895,14 @@ void unpack(const double* flat, size_t count, std::vector<Receiver>& receivers, 
     const double* from = flat;
     for (size_t k = begin; k < end; ++k)
         for (TensorSpline& side : receivers[k].*which) {
-            std::copy(from, from + side.coeffs().size(), side.coeffs().begin());
+            if (skip.empty() || !skip[k]) std::copy(from, from + side.coeffs().size(), side.coeffs().begin());
             from += side.coeffs().size();
         }
 }
 
-void unpack(const std::vector<double>& flat, std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
-    unpack(flat.data(), flat.size(), receivers, begin, end, which);
+void unpack(const std::vector<double>& flat, std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which,
+            const std::vector<uint8_t>& skip = {}) {
+    unpack(flat.data(), flat.size(), receivers, begin, end, which, skip);
 }
 
 std::vector<size_t> nodes_of(const std::vector<Receiver>& receivers) {
@@ -1282,7 +1339,7 @@ std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
 }
 
 std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
-                                       Progress& progress, size_t& rays) {
+                                       Progress& progress, size_t& rays, const std::vector<size_t>& settled) {
     State& s = *state_;
     const bool fine = on_finals(phase);
     if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
@@ -1296,6 +1353,15 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     const Gatherer& gather = *s.gather;
     const Scene& scene = s.scene;
     const SolverSettings& settings = s.settings;
+    const bool bounce = phase == Phase::Bounce || phase == Phase::LateBounce;
+    if (!settled.empty() && !bounce) throw std::invalid_argument("solve step: only a bounce's receivers settle");
+    std::vector<uint8_t> skip(settled.empty() ? 0 : targets.size(), 0);
+    for (size_t k : settled) {
+        if (k < begin || k >= end)
+            throw std::invalid_argument("solve step: settled receiver " + std::to_string(k) + " is not among receivers " +
+                                        std::to_string(begin) + " to " + std::to_string(end));
+        skip[k] = 1;
+    }
     if (phase == Phase::Direct) {
         // Gather from every emitter (and the world) into L.
         rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
@@ -1307,8 +1373,8 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
         });
         return pack(targets, begin, end, &Receiver::L);
     }
-    if (phase == Phase::Bounce || phase == Phase::LateBounce) {
-        // Gather the incremental radiance L of all surfaces into Ltmp.
+    if (bounce) {
+        // Gather the incremental radiance L of all surfaces into Ltmp (but settled receivers').
         const double density = phase == Phase::LateBounce ? kLateBounceDensity : 1.0;
         unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::L);
         s.build_rows(begin, end, progress, rays);
@@ -1327,7 +1393,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
                 }
                 out[side] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * sum;
             }
-        });
+        }, skip);
         return pack(targets, begin, end, &Receiver::Ltmp);
     }
     // Final gather: finer receivers gather direct light from the emitters, and indirect light
@@ -1387,9 +1453,11 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     solution.stats.bytes = st.bytes;
     size_t rays = 0;
     // One phase's gather for all receivers: here, or wherever `run` sends its groups.
-    auto phase = [&](Phase p, const std::vector<double>& input) {
-        const std::vector<size_t> n = nodes(p, progress);
-        if (!run) return gather(p, 0, n.size(), input, progress, rays);
+    // `settled`: a bounce's receivers that do not gather (0 nodes for `run`).
+    auto phase = [&](Phase p, const std::vector<double>& input, const std::vector<size_t>& settled = {}) {
+        std::vector<size_t> n = nodes(p, progress);
+        if (!run) return gather(p, 0, n.size(), input, progress, rays, settled);
+        for (size_t k : settled) n[k] = 0;
         std::vector<double> out = run(p, input, n, rays);
         progress.throw_if_cancelled();
         return out;
@@ -1415,12 +1483,28 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         for (const auto& per_receiver : st.rows)
             for (const auto& row : per_receiver) solution.stats.transport_terms += row.size();
     }
+    std::vector<uint8_t> skip(all, 0);
     for (int bounce = 0; bounce < settings.max_bounces; ++bounce) {
-        progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + st.ff_stage + bounce, stages,
-                             node_count(receivers));
+        // Settled receivers (SolverSettings::settle_factor) do not gather: their increment is
+        // rho2 times the one two bounces before, which Ltmp still holds (L holds the last).
+        std::vector<size_t> settled;
+        size_t gathering = 0;
+        for (size_t k = 0; k < all; ++k) {
+            skip[k] = settings.settle_factor > 0 && convergence.settled(int(k), settings.settle_factor * settings.tolerance);
+            if (skip[k]) settled.push_back(k), solution.stats.settled_nodes += receivers[k].nodes.size();
+            else gathering += receivers[k].nodes.size();
+        }
+        progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + st.ff_stage + bounce, stages, gathering);
         const bool late = settings.late_bounces_after > 0 && bounce >= settings.late_bounces_after;
-        unpack(phase(late ? Phase::LateBounce : Phase::Bounce, pack(receivers, 0, all, &Receiver::L)), receivers, 0, all,
-               &Receiver::Ltmp);
+        unpack(phase(late ? Phase::LateBounce : Phase::Bounce, pack(receivers, 0, all, &Receiver::L), settled), receivers, 0, all,
+               &Receiver::Ltmp, skip);
+        for (size_t k : settled) {
+            const std::array<double, 3> rho2 = convergence.settle(int(k));
+            for (int side = 0; side < receivers[k].sides; ++side) {
+                auto& c = receivers[k].Ltmp[side].coeffs();
+                for (size_t i = 0; i < c.size(); ++i) c[i] *= rho2[i % 3];
+            }
+        }
         add_onto(receivers, 0, all, &Receiver::Le, &Receiver::Ltmp);
         for (auto& r : receivers)
             for (int side = 0; side < r.sides; ++side) std::swap(r.L[side], r.Ltmp[side]);  // receiver_of points at the receivers: still valid

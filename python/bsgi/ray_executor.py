@@ -37,11 +37,11 @@ class SolveWorker:
         self.steps = _core.SolveSteps(scene, settings_from(fields), _core.Progress(), sides)
         self.progress = _core.Progress()
 
-    def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int) -> tuple:
+    def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int, settled: list) -> tuple:
         progress = _core.Progress()
         progress.begin_stage(phase, 0, 1, nodes)
         self.progress = progress  # what cancel() sees, from Ray's second actor thread
-        return self.steps.gather(phase, begin, end, coefficients, progress)
+        return self.steps.gather(phase, begin, end, coefficients, progress, settled)
 
     def cancel(self) -> None:
         """Stops the running gather (it raises SolveCancelled)."""
@@ -92,6 +92,7 @@ class RayExecutor:
         self.keep_groups = False  # each group stays on its worker (which keeps its form-factor rows)
         self.lost: set = set()  # workers gone for good (their groups went to the others)
         self.worker_cpu_seconds: list = []  # of each worker's process, at the end of the last solve
+        self.receiver_nodes: list = []  # of each receiver of the bounces, as the direct light gathered them
 
     def connect(self) -> Any:
         ray = import_ray()
@@ -140,8 +141,15 @@ class RayExecutor:
         # it would cast that group's rows again.
         alive = [w for w in range(len(self.actors)) if w not in self.lost]
         queues = {w: deque() for w in alive}
-        for g, group in enumerate(receiver_groups(nodes, len(alive) * self.groups_per_worker)):
-            queues[alive[g % len(alive)]].append(group)
+        # A receiver of 0 nodes has settled (SolverSettings.settle_factor): it does not gather.
+        # The groups are the same every phase, for the workers' form-factor rows, and so split by
+        # the receivers' own nodes.
+        if phase == "direct":
+            self.receiver_nodes = nodes  # before any receiver settles
+        own = self.receiver_nodes if phase in ("bounce", "late bounce") else nodes
+        for g, (begin, end, _) in enumerate(receiver_groups(own, len(alive) * self.groups_per_worker)):
+            settled = [k for k in range(begin, end) if nodes[k] == 0]
+            queues[alive[g % len(alive)]].append((begin, end, sum(nodes[begin:end]), settled))
         idle = list(alive)
         running: dict = {}
         parts: dict = {}
@@ -158,7 +166,7 @@ class RayExecutor:
                 if queue:
                     idle.remove(w)
                     group = queue.popleft()
-                    ref = self.actors[w].gather.remote(phase, group[0], group[1], coefficients_ref, group[2])
+                    ref = self.actors[w].gather.remote(phase, *group[:2], coefficients_ref, *group[2:])
                     running[ref] = (w, group)
             ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_seconds)
             for ref in ready:

@@ -94,6 +94,16 @@ struct SolverSettings {
     bool form_factors = false;
     double tolerance = 1e-3;
     bool extrapolate = true;
+    // A receiver whose own light has settled stops gathering (0, the default and the presets':
+    // every receiver gathers every bounce): once, in every channel with light, the decay rho2 of
+    // its pairs of increments has been below 1 for three bounces, steady within 5% and within 5%
+    // of the whole scene's, and its tail's uncertainty is below settle_factor times the
+    // tolerance, each of its further increments is rho2 times its increment two bounces before.
+    // Others go on gathering from it. Judged from the largest coefficient alone, the increment's
+    // shape is kept as it was: on the furnished interior it saves a third of the bounces' rays
+    // and costs about ten times the convergence error (tests/core/test_solver_settle.py,
+    // bench/bench_settle.py), hence off in the presets.
+    double settle_factor = 0;
 
     // Final gather (Algorithm 1's last phase): every surface gathers once more, at
     // final_spatial_factor times the spatial coefficients and final_integration_factor times
@@ -152,6 +162,7 @@ struct SolveStats {
     size_t transport_terms = 0;  // entries of the form-factor operator, if used
     double seconds_estimate = 0;  // of the per-surface error estimate (not in the phases' times)
     size_t estimate_rays = 0;     // rays of the error estimate (not in `rays`)
+    size_t settled_nodes = 0;     // nodes of settled receivers, summed over the bounces they did not gather
 };
 
 struct Solution {
@@ -176,8 +187,9 @@ class SolveSteps {
 public:
     enum class Phase { Direct = 0, Bounce = 1, Final = 2, Regather = 3, LateBounce = 4 };
     // Gathers a phase for every receiver (in groups wherever it likes): the coefficients of all
-    // receivers of the phase, given `input` (empty, L or Le) and the nodes of each receiver (the
-    // work); adds the rays cast to `rays`.
+    // receivers of the phase, given `input` (empty, L or Le) and the nodes each receiver gathers
+    // (the work; 0 for a settled receiver, which does not gather: its coefficients in the result
+    // are not read); adds the rays cast to `rays`.
     using Runner = std::function<std::vector<double>(Phase, const std::vector<double>& input,
                                                      const std::vector<size_t>& nodes, size_t& rays)>;
 
@@ -197,9 +209,11 @@ public:
     // The gather of a phase for receivers [begin, end), given the previous step's coefficients
     // of all receivers (none for the direct light; L for a bounce, late or not; Le for the final
     // gather; to regather, the finals' Le of the final gather followed by the coarse Le it read):
-    // their new coefficients. Advances `progress` by nodes; throws Cancelled if it is cancelled.
+    // their new coefficients. `settled`: receivers of a bounce that do not gather (their
+    // coefficients are returned as they were). Advances `progress` by nodes; throws Cancelled if
+    // it is cancelled.
     std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
-                               Progress& progress, size_t& rays);
+                               Progress& progress, size_t& rays, const std::vector<size_t>& settled = {});
     // The whole solve, each phase's gather run by `run` (here, on all threads, if empty), the
     // bounces' bookkeeping (the sums, when to stop, the extrapolated tail) here. Once: the
     // solution takes the splines.
