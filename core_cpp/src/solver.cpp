@@ -608,7 +608,9 @@ std::vector<const Receiver*> index_by_surface(const Scene& scene, const std::vec
 class BounceConvergence {
 public:
     // Starts from the direct light, increment 0 (in L).
-    explicit BounceConvergence(const std::vector<Receiver>& receivers) : state_(receivers.size()), held_(receivers.size(), 0.0) {
+    explicit BounceConvergence(const std::vector<Receiver>& receivers)
+        : state_(receivers.size()), held_(receivers.size(), 0.0), settled_(receivers.size(), 0), shape_(receivers.size()),
+          shape_bounce_(receivers.size(), 0) {
         const auto sums = maxima(receivers);
         for (size_t k = 0; k < receivers.size(); ++k)
             for (int c = 0; c < 3; ++c) state_[k][c].increment = state_[k][c].pair[0] = sums[k][c];
@@ -619,6 +621,7 @@ public:
     // largest over receivers and channels; `last_increment` gets the largest relative increment.
     double update(const std::vector<Receiver>& receivers, bool extrapolate, double& last_increment) {
         const auto sums = maxima(receivers);
+        ++bounces_;
         double brightest[3] = {0, 0, 0};
         for (const auto& m : sums)
             for (int c = 0; c < 3; ++c) brightest[c] = std::max(brightest[c], m[3 + c]);
@@ -678,17 +681,69 @@ public:
     // What update() returned, for receiver k alone (0 before the first bounce).
     double error(int k) const { return errors_.empty() ? 0.0 : errors_[size_t(k)]; }
 
-    // Whether receiver k's light has settled: its next increments follow from its last ones
-    // (decay()) to within `bound`. Every channel that has light anywhere in the scene must have
-    // light here (one still dark may be lit by a later bounce: the faces of books pressed
+    // Whether receiver r has settled (SolverSettings::settle_factor), given its last increment
+    // (in L) and the one before (in Ltmp): from then on each of its increments is decay() times
+    // its increment two bounces before, to within `bound` of its light. Once settled, for good.
+    // First its largest coefficients: every channel that has light anywhere in the scene must
+    // have light here (one still dark may be lit by a later bounce: the faces of books pressed
     // against a shelf, dark after the direct light, "settled" on no light at all and stayed
-    // black), its rho2 below 1 for the last three bounces and steady within kSteady, and the
-    // receiver's tail uncertainty below `bound`.
-    bool settled(int k, double bound) const {
-        if (errors_.empty() || !(errors_[size_t(k)] < bound)) return false;
+    // black), its rho2 below 1 for the last three bounces, steady within kSteady and within
+    // kSteady of the whole scene's, and its tail's uncertainty below `bound`. Then its shape:
+    // the pair of increments, coefficient by coefficient, must be rho2 times the pair two
+    // bounces before (kept meanwhile), to within `bound` once summed over the tail (a shape still
+    // changing, as light from near and far arrives with different delays, is not a multiple of
+    // the one before: on the furnished interior its largest coefficient alone settled receivers
+    // ten times off the tolerance).
+    bool settles(const Receiver& r, double bound) {
+        const size_t k = size_t(r.index);
+        if (settled_[k]) return true;
+        if (!largest_settled(k, bound)) {
+            std::vector<double>().swap(shape_[k]);
+            return false;
+        }
+        std::vector<double> pair;
+        for (int side = 0; side < r.sides; ++side) {
+            const auto& l = r.L[side].coeffs();
+            const auto& before = r.Ltmp[side].coeffs();
+            for (size_t c = 0; c < l.size(); ++c) pair.push_back(l[c] + before[c]);
+        }
+        const int age = bounces_ - shape_bounce_[k];
+        if (shape_[k].empty() || age > 2) {
+            shape_[k] = std::move(pair), shape_bounce_[k] = bounces_;
+            return false;
+        }
+        if (age < 2) return false;
+        const auto& s = state_[k];
+        double deviation[3] = {0, 0, 0};
+        for (size_t c = 0; c < pair.size(); ++c)
+            deviation[c % 3] = std::max(deviation[c % 3], std::abs(pair[c] - s[c % 3].rho2[0] * shape_[k][c]));
+        double error = 0;
+        for (int c = 0; c < 3; ++c)
+            if (s[c].total > 0) error = std::max(error, deviation[c] / ((1 - s[c].rho2[0]) * s[c].total));
+        if (!(error < bound)) {
+            shape_[k] = std::move(pair), shape_bounce_[k] = bounces_;
+            return false;
+        }
+        std::vector<double>().swap(shape_[k]);
+        held_[k] = std::max({held_[k], errors_[k], error});
+        return settled_[k] = 1;
+    }
+    // rho2 per channel of settled receiver k: each of its increments is this times its increment
+    // two bounces before. Its error stays what it was when it settled (the extrapolated
+    // increments' own rho2 is steady, and would claim none).
+    std::array<double, 3> decay(int k) const {
+        const auto& s = state_[size_t(k)];
+        return {s[0].rho2[0], s[1].rho2[0], s[2].rho2[0]};
+    }
+
+private:
+    static constexpr double kNegligible = 1e-12;
+    static constexpr double kSteady = 0.05;  // of rho2, from one bounce to the next, to settle
+    bool largest_settled(size_t k, double bound) const {
+        if (errors_.empty() || !(errors_[k] < bound)) return false;
         bool lit = false;
         for (int c = 0; c < 3; ++c) {
-            const Channel& s = state_[size_t(k)][c];
+            const Channel& s = state_[k][c];
             if (!(brightest_[c] > 0)) continue;
             if (!(s.total > kNegligible * brightest_[c]) || s.pair[0] == 0) return false;
             for (double rho2 : s.rho2)
@@ -699,18 +754,6 @@ public:
         }
         return lit;
     }
-    // rho2 per channel of receiver k, which settles: each of its next increments is this times
-    // its increment two bounces before. Its error stays what it was when it settled (the
-    // extrapolated increments' own rho2 is steady, and would claim none).
-    std::array<double, 3> settle(int k) {
-        held_[size_t(k)] = std::max(held_[size_t(k)], errors_[size_t(k)]);
-        const auto& s = state_[size_t(k)];
-        return {s[0].rho2[0], s[1].rho2[0], s[2].rho2[0]};
-    }
-
-private:
-    static constexpr double kNegligible = 1e-12;
-    static constexpr double kSteady = 0.05;  // of rho2, from one bounce to the next, to settle
     struct Channel {
         double increment = 0;          // I_(k-1): largest |coefficient| of the last increment
         double total = 0;              // largest |coefficient| of Le
@@ -737,6 +780,10 @@ private:
     std::vector<std::array<Channel, 3>> state_;
     std::vector<double> errors_;
     std::vector<double> held_;  // a settled receiver's error when it settled
+    std::vector<uint8_t> settled_;
+    std::vector<std::vector<double>> shape_;  // a receiver's pair of increments, while it may settle
+    std::vector<int> shape_bounce_;           // the bounce it was kept at
+    int bounces_ = 0;                         // update()s so far
     std::array<double, 3> brightest_{};  // largest |coefficient| of Le over all receivers, per channel
     // rho2 of the whole scene's increments (their pairs summed over receivers), per channel, and
     // the last two sums: late increments everywhere decay as the slowest mode of the transport.
@@ -800,7 +847,7 @@ RayCaster ray_caster_of(const Scene& scene) {
 
 // The bytes a solve of these plans (and final plans) allocates after the sides probe, at its
 // peak: the ray caster, the receivers (three spline sets and the nodes), the form-factor rows,
-// and then the larger of a bounce's two packed copies of a set and the final gather's finer
+// and then the larger of a bounce's two packed copies of a set (and the settling pairs) and the final gather's finer
 // receivers (one set and their nodes) with the coarse input and the fine output packed.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
@@ -818,7 +865,9 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     for (const Plan& p : final_plans) fine += set_bytes(p), fine_nodes += node_bytes(p);
     // A regather holds its input packed (the finals' set and the coarse one) and the finals' new set.
     const size_t regather = settings.final_passes > 1 ? 2 * fine + coarse : 0;
-    const size_t bounce = 2 * coarse, final = final_plans.empty() ? 0 : std::max(coarse, regather) + 2 * fine + fine_nodes;
+    // A bounce holds two packed copies of the coarse set; with settle_factor, the pairs of
+    // increments of receivers that may settle as well (at most a set).
+    const size_t bounce = (settings.settle_factor > 0 ? 3 : 2) * coarse, final = final_plans.empty() ? 0 : std::max(coarse, regather) + 2 * fine + fine_nodes;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
     // The ray caster: a 64-byte record and about as much BVH a triangle, and an Embree geometry
@@ -1490,7 +1539,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         std::vector<size_t> settled;
         size_t gathering = 0;
         for (size_t k = 0; k < all; ++k) {
-            skip[k] = settings.settle_factor > 0 && convergence.settled(int(k), settings.settle_factor * settings.tolerance);
+            skip[k] = settings.settle_factor > 0 && convergence.settles(receivers[k], settings.settle_factor * settings.tolerance);
             if (skip[k]) settled.push_back(k), solution.stats.settled_nodes += receivers[k].nodes.size();
             else gathering += receivers[k].nodes.size();
         }
@@ -1499,7 +1548,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         unpack(phase(late ? Phase::LateBounce : Phase::Bounce, pack(receivers, 0, all, &Receiver::L), settled), receivers, 0, all,
                &Receiver::Ltmp, skip);
         for (size_t k : settled) {
-            const std::array<double, 3> rho2 = convergence.settle(int(k));
+            const std::array<double, 3> rho2 = convergence.decay(int(k));
             for (int side = 0; side < receivers[k].sides; ++side) {
                 auto& c = receivers[k].Ltmp[side].coeffs();
                 for (size_t i = 0; i < c.size(); ++i) c[i] *= rho2[i % 3];

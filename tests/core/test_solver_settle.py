@@ -60,15 +60,15 @@ def test_settled_receivers_save_rays_at_a_measured_cost(interior):
           f"{own_settled.max():.2e}, 99th percentile {np.percentile(own_every, 99):.2e} -> {np.percentile(own_settled, 99):.2e}, "
           f"of the median spline's largest {scene_every:.2e} -> {scene_settled:.2e}")
     assert a["settled_nodes"] == 0 and b["settled_nodes"] > 0
-    assert b["rays"] <= 0.8 * a["rays"]  # measured 0.683
+    assert b["rays"] <= 0.88 * a["rays"]  # measured 0.792
     assert b["bounces"] == a["bounces"]  # measured 16 both
-    # The cost, ten times the convergence error: a settled receiver's increments keep the shape
-    # of the one two bounces before, judged steady from its largest coefficient alone (rho2 was
-    # still rising 0.37 -> 0.40 after the room's walls settled). Worst on the dark faces of
-    # books in the shelf, lit by bounces only.
-    assert own_settled.max() <= 4.5e-2  # measured 2.24e-2 (every receiver gathering: 2.16e-3)
-    assert np.percentile(own_settled, 99) <= 1.6e-2  # measured 8.1e-3 (9.0e-4)
-    assert scene_settled <= 7.7e-3  # measured 3.86e-3 (7.0e-5)
+    # The cost: settled receivers within the tolerance's reach of the converged solve, as the
+    # others. Judged from their largest coefficient alone (without the check of the pair's
+    # shape), the worst spline was 2.24e-2 off, the 99th percentile 8.1e-3, the largest
+    # difference 3.9e-3 of the median spline's largest: ten times the convergence error.
+    assert own_settled.max() <= 2 * own_every.max()  # measured 2.20e-3 against 2.16e-3
+    assert np.percentile(own_settled, 99) <= 2 * np.percentile(own_every, 99)  # measured 8.9e-4 against 9.0e-4
+    assert scene_settled <= 3e-3  # measured 1.5e-3 (every receiver gathering: 7e-5), tolerance 1e-3
 
 
 def test_the_furnace_near_albedo_one_does_not_settle_early():

@@ -94,15 +94,13 @@ struct SolverSettings {
     bool form_factors = false;
     double tolerance = 1e-3;
     bool extrapolate = true;
-    // A receiver whose own light has settled stops gathering (0, the default and the presets':
-    // every receiver gathers every bounce): once, in every channel with light, the decay rho2 of
-    // its pairs of increments has been below 1 for three bounces, steady within 5% and within 5%
-    // of the whole scene's, and its tail's uncertainty is below settle_factor times the
-    // tolerance, each of its further increments is rho2 times its increment two bounces before.
-    // Others go on gathering from it. Judged from the largest coefficient alone, the increment's
-    // shape is kept as it was: on the furnished interior it saves a third of the bounces' rays
-    // and costs about ten times the convergence error (tests/core/test_solver_settle.py,
-    // bench/bench_settle.py), hence off in the presets.
+    // A receiver whose own light has settled stops gathering (0: every receiver gathers every
+    // bounce): once, in every channel with light, the decay rho2 of its pairs of increments has
+    // been below 1 for three bounces, steady within 5% and within 5% of the whole scene's, its
+    // tail's uncertainty is below settle_factor times the tolerance, and its pair of increments
+    // is, coefficient by coefficient, rho2 times the pair two bounces before (to the same bound
+    // over the tail), each of its further increments is rho2 times its increment two bounces
+    // before. Others go on gathering from it. Interiors settle receiver by receiver.
     double settle_factor = 0;
 
     // Final gather (Algorithm 1's last phase): every surface gathers once more, at
