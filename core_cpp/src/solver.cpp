@@ -1311,9 +1311,13 @@ struct SolveSteps::State {
             }
             // Emission leaves the front side (and the back where two-sided) on top of the spline.
             const Material& m = scene[result[k].surface].material;
-            const double mean = all.values > 0 ? all.radiance / all.values + (m.emission.x + m.emission.y + m.emission.z) / 3 : 0;
+            // Seen by no viewer (every check's directions meet the back of an opaque surface: a
+            // face pressed against another): no estimate, rather than a 0 that would pass for an
+            // exact one and lower its object's.
+            if (!(all.values > 0)) continue;
+            const double mean = all.radiance / all.values + (m.emission.x + m.emission.y + m.emission.z) / 3;
             if (!(mean > 0)) {
-                errors[k] = 0;  // no light: nothing to be wrong about
+                errors[k] = 0;  // seen, and no light: nothing to be wrong about
                 continue;
             }
             auto rms = [&](double squared, double values) { return values > 0 ? std::sqrt(squared / values) / mean : 0.0; };

@@ -107,6 +107,33 @@ def test_lone_floor_estimate_is_its_direct_light_error():
     assert 0.5 * measured <= estimated <= 2 * measured
 
 
+def test_faces_no_viewer_sees_get_no_estimate():
+    # Two cubes pressed together on a floor under a lamp (books in a shelf): the faces between
+    # them and the bottoms on the floor are covered. A covered face's estimate was 0.0, which
+    # passed for an exact face and lowered its object's estimate; now it has none (NaN), and
+    # every face a viewer sees has one above 0.
+    from test_solver_two_sided import cube
+
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", np.array([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], float),
+                             albedo=[0.5] * 3, emission=[0, 0, 0])
+    for prefix, x in (("a ", -0.25), ("b ", 0.25)):
+        for name, corners in cube(prefix, [x, 0, 0.25], 0.25, 0.6):
+            scene.add_bilinear_patch(name, corners, albedo=[0.6] * 3, emission=[0, 0, 0])
+    lamp = np.array([[-0.4, -0.4, 2], [-0.4, 0.4, 2], [0.4, 0.4, 2], [0.4, -0.4, 2]], float)
+    scene.add_bilinear_patch("lamp", lamp, albedo=[0, 0, 0], emission=[5, 5, 5], receiver=False)
+    sol = bsgi.solve(scene, bsgi.SolverSettings.preset("draft"))
+    estimated = {r["name"]: r["estimated_error"] for r in sol.reports}
+    print("\n" + ", ".join(f"{n} {e:.4f}" for n, e in estimated.items()))
+    covered = {"a x+", "b x-", "a z-", "b z-"}
+    for name in covered:
+        assert np.isnan(estimated[name]), name
+    seen = [n for n in estimated if n.startswith(("a ", "b ")) and n not in covered]
+    assert len(seen) == 8
+    for name in seen + ["floor"]:
+        assert estimated[name] > 0, name
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name,preset", [
     pytest.param(n, p, marks=pytest.mark.xfail(reason=KNOWN[(n, p)], strict=False)) if (n, p) in KNOWN else (n, p)

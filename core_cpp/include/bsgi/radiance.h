@@ -84,7 +84,9 @@ struct SurfaceReport {
     // uniform in (u, v), and cosine-distributed directions) against its mean radiance: the
     // spline against the gathered radiance where no node sits, the error of the splines the
     // gather read, the integration error (doubled nodes) and the bounces not taken, added in
-    // quadrature (SolverSettings::estimate_error). NaN where not estimated (emitters, panes).
+    // quadrature (SolverSettings::estimate_error). NaN where not estimated (emitters, panes) and
+    // where no viewer sees the surface (every check point's directions meet the back of an opaque
+    // surface: a book's face pressed against a shelf); 0 where it is seen and gets no light.
     double estimated_error = std::nan("");
     // Its parts: the fit of the surface's own spline, the splines the gather read, the
     // integration, the bounces' tail (what refining the surface's own knots can lower is the first).
