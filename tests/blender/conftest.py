@@ -1,18 +1,15 @@
 """Headless Blender (the `bpy` module) with the add-on registered, a fresh scene per test."""
-import atexit
 import os
 import pathlib
-import shutil
 import sys
-import tempfile
 
 import pytest
 
+from subprocess_render import SHADER_CACHE, session_folder
+
 # Blender writes its config under HOME and Mesa its shader cache: keep both out of the user's.
-_home = tempfile.mkdtemp(prefix="bsgi-home-")
-atexit.register(shutil.rmtree, _home, ignore_errors=True)
-os.environ["HOME"] = _home
-os.environ.setdefault("MESA_SHADER_CACHE_DIR", os.path.join(_home, "mesa"))
+os.environ["HOME"] = session_folder("bsgi-home-")
+os.environ.setdefault("MESA_SHADER_CACHE_DIR", SHADER_CACHE)
 bpy = pytest.importorskip("bpy")
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]

@@ -8,13 +8,11 @@ script printing JSON, by the leak test and bench/bench_faults.py (a fresh proces
 from __future__ import annotations
 
 import argparse
-import atexit
 import gc
 import json
 import os
 import pathlib
 import random
-import shutil
 import sys
 import tempfile
 import threading
@@ -27,8 +25,9 @@ HERE = pathlib.Path(__file__).resolve().parent
 def start_blender():
     """The bpy module with the add-on registered (as tests/blender/conftest.py does)."""
     if "HOME" not in os.environ:  # the tests give one; a bare environment gets its own, gone at exit
-        os.environ["HOME"] = tempfile.mkdtemp(prefix="bsgi-home-")
-        atexit.register(shutil.rmtree, os.environ["HOME"], ignore_errors=True)
+        from subprocess_render import session_folder
+
+        os.environ["HOME"] = session_folder("bsgi-home-")
     import bpy  # noqa: F401
 
     sys.path.insert(0, str(HERE.parents[1] / "addon"))

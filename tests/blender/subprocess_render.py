@@ -32,9 +32,15 @@ with open(sys.argv[2], "w") as f:
 """
 
 
-# One per test session, gone at its end.
-_SHADER_CACHE = tempfile.mkdtemp(prefix="bsgi-mesa-")
-atexit.register(shutil.rmtree, _SHADER_CACHE, ignore_errors=True)
+def session_folder(prefix: str) -> str:
+    """A temporary folder for this process, removed when it exits."""
+    folder = tempfile.mkdtemp(prefix=prefix)
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder
+
+
+# One per test session, gone at its end (the in-process bpy of conftest.py uses it too).
+SHADER_CACHE = session_folder("bsgi-mesa-")
 
 
 @dataclass
@@ -61,7 +67,7 @@ def isolated_env(folder: pathlib.Path, extra: dict | None = None) -> dict:
     env.update({
         "HOME": str(folder / "home"),
         "BLENDER_USER_RESOURCES": str(folder / "blender"),
-        "MESA_SHADER_CACHE_DIR": _SHADER_CACHE,
+        "MESA_SHADER_CACHE_DIR": SHADER_CACHE,
     })
     env.update(extra or {})
     for key in ("HOME", "BLENDER_USER_RESOURCES", "MESA_SHADER_CACHE_DIR"):
