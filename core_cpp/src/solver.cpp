@@ -622,10 +622,9 @@ public:
     double update(const std::vector<Receiver>& receivers, bool extrapolate, double& last_increment) {
         const auto sums = maxima(receivers);
         ++bounces_;
-        double brightest[3] = {0, 0, 0};
+        brightest_ = {0, 0, 0};
         for (const auto& m : sums)
-            for (int c = 0; c < 3; ++c) brightest[c] = std::max(brightest[c], m[3 + c]);
-        std::copy(brightest, brightest + 3, brightest_.begin());
+            for (int c = 0; c < 3; ++c) brightest_[c] = std::max(brightest_[c], m[3 + c]);
         double pairs[3] = {0, 0, 0};
         double error = 0;
         last_increment = 0;
@@ -644,7 +643,7 @@ public:
                 s.rho2[2] = s.rho2[1], s.rho2[1] = s.rho2[0], s.rho2[0] = rho2;
                 s.tail = 0;
                 // Light at the rounding level of the brightest part has no relative accuracy to keep.
-                if (!(total > kNegligible * brightest[c]) || pair == 0) continue;
+                if (!(total > kNegligible * brightest_[c]) || pair == 0) continue;
                 last_increment = std::max(last_increment, increment / total);
                 double channel_error = 1e300;
                 if (rho2 < 1) {
@@ -701,18 +700,18 @@ public:
             std::vector<double>().swap(shape_[k]);
             return false;
         }
+        const int age = shape_[k].empty() ? 0 : bounces_ - shape_bounce_[k];
+        if (age == 1) return false;  // the pair two bounces before is kept: compare next bounce
         std::vector<double> pair;
         for (int side = 0; side < r.sides; ++side) {
             const auto& l = r.L[side].coeffs();
             const auto& before = r.Ltmp[side].coeffs();
             for (size_t c = 0; c < l.size(); ++c) pair.push_back(l[c] + before[c]);
         }
-        const int age = bounces_ - shape_bounce_[k];
-        if (shape_[k].empty() || age > 2) {
+        if (age != 2) {  // none kept, or kept too long ago
             shape_[k] = std::move(pair), shape_bounce_[k] = bounces_;
             return false;
         }
-        if (age < 2) return false;
         const auto& s = state_[k];
         double deviation[3] = {0, 0, 0};
         for (size_t c = 0; c < pair.size(); ++c)
