@@ -5,6 +5,7 @@
 
 #include "bindings.h"
 #include "bsgi/fitting.h"
+#include "bsgi/sharpen.h"
 
 namespace py = pybind11;
 
@@ -105,6 +106,16 @@ void bind_fitting(py::module_& m) {
         py::arg("spline"), py::arg("samples"), py::arg("method") = "schoenberg",
         "Sets the coefficients from f sampled on the grid of fitting_nodes(spline, method), channels last; the "
         "rule is applied dimension by dimension.");
+    m.def(
+        "sharpen_samples",
+        [](TensorSpline& s, int axis, const std::vector<double>& nodes) {
+            py::gil_scoped_release release;
+            sharpen_samples(s, axis, nodes);
+        },
+        py::arg("spline"), py::arg("axis"), py::arg("nodes") = std::vector<double>{},
+        "In place along `axis`: coefficients that are samples of f at `nodes` (default: the axis's Schoenberg "
+        "nodes) become the limited quadratic correction of Schoenberg's fit (sharpen.h): quadratics reproduced "
+        "where f is smooth, no correction where its curvature changes sign (an edge).");
 }
 
 }  // namespace bsgi::bindings

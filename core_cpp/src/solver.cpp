@@ -10,6 +10,7 @@
 #include "bsgi/discontinuities.h"
 #include "bsgi/gather.h"
 #include "bsgi/parallel.h"
+#include "bsgi/sharpen.h"
 #include "bsgi/sides.h"
 
 namespace bsgi {
@@ -543,6 +544,18 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
         progress.advance(end - begin);
     }, progress.cancel_flag());
     progress.throw_if_cancelled();
+    if (settings.sharpen_fit) {
+        parallel_for(end - begin, 1, settings.threads, [&](size_t b, size_t e) {
+            for (size_t k = begin + b; k < begin + e; ++k) {
+                if (!skip.empty() && skip[k]) continue;
+                Receiver& r = receivers[k];
+                const std::vector<double> nodes[2] = {nodes_beside_jumps(r.axes[0]), nodes_beside_jumps(r.axes[1])};
+                for (int side = 0; side < r.sides; ++side)
+                    if (r.solves(side))
+                        for (int axis = 0; axis < 2; ++axis) sharpen_samples((r.*target)[side], axis, nodes[axis]);
+            }
+        });
+    }
     return rays;
 }
 

@@ -142,9 +142,15 @@ def test_fine_checker_bounces_its_mean_colour():
     image = checker(32)
     _, textured = bounce_onto_wall([0.5] * 3, image)
     _, uniform = bounce_onto_wall(image.reshape(-1, 3).mean(axis=0))
-    err = np.abs(textured / uniform - 1).max()
-    print(f"wall lit by a 32 x 32 checker floor against its mean colour: max relative difference {err:.2e}")
-    assert err <= 1.3e-3  # measured 6.5e-4
+    rows = np.abs(textured / uniform - 1).max(axis=1).reshape(5, 5).max(axis=1)  # by height on the wall
+    print(f"wall lit by a 32 x 32 checker floor against its mean colour: max relative difference by height "
+          f"{np.array2string(rows, precision=1)}")
+    # Above its lowest row. The wall's lowest nodes, at epsilon above the floor, see the one 3 cm
+    # texel beside them (as they should: a wall's base takes the colour of the floor it stands
+    # on), and the sharpened fit carries an eighth of that into the lowest row (1.3%; 3.5e-4
+    # with Schoenberg's fit).
+    assert rows[1:].max() <= 1e-3  # measured 4.0e-4
+    assert rows[0] <= 0.026
 
 
 def test_half_red_floor_reddens_the_wall_near_it():

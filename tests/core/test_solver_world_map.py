@@ -180,11 +180,14 @@ def test_floor_under_a_ceiling_matches_the_brute_force_integral():
     errors = {n: error_vs_brute_force(image, n) for n in (8, 16, 32)}
     print("\nfloor under a ceiling, sky + glow + sun vs brute force, (max, mean) relative error by theta nodes:",
           {k: (round(v[0], 4), round(v[1], 4)) for k, v in errors.items()})
-    # Measured: max 0.8% at every node count (the spline's fit of the sky's shadow), mean 0.17%
-    # at 8 nodes, 0.05% at 32.
-    assert max(e[0] for e in errors.values()) < 0.015
-    assert errors[8][1] < 0.0035
-    assert errors[32][1] < 0.001
+    # Measured (max, mean): 8 nodes 2.0%, 0.33%; 16 nodes 1.06%, 0.13%; 32 nodes 0.58%, 0.07%.
+    # The ceiling's edge cuts the sky: a step in the integrand, which the rule's Gauss nodes in
+    # cos(theta) (cosine_rule.h) integrate less well with few nodes than the former equal-weight
+    # ones (max 0.8%, mean 0.17% at 8 nodes; 0.05% mean at 32), while smooth light they
+    # integrate exactly; the error falls with the nodes.
+    assert errors[8][0] < 0.04 and errors[16][0] < 0.021 and errors[32][0] < 0.012
+    assert errors[8][1] < 0.0066
+    assert errors[32][1] < 0.0014
 
 
 def test_bad_world_maps_are_refused_by_name():

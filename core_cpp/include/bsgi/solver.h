@@ -44,6 +44,12 @@ struct SolverSettings {
     // are parameter lines of a planar receiver, with the multiplicity of their order; the other
     // knots spread between them (by the probe's density with adaptive_knots).
     bool discontinuity_knots = false;
+    // Each gathered spline's samples at its spatial Schoenberg nodes become the limited quadratic
+    // correction of Schoenberg's fit (sharpen.h): under a peak of light Schoenberg's spline is low
+    // by h^2 |f''| / 8, which the bounces add up; sharpened, quadratics are reproduced where the
+    // light is smooth, from the same rays. Off: the samples are the coefficients (12), as in the
+    // paper.
+    bool sharpen_fit = true;
 
     // Angular representation of glossy surfaces: knots (24) on [-R, R] in alpha and beta,
     // R = sqrt(1 - sin delta) so directions reach theta = pi/2 - delta. The count per direction
