@@ -21,10 +21,12 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 
 # Measured at the final preset (bench/validation/validate.py measure --preset final): relative RMSE,
 # worst object's mean ratio; the bounds sit within about 2x of them (the ratio's distance from 1).
-MEASURED = {"open_box": (0.0376, 1.0077),  # the GGX panel
-            "table_spheres": (0.0413, 1.0052),  # the diffuse sphere
-            "ceiling_light": (0.0081, 0.9913),  # the ceiling
-            "thin_occluder": (0.0225, 1.0053)}  # the small wall (26 pairs)
+# (3 December, with the sharpened fit and the hemisphere rule's Gauss nodes; before: 3.76%,
+# 4.13%, 0.81%, 2.25%.)
+MEASURED = {"open_box": (0.0356, 1.0092),  # the GGX panel
+            "table_spheres": (0.0276, 1.0034),  # the diffuse sphere
+            "ceiling_light": (0.0042, 1.0006),  # the floor
+            "thin_occluder": (0.0188, 1.0040)}  # the small wall (26 pairs)
 # The targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
 TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01}
 
