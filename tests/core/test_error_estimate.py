@@ -85,7 +85,10 @@ CASES = [(name, preset) for name in SCENES for preset in ("preview", "final")]
 # spans wider than the coarse ones there). Now the short box's face 0 at preview is estimated at
 # 3.8 x: after a regather the estimate takes the coarse-against-fine input difference as the fine
 # splines' own error (first order, as at a contact shadow), and here they err far less.
-KNOWN = {("cornell", "preview"): "short box 0 estimated at 3.8 x measured (2.8%): the input term after a regather"}
+# (The Cornell box at preview was one too: short box 0 at 3.8 x measured, 2.8%; with the sharpened
+# fit its error is 2.1%, within twice the reference's noise there, so it is not judged.)
+KNOWN = {("occluded floor", "preview"): "plate estimated at 3.3 x measured (4.9%): the input term after a regather "
+                                        "(16%; 10.5% with Schoenberg's fit, the floor's coarse spline now sharper)"}
 
 
 def test_lone_floor_estimate_is_its_direct_light_error():
