@@ -207,7 +207,10 @@ def test_mirrored_mesh_with_mirror_u_falls_back_to_a_generated_map_in_half_the_s
     difference = np.abs(baked - reference).max() / reference.max()
     print(f"\nmirrored plate (Mirror U, generated map in half the square): baked vs applied per face, max "
           f"difference {difference:.4f} of the maximum radiance")
-    assert len(reference) == 64 and difference < 0.003  # measured 0.0014
+    # Measured 0.0118 (0.0014 before the sharpened fit): the chart's one spline is sharpened, the
+    # applied mesh's per-face splines (fewer than 6 coefficients each) are not, so the reference
+    # keeps Schoenberg's low bias under the light.
+    assert len(reference) == 64 and difference < 0.024
 
 
 def _modified_state(obj):
