@@ -51,7 +51,9 @@ void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& 
     if (line.n() != n)
         throw std::invalid_argument("sharpen: " + std::to_string(nodes.size()) + " nodes for " + std::to_string(n) +
                                     " coefficients");
-    if (d < 2) return;
+    // With fewer than 6 coefficients the samples are too few to tell a peak from what the end
+    // samples see past the surface's edge (a floor under a pane, its edges seeing the sky past it).
+    if (d < 2 || (!line.periodic && n < 6)) return;
     // A periodic axis's nodes are wrapped into the period (the first lies at its end).
     if (line.periodic)
         for (int j = 1; j < n; ++j)
@@ -69,12 +71,8 @@ void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& 
     // Stencils are the sample and its two neighbours. A coefficient with no sample beyond it (the
     // ends: for clamped knots they interpolate and need no correction) takes the curvature its
     // two stencils inward share. End samples, at epsilon from the surface's edge, see past it at
-    // close range, so they count as no peak or trough; with fewer than 6 coefficients the samples
-    // are too few to tell a peak from that (a floor under a pane, its edges seeing the sky past
-    // it): left as they are.
-    const int first = line.periodic ? 0 : 1;
-    if (!line.periodic && n < 6) return;
-    auto interior = [&](int j) { return j >= 0 && (line.periodic || (j >= first && j <= n - 1 - first)); };
+    // close range, so they count as no peak or trough. (has[j]: sample j has neighbours on both
+    // sides, so an end sample's curvature never enters a minmod.)
     const std::vector<size_t> shape = spline.shape();
     size_t inner = 1, outer = 1;
     for (size_t k = size_t(axis) + 1; k < shape.size(); ++k) inner *= shape[k];
@@ -110,13 +108,13 @@ void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& 
                 out[i] = f[i];
                 if (beta[i] == 0) continue;
                 // The stencil: the sample and its neighbours, moved inward next to an end.
-                const int c = line.periodic ? i : std::clamp(i, first, n - 1 - first);
+                const int c = line.periodic ? i : std::clamp(i, 1, n - 2);
                 if (!has[c]) continue;
                 if (c != i) {
                     // Next to an end: the curvature the two stencils inward share, no more (taken
                     // from elsewhere, a peak's curvature would lift the coefficient beside it).
                     const int inward = c + (c > i ? 1 : -1);
-                    out[i] = f[i] + beta[i] * (interior(inward) && has[inward] ? minmod(dd[c], dd[inward]) : 0.0);
+                    out[i] = f[i] + beta[i] * (has[inward] ? minmod(dd[c], dd[inward]) : 0.0);
                     if (f[i] >= 0 && f[c] >= 0) out[i] = std::max(out[i], 0.0);
                     continue;
                 }
@@ -129,7 +127,7 @@ void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& 
                 // radiance): a rounding's difference makes no more than a rounding's difference.
                 double shared = dd[c];
                 for (int w : {l, r})
-                    if (interior(w) && has[w]) shared = minmod(shared, dd[w]);
+                    if (has[w]) shared = minmod(shared, dd[w]);
                 const double correction = out[i] - f[i];
                 const double stands = std::min(std::abs(correction), standing_out(i, correction > 0 ? 1 : -1));
                 const double slack = std::max(std::abs(shared * beta[i]), stands);

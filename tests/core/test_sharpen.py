@@ -140,3 +140,13 @@ def test_refusals():
     f32 = bsgi.TensorSpline([k], 1, precision="float32")
     with pytest.raises(ValueError, match="Float64"):
         bsgi.sharpen_samples(f32, 0)
+
+
+def test_unclamped_knots_correct_their_end_coefficients_from_inside():
+    # Unclamped knots: the end coefficients do not interpolate (beta != 0) and have no sample
+    # beyond them; they take the curvature the stencils inward share, exact on a quadratic.
+    k = bsgi.KnotVector(np.linspace(-0.3, 1.3, 12), 2)
+    lo, hi = k.domain
+    p = np.polynomial.Polynomial([0.9, -0.4, 1.1])
+    assert max_error(sharpened(k, p), p, lo, hi) <= 1e-12
+    assert max_error(schoenberg(k, p), p, lo, hi) > 1e-3

@@ -25,7 +25,8 @@ namespace bsgi {
 
 // In place along `axis` of a Float64 spline whose coefficients are samples of f at `nodes` along
 // that axis (one per coefficient; empty: the axis's Schoenberg nodes). Degrees 0 and 1 are left
-// as they are (their Schoenberg fit already reproduces what a quadratic correction would). A
+// as they are (their Schoenberg fit already reproduces what a quadratic correction would), and so
+// are open axes of fewer than 6 coefficients (too few samples clear of the ends). A
 // coefficient whose three samples are all >= 0 stays >= 0, so a non-negative radiance keeps
 // non-negative coefficients. Throws std::invalid_argument for a bad axis or node count.
 void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& nodes = {});
