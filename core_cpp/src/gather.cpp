@@ -275,7 +275,7 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
 
 bool Gatherer::indirect_change(const Receiver& r, size_t j, const std::vector<const Receiver*>& now_of,
                                const std::vector<const Receiver*>& before_of, double density, double lobe_width, Vec3* out,
-                               size_t& rays) const {
+                               size_t& rays, const std::vector<double>* scale_of) const {
     const double solid_angle = ray_solid_angle(density);
     bool glossy = false;
     hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
@@ -284,7 +284,7 @@ bool Gatherer::indirect_change(const Receiver& r, size_t j, const std::vector<co
         Vec3 change{0, 0, 0};
         if (now) change += seen_radiance(*now, &Receiver::Le, hit, dir, solid_angle), glossy |= now->kind != Representation::Diffuse && now->bsdf->lobe_width() < lobe_width;
         if (before) change -= seen_radiance(*before, &Receiver::Le, hit, dir, solid_angle);
-        return change;
+        return scale_of ? change * (*scale_of)[hit.surface] : change;
     }, out, rays);
     return glossy;
 }

@@ -1195,28 +1195,28 @@ struct SolveSteps::State {
     // gathered as the last phase would gather it (direct light, and the others' cumulative
     // radiance Le with the world's along the same rays: without a final gather, the bounces'
     // sum Le is the fixed point of that gather) against the spline, relative RMS over the
-    // visible checks; every other check gathered again from the final splines, every fourth at
-    // doubled integration nodes; and `tail`, per receiver, the bounces' radiance still missing.
+    // visible checks; at every other check the error of the input the gather read (the others'
+    // splines, from their coarse and final ones), at every fourth the gather at doubled
+    // integration nodes; and `tail`, per receiver, the bounces' radiance still missing.
     // `parts`: per receiver, the four parts added in quadrature (SurfaceReport::error_parts).
     std::vector<double> estimate_errors(const std::vector<Receiver>& result, const std::vector<double>& tail, Progress& progress,
                                         size_t& rays, std::vector<std::array<double, 4>>& parts) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
         const int density = settings.final_gather ? settings.final_integration_factor : 1;
         const size_t n = size_t(settings.error_checks);
-        // The second gather also takes its indirect light from the final splines where there are
-        // some: the others' coarse splines Le, which the final gather read, err more than the
-        // finals (the contact shadows blurred over a coarse grid), and that error enters each
-        // surface's light through its gather, where its own splines cannot show it.
+        // The others' splines a gather read err (the contact shadows blurred over a coarse grid),
+        // and that error enters each surface's light through its gather, where its own splines
+        // cannot show it: it is measured from the others' coarse and final splines.
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
         // A regather read the previous final splines, close to the result's: its gather is
-        // checked from the result's, and the coarse splines show how far the input still errs.
+        // checked from the result's.
         const bool regathered = settings.final_gather && settings.final_passes > 1;
         const std::vector<const Receiver*>& last_of = regathered ? result_of : receiver_of;
-        const std::vector<const Receiver*>& other_of = regathered ? receiver_of : result_of;
-        // Per (receiver, check), weighted: squared error of the spline, squared differences of the
-        // gathers from the final splines and at doubled nodes, the gathered radiance, the weight.
+        // Per (receiver, check), weighted: squared errors of the spline and of the coarse one
+        // against the gather, of the input, of the gather against doubled nodes; the gathered
+        // radiance; the weight.
         struct Check {
-            double fit = 0, input = 0, integration = 0, radiance = 0, values = 0;  // values: their weight
+            double fit = 0, coarse_fit = 0, input = 0, integration = 0, radiance = 0, values = 0;  // values: their weight
         };
         std::vector<Check> checks(result.size() * n);
         std::vector<std::vector<CheckPoint>> points(result.size());
@@ -1243,72 +1243,137 @@ struct SolveSteps::State {
         }, progress.cancel_flag());
         progress.throw_if_cancelled();
         rays += candidate_rays;
-        // Every other check is gathered again from the final splines, every fourth also at doubled
+        // Every other check measures the input's error, every fourth also gathers at doubled
         // integration nodes (four times the rays): spread over the surface as all of them are.
         auto input_check = [](size_t i) { return i % 2 == 0; };
         auto fine_check = [](size_t i) { return i % 4 == 0; };
+        // The weight of each (side, direction) value of check w in the surface's means: 0 where
+        // not seen. Only what a viewer can see counts: a value along a direction whose ray meets
+        // the back of an opaque surface (the floor under a box, the ceiling behind a lamp) lies
+        // inside a closed object; a diffuse value counts by its share of visible directions.
+        auto value_weights = [&](size_t w, const SurfacePoint& p, const std::vector<Vec3>& dirs, size_t& counted) {
+            const Receiver& r = result[w / n];
+            const std::array<bool, 2> seen = sides_seen(r);
+            const double weight_of_point = points[w / n][w % n].weight;
+            const bool diffuse = r.kind == Representation::Diffuse && !r.partner;
+            std::vector<double> weight(2 * dirs.size(), 0.0);
+            for (int side = 0; side < 2; ++side)
+                for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
+                    const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
+                    if (!behind(p.p, p.frame.z, d, counted)) weight[side * dirs.size() + a] = weight_of_point * (diffuse ? 1.0 / dirs.size() : 1.0);
+                }
+            return weight;
+        };
+        // The surface's light is the sum of its parts (D and S of (38), a tint's pair), compared
+        // at (side, direction) values; a diffuse part has one per side. `gathered(q, part)` adds
+        // a part's light at the probe q into `out` (m of them: side-major, then direction).
+        auto values_of = [&](const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& dirs, auto&& gathered) {
+            const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
+            std::vector<Vec3> values(2 * nd, Vec3{0, 0, 0}), out;
+            const std::array<bool, 2> seen = sides_seen(r);
+            for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
+                const Receiver q = probe_of(*part, p, dirs);
+                out.assign(q.sides * q.per_node, {0, 0, 0});
+                gathered(q, *part, out);
+                for (int side = 0; side < q.sides; ++side)
+                    for (size_t a = 0; a < nd && seen[side]; ++a) values[side * nd + a] += out[side * q.per_node + (q.per_node == 1 ? 0 : a)];
+            }
+            return values;
+        };
+        auto gather_from = [&](const Gatherer& by, const std::vector<const Receiver*>& from, size_t& counted) {
+            return [&by, &from, &counted, density](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
+                std::vector<Vec3> direct(out.size());
+                by.direct(q, 0, direct.data(), counted);
+                by.indirect(q, 0, from, &Receiver::Le, density, true, out.data(), counted);
+                for (size_t k = 0; k < out.size(); ++k) out[k] += direct[k];
+            };
+        };
+        // The splines `which_of` (the finals, or the coarse ones) at the check: a part's own splines.
+        auto spline_at = [&](const std::vector<const Receiver*>& which_of, double u, double v) {
+            return [&which_of, u, v](const Receiver& q, const Receiver& part, std::vector<Vec3>& out) {
+                const Receiver* whole = which_of[part.surface];
+                const Receiver* own = part.is_partner ? (whole ? whole->partner : nullptr) : whole;
+                if (!own) return;
+                for (int side = 0; side < q.sides; ++side)
+                    for (size_t b = 0; b < q.per_node; ++b) out[side * q.per_node + b] += own->own_radiance(&Receiver::Le, u, v, q.outgoing(side, b));
+            };
+        };
+        auto squared = [](const Vec3& e) { return dot(e, e) / 3; };
         std::atomic<size_t> check_rays{0};
+        // First: the spline (and the coarse one) against the last phase's gather, and the gather
+        // at doubled nodes.
         parallel_for(checks.size(), 1, settings.threads, [&](size_t begin, size_t end) {
             size_t local = 0;
-            std::vector<Vec3> g, f, h;
             for (size_t w = begin; w < end; ++w) {
                 const Receiver& r = result[w / n];
-                if (r.is_partner) continue;
                 const size_t i = w % n;
-                if (i >= points[w / n].size()) continue;
-                const auto [u, v, weight_of_point] = points[w / n][i];
+                if (r.is_partner || i >= points[w / n].size()) continue;
+                const auto [u, v, _] = points[w / n][i];
                 const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
                 const std::vector<Vec3> dirs = check_directions(i);
-                const std::array<bool, 2> seen = sides_seen(r);
-                // The surface's light is the sum of its parts (D and S of (38), a tint's pair),
-                // compared at (side, direction) values; a diffuse part has one per side.
-                const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
-                std::vector<Vec3> G(2 * nd, Vec3{0, 0, 0}), S = G, F = G, I = G;
-                for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
-                    const Receiver q = probe_of(*part, p, dirs);
-                    const size_t m = q.sides * q.per_node;
-                    auto gathered = [&](const Gatherer& by, const std::vector<const Receiver*>& from, std::vector<Vec3>& out) {
-                        std::vector<Vec3> direct(m);
-                        out.assign(m, {0, 0, 0});
-                        by.direct(q, 0, direct.data(), local);
-                        by.indirect(q, 0, from, &Receiver::Le, density, true, out.data(), local);
-                        for (size_t k = 0; k < m; ++k) out[k] += direct[k];
-                    };
-                    gathered(*gather, last_of, g);
-                    if (input_check(i)) {
-                        if (settings.final_gather) gathered(*gather, other_of, h);
-                        else h = g;  // the input was the result's own splines
-                    }
-                    if (fine_check(i)) gathered(*fine_gather, result_of, f);
-                    for (int side = 0; side < q.sides; ++side)
-                        for (size_t a = 0; a < nd && seen[side]; ++a) {
-                            const size_t b = q.per_node == 1 ? 0 : a, k = side * q.per_node + b;
-                            G[side * nd + a] += g[k];
-                            if (input_check(i)) I[side * nd + a] += h[k];
-                            if (fine_check(i)) F[side * nd + a] += f[k];
-                            S[side * nd + a] += part->own_radiance(&Receiver::Le, u, v, q.outgoing(side, b));
-                        }
+                const std::vector<Vec3> G = values_of(r, p, dirs, gather_from(*gather, last_of, local));
+                const std::vector<Vec3> S = values_of(r, p, dirs, spline_at(result_of, u, v));
+                std::vector<Vec3> C, F, I;
+                if (settings.final_gather) C = values_of(r, p, dirs, spline_at(receiver_of, u, v));
+                if (fine_check(i)) {
+                    F = values_of(r, p, dirs, gather_from(*fine_gather, result_of, local));
+                    // The doubled nodes' baseline: the gather at the phase's nodes of the same splines.
+                    I = regathered || !settings.final_gather ? G : values_of(r, p, dirs, gather_from(*gather, result_of, local));
                 }
-                // Only what a viewer can see counts: a value along a direction whose ray meets the
-                // back of an opaque surface (the floor under a box, the ceiling behind a lamp)
-                // lies inside a closed object; a diffuse value counts by its share of visible directions.
+                const std::vector<double> weight = value_weights(w, p, dirs, local);
                 Check& c = checks[w];
-                for (int side = 0; side < 2; ++side)
-                    for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
-                        const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
-                        if (behind(p.p, p.frame.z, d, local)) continue;
-                        const size_t k = side * nd + (nd == 1 ? 0 : a);
-                        const double weight = weight_of_point * (nd == 1 ? 1.0 / dirs.size() : 1.0);
-                        const Vec3 e = S[k] - G[k], input = I[k] - G[k], integration = F[k] - (regathered ? G[k] : I[k]);
-                        c.fit += weight * dot(e, e) / 3;
-                        if (input_check(i)) c.input += weight * dot(input, input) / 3;
-                        if (fine_check(i)) c.integration += weight * dot(integration, integration) / 3;
-                        c.radiance += weight * (G[k].x + G[k].y + G[k].z) / 3;
-                        c.values += weight;
-                    }
+                const size_t nd = S.size() / 2;
+                for (size_t x = 0; x < weight.size(); ++x) {
+                    if (weight[x] == 0) continue;
+                    const size_t k = (x / dirs.size()) * nd + (nd == 1 ? 0 : x % dirs.size());
+                    c.fit += weight[x] * squared(S[k] - G[k]);
+                    if (!C.empty()) c.coarse_fit += weight[x] * squared(C[k] - G[k]);
+                    if (fine_check(i)) c.integration += weight[x] * squared(F[k] - I[k]);
+                    c.radiance += weight[x] * (G[k].x + G[k].y + G[k].z) / 3;
+                    c.values += weight[x];
+                }
             }
             check_rays += local;
         }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        // Each surface's finals against its coarse splines: a fraction r of the coarse error
+        // remains (measured above, at its checks, against the gather), so what the coarse
+        // splines err is the difference between the two over 1 - r, what the finals err that
+        // over 1/r - 1 (Richardson, with the order measured rather than assumed). The input a
+        // surface read (the others' coarse splines, or after a regather their finals) errs by
+        // their difference gathered, each other surface's weighted so. r is taken as at most
+        // 1/2 (first order, as at a contact shadow): nearer 1 the difference is noise.
+        std::vector<double> input_scale(scene.size(), 1.0);
+        if (settings.final_gather)
+            for (size_t k = 0; k < result.size(); ++k) {
+                if (result[k].is_partner) continue;
+                double fine = 0, coarse = 0;
+                for (size_t i = 0; i < n; ++i) fine += checks[k * n + i].fit, coarse += checks[k * n + i].coarse_fit;
+                const double r = coarse > 0 ? std::min(std::sqrt(fine / coarse), 0.5) : 0.5;
+                input_scale[result[k].surface] = regathered ? r / (1 - r) : 1 / (1 - r);
+            }
+        // Then the input: the others' finals less their coarse splines, gathered and weighted.
+        if (settings.final_gather)
+            parallel_for(checks.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+                size_t local = 0;
+                for (size_t w = begin; w < end; ++w) {
+                    const Receiver& r = result[w / n];
+                    const size_t i = w % n;
+                    if (r.is_partner || i >= points[w / n].size() || !input_check(i)) continue;
+                    const auto [u, v, _] = points[w / n][i];
+                    const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
+                    const std::vector<Vec3> dirs = check_directions(i);
+                    const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
+                        gather->indirect_change(q, 0, result_of, receiver_of, density, 0, out.data(), local, &input_scale);
+                    });
+                    const std::vector<double> weight = value_weights(w, p, dirs, local);
+                    Check& c = checks[w];
+                    const size_t nd = E.size() / 2;
+                    for (size_t x = 0; x < weight.size(); ++x)
+                        if (weight[x] > 0) c.input += weight[x] * squared(E[(x / dirs.size()) * nd + (nd == 1 ? 0 : x % dirs.size())]);
+                }
+                check_rays += local;
+            }, progress.cancel_flag());
         progress.throw_if_cancelled();
         rays += check_rays;
         std::vector<double> errors(result.size(), std::nan(""));
@@ -1334,13 +1399,9 @@ struct SolveSteps::State {
             }
             auto rms = [&](double squared, double values) { return values > 0 ? std::sqrt(squared / values) / mean : 0.0; };
             const double e_fit = rms(all.fit, all.values);
-            // The coarse splines' error reaches the gather as the final splines' difference from
-            // them, halved: where it dominates (a contact shadow, blurred over a coarse grid) a
-            // spline's error converges at first order in its knot spacing, and the finals have
-            // half the coarse spacing (Richardson). The doubled integration nodes' difference is
-            // taken as the integration error itself (the rules converge faster where smooth).
-            // After a regather the input was the finals: the difference is their own error.
-            const double e_input = (regathered ? 1 : 2) * rms(input.input, input.values);
+            // The doubled integration nodes' difference is taken as the integration error itself
+            // (the rules converge faster where smooth).
+            const double e_input = rms(input.input, input.values);
             const double e_int = rms(fine.integration, fine.values);
             const double e_tail = std::min(tail[k], 1.0);  // not converged: as large as the radiance
             errors[k] = std::sqrt(e_fit * e_fit + e_input * e_input + e_int * e_int + e_tail * e_tail);

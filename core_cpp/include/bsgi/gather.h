@@ -100,10 +100,11 @@ public:
     // The same gathered from the change of the others' radiance: the splines Le of `now_of`
     // less those of `before_of` (a second final gather's correction; the world cancels).
     // Returns whether a ray met a glossy surface whose lobe is narrower than `lobe_width`
-    // (Bsdf::lobe_width: its reflections' change is view-dependent and sharp).
+    // (Bsdf::lobe_width: its reflections' change is view-dependent and sharp). With `scale_of`,
+    // each surface's change is weighted by its entry (the error estimate's input).
     bool indirect_change(const Receiver& r, size_t j, const std::vector<const Receiver*>& now_of,
                          const std::vector<const Receiver*>& before_of, double density, double lobe_width, Vec3* out,
-                         size_t& rays) const;
+                         size_t& rays, const std::vector<double>* scale_of = nullptr) const;
     // The world's light at node j of r, scattered: the hemispherical integral (26)-(32) over
     // the directions no occluder stops, of the constant world or of the world map's smooth
     // remainder (its bright part is among the distant samples of direct()). Same layout as direct().

@@ -129,9 +129,10 @@ struct SolverSettings {
 
     // Per-surface error estimate (SurfaceReport::estimated_error): after the last phase, the
     // gathered radiance at error_checks points per surface that no node sits on (and, on glossy
-    // surfaces, along directions between the angular nodes) against the spline there; half of
-    // them gathered again from the final splines (the coarse splines' error the final gather
-    // read), a quarter at doubled integration nodes; plus the bounces' tail. Off: the reports'
+    // surfaces, along directions between the angular nodes) against the spline there; at half
+    // of them the error of the others' splines the last gather read (their final less their
+    // coarse splines, gathered, scaled by the order each surface's own checks show), at a
+    // quarter the gather at doubled integration nodes; plus the bounces' tail. Off: the reports'
     // estimated_error is NaN.
     bool estimate_error = true;
     int error_checks = 48;
