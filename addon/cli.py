@@ -57,7 +57,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", help="where to save the solved scene (default: overwrite the opened file)")
     parser.add_argument("--render", help="also render the camera view of the baked scene to this image")
     parser.add_argument("--resolution", type=int, nargs=2, default=(512, 512))
-    parser.add_argument("--preset", choices=["draft", "preview", "final", "custom"],
+    parser.add_argument("--preset", choices=["draft", "preview", "final", "reference", "custom"],
                         help="quality preset (default: the scene's setting)")
     parser.add_argument("--refine-to-error", type=float, metavar="ERROR",
                         help="refine surfaces whose estimated relative error is above ERROR (e.g. 0.02) and solve "

@@ -21,16 +21,21 @@ def _show_baked_update(self, context):
 
 
 # The core's presets (bsgi.SolverSettings.preset): each iterates the bounces on a coarse
-# representation and refines it once in a final gather; the README lists their measured time
-# and error. CUSTOM solves with the individual settings below instead.
+# representation and refines it in a final gather; the README lists their measured time
+# and error. CUSTOM solves with the individual settings below instead. The numbers are what a
+# .blend stores: REFERENCE, added after CUSTOM, took the next one.
 PRESETS = [
     ("DRAFT", "Draft", "Fastest: 8 spatial coefficients per direction, few integration nodes, 1% tolerance; "
-     "blurry shadows and highlights, for checking the light set-up"),
+     "blurry shadows and highlights, for checking the light set-up", "NONE", 0),
     ("PREVIEW", "Preview", "Balanced: 12 spatial coefficients per direction, the default integration nodes, "
-     "0.3% tolerance; a few times slower than Draft"),
-    ("FINAL", "Final", "Most accurate: 16 spatial coefficients with knots clustered at shadow edges, finer "
-     "glossy lobes, 0.1% tolerance; several times slower than Preview and more memory"),
-    ("CUSTOM", "Custom", "The coefficients, degree, bounces, tolerance and nodes set below, without a final gather"),
+     "0.3% tolerance; a few times slower than Draft", "NONE", 1),
+    ("FINAL", "Final", "16 spatial coefficients with knots clustered at shadow edges and on contact lines, "
+     "finer glossy lobes, 0.1% tolerance; several times slower than Preview and more memory", "NONE", 2),
+    ("REFERENCE", "Reference", "Most accurate: Final's bounces, and a final gather with 4 times the coefficients "
+     "per direction and twice the integration nodes; 5-8 times slower than Final, and for glossy surfaces "
+     "much more memory", "NONE", 4),
+    ("CUSTOM", "Custom", "The coefficients, degree, bounces, tolerance and nodes set below, without a final gather",
+     "NONE", 3),
 ]
 
 

@@ -1,8 +1,9 @@
-"""Accuracy per scene and preset (issue 15): each scene solved at draft, preview and final in a
-process of its own (bench/study/solve_blend.py: the add-on's export of the .blend, as a user's
-solve gets it) and compared with its committed Mitsuba 3 reference (bench/study/references/, 3,000
-random visible (point, direction) pairs; a reference made for an earlier version of the scene
-file is still used: the pairs and the scene's geometry are the same). Figures:
+"""Accuracy per scene and preset (issue 15): each scene solved at draft, preview and final (the
+validation scenes also at reference) in a process of its own (bench/study/solve_blend.py: the
+add-on's export of the .blend, as a user's solve gets it) and compared with its committed
+Mitsuba 3 reference (bench/study/references/, 3,000 random visible (point, direction) pairs; a
+reference made for an earlier version of the scene file is still used: the pairs and the scene's
+geometry are the same). Figures:
 
 - acc_<scene>_<preset>_rel_rmse, acc_<scene>_<preset>_seconds (CPU seconds of the solve),
 - acc_<scene>_<preset>_worst_surface_ratio: the mean radiance ratio (ours / Mitsuba) of the object
@@ -42,6 +43,9 @@ sys.path.insert(0, str(HERE / "validation"))
 SCENES = os.environ.get("BSGI_BENCH_ACCURACY", "cornell_box,contact_shadows,mug,bezier_patches,cornell_box_glossy_wall,"
                         "open_box,table_spheres,ceiling_light,thin_occluder").split(",")
 PRESETS = ("draft", "preview", "final")
+# The reference preset (5-8 times final's cost) on the validation scenes only, where the README
+# states its figures.
+REFERENCE_SCENES = ("open_box", "table_spheres", "ceiling_light", "thin_occluder")
 
 
 def cycles_seconds(scene: str, error: float) -> float | None:
@@ -98,7 +102,7 @@ def run() -> dict:
     figures = {}
     with tempfile.TemporaryDirectory() as tmp:
         for scene in SCENES:
-            for preset in PRESETS:
+            for preset in PRESETS + (("reference",) if scene in REFERENCE_SCENES else ()):
                 row = measure(scene, preset, Path(tmp))
                 for key, value in row.items():
                     figures[f"acc_{scene}_{preset}_{key}"] = value

@@ -295,7 +295,7 @@ def test_a_second_solve_reads_the_users_materials_not_the_baked_ones(context):
     assert floor.data.materials[0].name == "Grey"
 
 
-@pytest.mark.parametrize("preset", ["DRAFT", "PREVIEW", "FINAL"])
+@pytest.mark.parametrize("preset", ["DRAFT", "PREVIEW", "FINAL", "REFERENCE"])
 def test_quality_preset_is_the_cores_preset(context, preset):
     import bsgi
 
@@ -304,8 +304,21 @@ def test_quality_preset_is_the_cores_preset(context, preset):
     settings.spatial_coeffs = 5  # the individual settings are used by Custom only
     got, expected = settings.solver_settings(), bsgi.SolverSettings.preset(preset.lower())
     for name in ("spatial_coeffs", "adaptive_knots", "angular_resolution", "hemisphere_nodes_theta", "tolerance",
-                 "final_gather", "max_bounces"):
+                 "final_gather", "max_bounces", "discontinuity_knots", "final_spatial_factor", "final_integration_factor"):
         assert getattr(got, name) == getattr(expected, name), name
+
+
+def test_quality_numbers_a_blend_stores_keep_their_meaning(context):
+    # A .blend stores the Quality's number: Reference, added after Custom, took the next one, so
+    # a scene saved with Custom (3) before opens with Custom; every item but Custom names a preset
+    # of the core (an unknown name would fail at a user's solve).
+    import bsgi
+
+    items = context.scene.bsgi.bl_rna.properties["preset"].enum_items
+    assert {i.identifier: i.value for i in items} == {"DRAFT": 0, "PREVIEW": 1, "FINAL": 2, "CUSTOM": 3, "REFERENCE": 4}
+    for item in items:
+        if item.identifier != "CUSTOM":
+            bsgi.SolverSettings.preset(item.identifier.lower())
 
 
 def test_custom_preset_uses_the_individual_settings(context):

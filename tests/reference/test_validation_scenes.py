@@ -22,11 +22,11 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 # Measured at the final preset (bench/validation/validate.py measure --preset final): relative RMSE,
 # worst object's mean ratio; the bounds sit within about 2x of them (the ratio's distance from 1).
 # (3 December, with the sharpened fit and the hemisphere rule's Gauss nodes; before: 3.76%,
-# 4.13%, 0.81%, 2.25%.)
+# 4.13%, 0.81%, 2.25%; thin_occluder then 1.88% until the final preset's discontinuity knots.)
 MEASURED = {"open_box": (0.0356, 1.0092),  # the GGX panel
             "table_spheres": (0.0276, 1.0034),  # the diffuse sphere
             "ceiling_light": (0.0042, 1.0006),  # the floor
-            "thin_occluder": (0.0188, 1.0040)}  # the small wall (26 pairs)
+            "thin_occluder": (0.0121, 1.0024)}  # the floor
 # The issue's targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
 TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01}
 
@@ -71,6 +71,33 @@ def test_issue_target(scene, request):
     r = final(scene)
     assert r["rel_rmse"] <= TARGET[scene]
     assert abs(r["worst_surface_ratio"] - 1) <= 0.01
+
+
+# The reference preset (final's bounces; a final gather with discontinuity knots, 4x the spatial
+# coefficients per direction, 2x the integration nodes) on the two diffuse scenes, where it meets
+# the issue's target (validate.py measure --preset reference): relative RMSE, worst object's ratio.
+# ceiling_light's error is at its reference's noise (0.32%): bounded at twice that. The GGX scenes
+# (open_box 1.99%, table_spheres 2.52%, 5-8 minutes of CPU each) are measured by the same command
+# and not solved here.
+MEASURED_REFERENCE = {"thin_occluder": (0.0039, 1.0013),  # the floor
+                      "ceiling_light": (0.0034, 1.0002)}
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+@pytest.mark.parametrize("scene", sorted(MEASURED_REFERENCE))
+def test_reference_preset_meets_the_target(scene):
+    import validate
+
+    r = validate.measure(scene, "reference")
+    validate.print_row(scene, "reference", r)
+    error, ratio = MEASURED_REFERENCE[scene]
+    bound = max(2 * error, 2 * r["reference_noise"])
+    assert r["rel_rmse"] <= min(TARGET[scene], bound), r["rel_rmse"]
+    assert abs(r["worst_surface_ratio"] - 1) <= min(0.01, 2 * abs(ratio - 1)), r["surfaces"]
+    # Better than final.
+    base = final(scene)
+    assert r["rel_rmse"] < base["rel_rmse"]
 
 
 @pytest.mark.slow

@@ -42,7 +42,8 @@ struct SolverSettings {
     // Knots on the lines where the direct light is not smooth, found from the polygonal emitters'
     // and occluders' geometry (discontinuities.h: EV and VE events, contact lines) where they
     // are parameter lines of a planar receiver, with the multiplicity of their order; the other
-    // knots spread between them (by the probe's density with adaptive_knots).
+    // knots spread between them (by the probe's density with adaptive_knots). On in the final
+    // and reference presets.
     bool discontinuity_knots = false;
     // Each gathered spline's samples at its spatial Schoenberg nodes become the limited quadratic
     // correction of Schoenberg's fit (sharpen.h): under a peak of light Schoenberg's spline is low
