@@ -550,9 +550,15 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
                 if (!skip.empty() && skip[k]) continue;
                 Receiver& r = receivers[k];
                 const std::vector<double> nodes[2] = {nodes_beside_jumps(r.axes[0]), nodes_beside_jumps(r.axes[1])};
-                for (int side = 0; side < r.sides; ++side)
-                    if (r.solves(side))
-                        for (int axis = 0; axis < 2; ++axis) sharpen_samples((r.*target)[side], axis, nodes[axis]);
+                for (int side = 0; side < r.sides; ++side) {
+                    if (!r.solves(side)) continue;
+                    TensorSpline& spline = (r.*target)[side];
+                    for (int axis = 0; axis < 2; ++axis) sharpen_samples(spline, axis, nodes[axis]);
+                    // A glossy spline's angular samples are at its Schoenberg nodes too: of the
+                    // radiance extended outward from the disc's rim (the map pulls the nodes
+                    // beyond it in), a kink there that the limiter leaves alone.
+                    for (int axis = 2; axis < spline.dims(); ++axis) sharpen_samples(spline, axis);
+                }
             }
         });
     }
