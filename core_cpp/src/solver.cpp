@@ -118,6 +118,9 @@ double scene_extent(const Scene& scene) {
 // "Model only what the scene requires": the representation from the material, the knots from
 // the BSDF's lobe and the surface's size, unless the surface's options say otherwise.
 // `detail`: the coefficients per direction the surface's direct light asks for (0: not probed).
+// A BSDF's lobe width in the angular disc: near the pole r ~ theta / sqrt 2.
+double lobe_in_disc(const Bsdf& b) { return std::max(b.lobe_width(), 1e-3) / std::sqrt(2.0); }
+
 Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double extent, int spatial_scale,
                   const SurfaceSides& lit, std::array<int, 2> detail) {
     const SceneSurface& ss = scene[i];
@@ -191,8 +194,7 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         if (ss.options.angular_coeffs) {
             p.na = std::max(ss.options.angular_coeffs, s.angular_degree + 1);
         } else {
-            // Lobe width in the disc: near the pole r ~ theta / sqrt 2.
-            const double lobe = std::max(p.bsdf->lobe_width(), 1e-3) / std::sqrt(2.0);
+            const double lobe = lobe_in_disc(*p.bsdf);
             const double R = std::sqrt(1 - std::sin(s.angular_delta));
             p.na = std::clamp(int(std::ceil(s.angular_resolution * 2 * R / lobe)) + s.angular_degree, s.angular_coeffs_min,
                               s.angular_coeffs_max);
@@ -521,8 +523,7 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
 // through three samples to say its curvature, and sharpening lifted its peaks far too high (the
 // glass sheet's floor, lit through it, 8.9% -> 16.1% at preview).
 bool lobe_resolved(const Receiver& r, const KnotVector& angular) {
-    const double lobe = std::max(r.bsdf->lobe_width(), 1e-3) / std::sqrt(2.0);
-    return (angular.num_coeffs() - angular.degree()) * lobe >= 2 * 2 * r.map.radius();
+    return (angular.num_coeffs() - angular.degree()) * lobe_in_disc(*r.bsdf) >= 2 * 2 * r.map.radius();
 }
 
 // Runs `work(receiver, node, values)` for every node of receivers [begin, end) on all threads
@@ -1277,23 +1278,32 @@ struct SolveSteps::State {
         // integration nodes (four times the rays): spread over the surface as all of them are.
         auto input_check = [](size_t i) { return i % 2 == 0; };
         auto fine_check = [](size_t i) { return i % 4 == 0; };
-        // The weight of each (side, direction) value of check w in the surface's means: 0 where
-        // not seen. Only what a viewer can see counts: a value along a direction whose ray meets
-        // the back of an opaque surface (the floor under a box, the ceiling behind a lamp) lies
-        // inside a closed object; a diffuse value counts by its share of visible directions.
-        auto value_weights = [&](size_t w, const SurfacePoint& p, const std::vector<Vec3>& dirs, size_t& counted) {
-            const Receiver& r = result[w / n];
-            const std::array<bool, 2> seen = sides_seen(r);
-            const double weight_of_point = points[w / n][w % n].weight;
-            const bool diffuse = r.kind == Representation::Diffuse && !r.partner;
-            std::vector<double> weight(2 * dirs.size(), 0.0);
+        // Which (side, direction) values of check w count, bit side * kCheckDirections + a: only
+        // what a viewer can see. A value along a direction whose ray meets the back of an opaque
+        // surface (the floor under a box, the ceiling behind a lamp) lies inside a closed object.
+        // Kept per check, so that the input's pass casts no ray twice.
+        static_assert(2 * kCheckDirections <= 16, "a check's values are bits of a uint16_t");
+        std::vector<uint16_t> visible(checks.size(), 0);
+        auto visible_values = [&](size_t w, const SurfacePoint& p, const std::vector<Vec3>& dirs, size_t& counted) {
+            const std::array<bool, 2> seen = sides_seen(result[w / n]);
+            uint16_t bits = 0;
             for (int side = 0; side < 2; ++side)
                 for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
                     const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
-                    if (!behind(p.p, p.frame.z, d, counted)) weight[side * dirs.size() + a] = weight_of_point * (diffuse ? 1.0 / dirs.size() : 1.0);
+                    if (!behind(p.p, p.frame.z, d, counted)) bits |= uint16_t(1u << (side * dirs.size() + a));
                 }
-            return weight;
+            return bits;
         };
+        // The weight in the surface's means of value x of check w (0 where not seen), and its
+        // index among the nd values per side that values_of gives: a diffuse value counts by its
+        // share of visible directions.
+        auto value_weight = [&](size_t w, size_t x) {
+            if (!(visible[w] >> x & 1u)) return 0.0;
+            const Receiver& r = result[w / n];
+            const bool diffuse = r.kind == Representation::Diffuse && !r.partner;
+            return points[w / n][w % n].weight * (diffuse ? 1.0 / kCheckDirections : 1.0);
+        };
+        auto value_index = [](size_t x, size_t nd) { return (x / kCheckDirections) * nd + (nd == 1 ? 0 : x % kCheckDirections); };
         // The surface's light is the sum of its parts (D and S of (38), a tint's pair), compared
         // at (side, direction) values; a diffuse part has one per side. `gathered(q, part)` adds
         // a part's light at the probe q into `out` (m of them: side-major, then direction).
@@ -1350,17 +1360,17 @@ struct SolveSteps::State {
                     // The doubled nodes' baseline: the gather at the phase's nodes of the same splines.
                     I = regathered || !settings.final_gather ? G : values_of(r, p, dirs, gather_from(*gather, result_of, local));
                 }
-                const std::vector<double> weight = value_weights(w, p, dirs, local);
+                visible[w] = visible_values(w, p, dirs, local);
                 Check& c = checks[w];
-                const size_t nd = S.size() / 2;
-                for (size_t x = 0; x < weight.size(); ++x) {
-                    if (weight[x] == 0) continue;
-                    const size_t k = (x / dirs.size()) * nd + (nd == 1 ? 0 : x % dirs.size());
-                    c.fit += weight[x] * squared(S[k] - G[k]);
-                    if (!C.empty()) c.coarse_fit += weight[x] * squared(C[k] - G[k]);
-                    if (fine_check(i)) c.integration += weight[x] * squared(F[k] - I[k]);
-                    c.radiance += weight[x] * (G[k].x + G[k].y + G[k].z) / 3;
-                    c.values += weight[x];
+                for (size_t x = 0; x < 2 * dirs.size(); ++x) {
+                    const double weight = value_weight(w, x);
+                    if (weight == 0) continue;
+                    const size_t k = value_index(x, S.size() / 2);
+                    c.fit += weight * squared(S[k] - G[k]);
+                    if (!C.empty()) c.coarse_fit += weight * squared(C[k] - G[k]);
+                    if (fine_check(i)) c.integration += weight * squared(F[k] - I[k]);
+                    c.radiance += weight * (G[k].x + G[k].y + G[k].z) / 3;
+                    c.values += weight;
                 }
             }
             check_rays += local;
@@ -1396,11 +1406,8 @@ struct SolveSteps::State {
                     const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
                         gather->indirect_change(q, 0, result_of, receiver_of, density, 0, out.data(), local, &input_scale);
                     });
-                    const std::vector<double> weight = value_weights(w, p, dirs, local);
-                    Check& c = checks[w];
-                    const size_t nd = E.size() / 2;
-                    for (size_t x = 0; x < weight.size(); ++x)
-                        if (weight[x] > 0) c.input += weight[x] * squared(E[(x / dirs.size()) * nd + (nd == 1 ? 0 : x % dirs.size())]);
+                    for (size_t x = 0; x < 2 * dirs.size(); ++x)
+                        checks[w].input += value_weight(w, x) * squared(E[value_index(x, E.size() / 2)]);
                 }
                 check_rays += local;
             }, progress.cancel_flag());
