@@ -16,6 +16,7 @@ import random
 import sys
 import tempfile
 import threading
+import time
 
 import blend_file
 
@@ -72,26 +73,30 @@ def saved_bytes(path) -> bytes:
     return pathlib.Path(path).read_bytes()
 
 
-def attempt(delay: float, phase: str):
+def attempt(delay: float, phase: str, solve_seconds: list | None = None):
     """One solve and bake of the current scene, cancelled `delay` seconds after the solve starts
     (phase "solve") or after the bake starts ("bake"). Returns "solve" or "bake" (the part the
-    cancel stopped), or None if it finished first."""
+    cancel stopped), or None if it finished first. If the solve finished, its seconds are
+    appended to `solve_seconds`."""
     import bpy
 
     import bsgi
 
     progress = bsgi.Progress()
     timer = threading.Timer(delay, progress.cancel)
+    started = time.perf_counter()
 
     def on_progress(fraction, stage):
-        if stage == "done" and not timer.is_alive() and not timer.finished.is_set():  # the bake starts
-            timer.start()
+        if stage == "done":  # the solve is over, the bake starts
+            if solve_seconds is not None:
+                solve_seconds.append(time.perf_counter() - started)
+            if phase == "bake" and not timer.is_alive() and not timer.finished.is_set():
+                timer.start()
 
     if phase == "solve":
         timer.start()
     try:
-        pipeline().solve_and_bake(bpy.context, on_progress=on_progress if phase == "bake" else None,
-                                  progress=progress)
+        pipeline().solve_and_bake(bpy.context, on_progress=on_progress, progress=progress)
     except bsgi.SolveCancelled as error:
         return "bake" if "bake" in str(error) else "solve"
     finally:
@@ -113,9 +118,10 @@ def cancel_moments(moments: int, phase: str, seed: int, path) -> dict:
     its duration; after each, the saved .blend must hold the same data as the one saved just
     before the attempt: byte-identical, or equal but for the runtime fields and pointer numbers
     that blend_file.canonical() sets aside (a bake undone leaves the depsgraph's update tags).
-    Attempts that finish before their moment do not count (and shrink the span the moments are
-    drawn from by 5%, as does a cancel of a solve that lands in the bake); after those (and after a change) the scene is read back from the file
-    saved before them."""
+    Attempts that finish before their moment do not count; they shrink the span the moments are
+    drawn from by 5%, or for the solve to that attempt's own solve time if shorter (a machine whose
+    load fell after the timing), as does a cancel of a solve that lands in the bake. After those
+    (and after a change) the scene is read back from the file saved before them."""
     import bpy
 
     build_scene()
@@ -129,15 +135,16 @@ def cancel_moments(moments: int, phase: str, seed: int, path) -> dict:
     while sum(stopped.values()) < moments and finished < 3 * moments:
         delay = rng.uniform(0, span)
         before = saved_bytes(path)
-        where = attempt(delay, phase)
+        solve_seconds = []
+        where = attempt(delay, phase, solve_seconds)
         restore = where is None
         if where is None:  # the phase ran faster than the first one timed: draw from less
             finished += 1
-            span *= 0.95
+            span = min(0.95 * span, solve_seconds[0]) if phase == "solve" else 0.95 * span
         else:
             stopped[where] += 1
-            if where != phase:  # the solve ran faster than timed (a loaded machine): the same
-                span *= 0.95
+            if where != phase:  # the solve ran faster than timed (the machine's load fell): draw
+                span = min(0.95 * span, solve_seconds[0])  # from the solve as long as this one
             after = saved_bytes(path)
             identical[where] += after == before
             differences = [] if after == before else blend_file.differences(before, after, 3)
