@@ -153,7 +153,8 @@ def measure(scene: str, preset: str, overrides=None, work=None) -> dict:
         ours, figures, valid = solve(scene, spec, data, pathlib.Path(work or tmp))
     surfaces = per_surface(ours, data, valid, figures["estimate_at_pairs"], figures["parts_at_pairs"])
     return {**run_study.errors(ours, data, valid), "seconds": figures["cpu_seconds"], "wall_seconds": figures["seconds"],
-            "reference_noise": noise(data, valid), "surfaces": surfaces, "worst_surface_ratio": worst_ratio(surfaces)}
+            "reference_noise": noise(data, valid), "surfaces": surfaces, "worst_surface_ratio": worst_ratio(surfaces),
+            "refinement": figures.get("refinement")}
 
 
 def cycles(scene: str, samples, resolution, work=None) -> list:

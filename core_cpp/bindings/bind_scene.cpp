@@ -194,6 +194,14 @@ void bind_scene(py::module_& m) {
                 return s[i].options.spatial_coeffs;
             },
             py::arg("index"), "The spatial coefficients per direction set on surface `index` (0: automatic).")
+        .def("set_integration_factor", &Scene::set_integration_factor, py::arg("index"), py::arg("factor"),
+             "Times the final gather's integration nodes per axis for surface `index` (1: the settings').")
+        .def(
+            "integration_factor", [](const Scene& s, size_t i) {
+                if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+                return s[i].options.integration_factor;
+            },
+            py::arg("index"), "The factor on the final gather's integration nodes set on surface `index` (1: the settings').")
         .def_property(
             "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },

@@ -1122,6 +1122,12 @@ std::array<bool, 2> sides_seen(const Receiver& r) {
 // The settings of the error estimate's second gather: twice the integration nodes per direction
 // (hemisphere nodes, BSDF samples as a density of 2 would give them, emitter cells half as wide,
 // twice the world's bright directions).
+// The final gather's integration nodes per axis at receiver r: the settings' factor times the
+// surface's own (SurfaceOptions::integration_factor, which refinement raises).
+double final_density(const Scene& scene, const SolverSettings& s, const Receiver& r) {
+    return double(s.final_integration_factor) * scene[r.surface].options.integration_factor;
+}
+
 SolverSettings doubled_integration(SolverSettings s) {
     s.hemisphere_nodes_theta *= 2;
     s.hemisphere_nodes_phi *= 2;
@@ -1233,7 +1239,8 @@ struct SolveSteps::State {
     std::vector<double> estimate_errors(const std::vector<Receiver>& result, const std::vector<double>& tail, Progress& progress,
                                         size_t& rays, std::vector<std::array<double, 4>>& parts) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
-        const int density = settings.final_gather ? settings.final_integration_factor : 1;
+        // The integration nodes per axis of the gather that made a receiver's result.
+        auto density_at = [&](const Receiver& q) { return settings.final_gather ? final_density(scene, settings, q) : 1.0; };
         const size_t n = size_t(settings.error_checks);
         // The others' splines a gather read err (the contact shadows blurred over a coarse grid),
         // and that error enters each surface's light through its gather, where its own splines
@@ -1321,10 +1328,10 @@ struct SolveSteps::State {
             return values;
         };
         auto gather_from = [&](const Gatherer& by, const std::vector<const Receiver*>& from, size_t& counted) {
-            return [&by, &from, &counted, density](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
+            return [&by, &from, &counted, &density_at](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
                 std::vector<Vec3> direct(out.size());
                 by.direct(q, 0, direct.data(), counted);
-                by.indirect(q, 0, from, &Receiver::Le, density, true, out.data(), counted);
+                by.indirect(q, 0, from, &Receiver::Le, density_at(q), true, out.data(), counted);
                 for (size_t k = 0; k < out.size(); ++k) out[k] += direct[k];
             };
         };
@@ -1404,7 +1411,7 @@ struct SolveSteps::State {
                     const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
                     const std::vector<Vec3> dirs = check_directions(i);
                     const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
-                        gather->indirect_change(q, 0, result_of, receiver_of, density, 0, out.data(), local, &input_scale);
+                        gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
                     });
                     for (size_t x = 0; x < 2 * dirs.size(); ++x)
                         checks[w].input += value_weight(w, x) * squared(E[value_index(x, E.size() / 2)]);
@@ -1567,7 +1574,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
         rays += gather_all(targets, begin, end, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             std::vector<Vec3> direct(r.sides * r.per_node);
             gather.direct(r, j, direct.data(), n);
-            gather.indirect(r, j, s.receiver_of, &Receiver::Le, settings.final_integration_factor, true, out, n);
+            gather.indirect(r, j, s.receiver_of, &Receiver::Le, final_density(scene, settings, r), true, out, n);
             for (size_t k = 0; k < direct.size(); ++k) out[k] += direct[k];
         });
         return pack(targets, begin, end, &Receiver::Le);
@@ -1588,8 +1595,8 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     unpack(input.data(), fine_size, s.finals, 0, s.finals.size(), &Receiver::Le);
     unpack(input.data() + fine_size, coarse_size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
     for (size_t k = begin; k < end; ++k) targets[k].L = targets[k].Le;
-    const double full = settings.final_integration_factor;
     rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
+        const double full = final_density(scene, settings, r);
         if (gather.indirect_change(r, j, s.final_of, s.receiver_of, kRegatherDensity * full, kSharpLobe, out, n))
             gather.indirect_change(r, j, s.final_of, s.receiver_of, full, kSharpLobe, out, n);
     });

@@ -111,6 +111,7 @@ SCENE_CALLS = (
     "set_emission_texture",
     "set_specular_texture",
     "set_spatial_coeffs",
+    "set_integration_factor",
 )
 SCENE_PROPERTIES = ("world_radiance", "world_map")
 

@@ -1,23 +1,26 @@
 """Refinement driven by the per-surface error estimate (SolverSettings.refine_to_error).
 
 After a solve, every receiving surface whose estimated error (reports[i]["estimated_error"]) is
-over the target gets refine_factor times its spatial coefficients per direction (the scene's
-per-surface option, as Scene.set_spatial_coeffs sets it) and the scene is solved again, until
-every surface meets the target or a budget stops it: refine_passes solves beyond the first, the
-memory estimate of the refined scene against memory_budget_mb, and (if > 0) refine_seconds for
-all passes, the next pass's time predicted from the last one's and the growth of the
-coefficients. Only surfaces whose estimate is mostly their own spline's fit (error_parts["fit"] at
-least half the estimate) are refined: the other parts (the splines the gather read, integration,
-the bounces' tail) do not fall with the surface's own knots (the first falls with its neighbours'
-refinement). A surface whose estimate did not fall by a tenth after its refinement is not refined
-again (the estimate's noise, or a fit error the knots cannot reach).
+over the target is refined where its estimate says its error is (error_parts): mostly its own
+spline's fit (the part at least half the estimate), it gets refine_factor times its spatial
+coefficients per direction (Scene.set_spatial_coeffs); mostly the final gather's integration, it
+gets twice the integration nodes per axis there (Scene.set_integration_factor, four times that
+surface's final-gather rays). Then the scene is solved again, until every surface meets the
+target or a budget stops it: refine_passes solves beyond the first, the memory estimate of the
+refined scene against memory_budget_mb, and (if > 0) refine_seconds for all passes, the next
+pass's time predicted from the last one's and the growth of the coefficients (a surface's
+integration counted as four times its coefficients: an upper bound). The other parts (the splines
+the gather read, the bounces' tail) do not fall with the surface's own refinement (the first
+falls with its neighbours'). A surface whose estimate did not fall by a tenth after its
+refinement is not refined again (the estimate's noise, or an error the refinement cannot reach).
 
 The loop is here, around a whole solve, so that it works wherever the solve runs (here or on a
 Ray cluster): each pass is a solve from scratch; the scene's options are restored afterwards.
 Which sides of each surface are solved does not change with its coefficients: they are probed
 once, for every pass and every memory estimate.
 The solution carries ``refinement``: the passes, why refinement stopped, the rays and seconds of
-all passes, and per receiving surface its final estimate, coefficients and status.
+all passes, and per receiving surface its final estimate, coefficients, integration factor and
+status.
 """
 from __future__ import annotations
 
@@ -27,9 +30,12 @@ from typing import Callable, Optional
 
 from . import _core
 
-# Statuses of a receiving surface in solution.refinement["surfaces"].
-MET, OVER, NO_GAIN, NOT_FIT = "met", "over target", "no gain", "not its fit"
+# Statuses of a receiving surface in solution.refinement["surfaces"]; "not its own": its estimate
+# is mostly neither its fit nor its integration.
+MET, OVER, NO_GAIN, NOT_OWN = "met", "over target", "no gain", "not its own"
 GAIN = 0.9  # a refined surface's estimate must fall below GAIN times its previous one
+INTEGRATION_STEP = 2  # a refinement's factor on the integration nodes per axis
+MAX_INTEGRATION_FACTOR = 8  # Scene.set_integration_factor's bound
 
 
 def receivers(solution: _core.Solution) -> list:
@@ -44,10 +50,24 @@ def coarse_coeffs(report: dict, settings: _core.SolverSettings) -> int:
     return max(report["shape"][:2]) // scale
 
 
-def own_fit(report: dict) -> bool:
-    """Whether refining the surface's own spline can lower its estimate: its fit is at least
-    half of it (the other parts added in quadrature are then at most 0.87 of it)."""
-    return report["error_parts"]["fit"] >= 0.5 * report["estimated_error"]
+def own_part(report: dict, part: str) -> bool:
+    """Whether refining the surface's `part` ("fit": its spline, "integration": its final
+    gather's nodes) can lower its estimate: that part is at least half of it (the other parts
+    added in quadrature are then at most 0.87 of it)."""
+    return report["error_parts"][part] >= 0.5 * report["estimated_error"]
+
+
+def refinements(scene: _core.Scene, index: int, report: dict, settings: _core.SolverSettings) -> dict:
+    """What refining surface `index` changes: {"spatial_coeffs": n} where its fit is most of its
+    estimate, {"integration_factor": f} where the final gather's integration is (and can grow)."""
+    out = {}
+    if own_part(report, "fit"):
+        coarse = coarse_coeffs(report, settings)
+        out["spatial_coeffs"] = max(math.ceil(coarse * settings.refine_factor), coarse + 1)
+    factor = scene.integration_factor(index) * INTEGRATION_STEP
+    if settings.final_gather and own_part(report, "integration") and factor <= MAX_INTEGRATION_FACTOR:
+        out["integration_factor"] = factor
+    return out
 
 
 def coefficient_count(report: dict) -> int:
@@ -61,12 +81,20 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
     if not settings.estimate_error:
         raise ValueError("solver settings: refine_to_error needs estimate_error")
     target = settings.refine_to_error
-    own = {i: scene.spatial_coeffs(i) for i in range(len(scene))}
+    own = {i: (scene.spatial_coeffs(i), scene.integration_factor(i)) for i in range(len(scene))}
     start = time.perf_counter()
     rays = estimate_rays = 0
     refined: dict = {}  # scene index -> times refined
     no_gain: set = set()
     stopped = None
+
+    def apply(changes: dict):
+        for i, change in changes.items():
+            if "spatial_coeffs" in change:
+                scene.set_spatial_coeffs(i, change["spatial_coeffs"])
+            if "integration_factor" in change:
+                scene.set_integration_factor(i, change["integration_factor"])
+
     try:
         pass_start = time.perf_counter()
         if sides is None:
@@ -79,49 +107,56 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             estimate_rays += solution.stats["estimate_rays"]
             index = receivers(solution)
             reports = solution.reports[:len(index)]
-            over = [(i, r) for i, r in zip(index, reports)
-                    if r["estimated_error"] > target and i not in no_gain and own_fit(r)]
-            if not over:
+            over = {i: r for i, r in zip(index, reports) if r["estimated_error"] > target and i not in no_gain}
+            changes = {i: c for i, r in over.items() if (c := refinements(scene, i, r, settings))}
+            if not changes:
                 break
             if passes >= settings.refine_passes:
                 stopped = "passes"
                 break
-            counts = {i: max(math.ceil(coarse_coeffs(r, settings) * settings.refine_factor),
-                             coarse_coeffs(r, settings) + 1) for i, r in over}
-            before = {i: scene.spatial_coeffs(i) for i in counts}
-            for i, n in counts.items():
-                scene.set_spatial_coeffs(i, n)
+            before = {i: {"spatial_coeffs": scene.spatial_coeffs(i), "integration_factor": scene.integration_factor(i)}
+                      for i in changes}
+            apply(changes)
             if _core.estimate_solve_bytes(scene, settings, sides) > settings.memory_budget_mb * 1024 * 1024:
                 stopped = "memory"
             elif settings.refine_seconds > 0:
                 old = sum(coefficient_count(r) for r in reports)
-                growth = {i: (counts[i] / coarse_coeffs(r, settings)) ** 2 for i, r in over}
+                growth = {}
+                for i, c in changes.items():
+                    spatial = c.get("spatial_coeffs", 0) / coarse_coeffs(over[i], settings)
+                    growth[i] = max(spatial, 1.0) ** 2 * (INTEGRATION_STEP ** 2 if "integration_factor" in c else 1)
                 new = sum(coefficient_count(r) * growth.get(i, 1.0) for i, r in zip(index, reports))
                 if time.perf_counter() - start + last_seconds * new / old > settings.refine_seconds:
                     stopped = "time"
             if stopped:
-                for i, n in before.items():
-                    scene.set_spatial_coeffs(i, n)
+                apply(before)
                 break
-            previous = {i: r["estimated_error"] for i, r in over}
+            previous = {i: over[i]["estimated_error"] for i in changes}
             pass_start = time.perf_counter()
             solution = solve_once(sides)
             passes += 1
             errors = {i: r["estimated_error"] for i, r in zip(receivers(solution), solution.reports)}
-            for i in counts:
+            for i in changes:
                 refined[i] = refined.get(i, 0) + 1
                 if not errors[i] < GAIN * previous[i]:
                     no_gain.add(i)
+        # What the last solve used, and which surfaces could still be refined, before the
+        # scene's options are restored.
+        last_factor = {i: scene.integration_factor(i) for i in receivers(solution)}
+        refinable = {i for i, r in zip(receivers(solution), solution.reports) if refinements(scene, i, r, settings)}
     finally:
-        for i, n in own.items():
+        for i, (n, f) in own.items():
             if scene.spatial_coeffs(i) != n:
                 scene.set_spatial_coeffs(i, n)
+            if scene.integration_factor(i) != f:
+                scene.set_integration_factor(i, f)
     surfaces = []
     for i, r in zip(receivers(solution), solution.reports):
         error = r["estimated_error"]
-        status = MET if error <= target else (NO_GAIN if i in no_gain else OVER if own_fit(r) else NOT_FIT)
+        status = MET if error <= target else (NO_GAIN if i in no_gain else OVER if i in refinable else NOT_OWN)
         surfaces.append({"name": r["name"], "index": i, "estimated_error": error, "shape": list(r["shape"]),
-                         "error_parts": dict(r["error_parts"]), "refined": refined.get(i, 0), "status": status})
+                         "integration_factor": last_factor[i], "error_parts": dict(r["error_parts"]),
+                         "refined": refined.get(i, 0), "status": status})
     solution.refinement = {"target": target, "passes": passes, "stopped": stopped, "rays": rays,
                            "estimate_rays": estimate_rays, "seconds": time.perf_counter() - start,
                            "surfaces": surfaces}

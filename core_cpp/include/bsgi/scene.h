@@ -74,6 +74,10 @@ struct SurfaceOptions {
     Representation representation = Representation::Auto;
     int spatial_coeffs = 0;  // per direction; 0: from the settings and the surface's size
     int angular_coeffs = 0;  // per direction of (alpha, beta); 0: from the BSDF's lobe width
+    // Times the final gather's integration nodes per axis for this surface (hemisphere nodes
+    // and BSDF samples; 1: the settings'), as refinement sets it where the error estimate's
+    // integration part is most of a surface's error.
+    int integration_factor = 1;
 };
 
 struct SceneSurface {
@@ -212,6 +216,19 @@ public:
             throw std::invalid_argument("surface '" + surfaces_[i].surface->name() + "': coefficient counts must be >= 0 (0: automatic)");
         surfaces_[i].options.spatial_coeffs = spatial_coeffs;
     }
+
+    // Sets surface i's factor on the final gather's integration nodes per axis (1: the
+    // settings'), as the refinement of bsgi.solve does where the estimate's integration part
+    // is over its target.
+    void set_integration_factor(size_t i, int factor) {
+        if (i >= surfaces_.size()) throw std::out_of_range("set_integration_factor: no surface " + std::to_string(i));
+        if (factor < 1 || factor > kMaxIntegrationFactor)
+            throw std::invalid_argument("surface '" + surfaces_[i].surface->name() + "': the integration factor must be from 1 to " +
+                                        std::to_string(kMaxIntegrationFactor) + ", not " + std::to_string(factor));
+        surfaces_[i].options.integration_factor = factor;
+    }
+    // 8 times the nodes per axis: 64 times the rays of the surface's final gather.
+    static constexpr int kMaxIntegrationFactor = 8;
 
     size_t size() const { return surfaces_.size(); }
     const SceneSurface& operator[](size_t i) const { return surfaces_[i]; }
