@@ -50,6 +50,13 @@ Material material(const std::string& name, const Array& albedo, const Array& emi
     return {rgb(albedo, "surface '" + name + "': albedo"), rgb(emission, "surface '" + name + "': emission"), std::move(bsdf)};
 }
 
+// One of surface i's options, as Scene.set_... set it.
+template <int SurfaceOptions::*option>
+int surface_option(const Scene& s, size_t i) {
+    if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
+    return s[i].options.*option;
+}
+
 SurfaceOptions options(const std::string& name, const std::string& representation, int spatial, int angular) {
     SurfaceOptions o;
     if (representation == "auto") o.representation = Representation::Auto;
@@ -188,20 +195,12 @@ void bind_scene(py::module_& m) {
              "lights emit from the front only).")
         .def("set_spatial_coeffs", &Scene::set_spatial_coeffs, py::arg("index"), py::arg("spatial_coeffs"),
              "Spatial coefficients per direction of surface `index` (0: from the settings and its size).")
-        .def(
-            "spatial_coeffs", [](const Scene& s, size_t i) {
-                if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
-                return s[i].options.spatial_coeffs;
-            },
-            py::arg("index"), "The spatial coefficients per direction set on surface `index` (0: automatic).")
+        .def("spatial_coeffs", &surface_option<&SurfaceOptions::spatial_coeffs>, py::arg("index"),
+             "The spatial coefficients per direction set on surface `index` (0: automatic).")
         .def("set_integration_factor", &Scene::set_integration_factor, py::arg("index"), py::arg("factor"),
              "Times the final gather's integration nodes per axis for surface `index` (1: the settings').")
-        .def(
-            "integration_factor", [](const Scene& s, size_t i) {
-                if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));
-                return s[i].options.integration_factor;
-            },
-            py::arg("index"), "The factor on the final gather's integration nodes set on surface `index` (1: the settings').")
+        .def("integration_factor", &surface_option<&SurfaceOptions::integration_factor>, py::arg("index"),
+             "The factor on the final gather's integration nodes set on surface `index` (1: the settings').")
         .def_property(
             "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },
