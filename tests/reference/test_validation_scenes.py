@@ -127,11 +127,13 @@ def test_reference_preset_meets_the_target(scene):
 # Refinement to a 1% target at final on thin_occluder (validate.py measure --scene thin_occluder
 # --preset final --overrides '{"refine_to_error": 0.01}'): the large wall's estimate is mostly its
 # final gather's integration (2.5% of 2.9%; the floor's light seen at grazing angles), whose
-# nodes per axis refinement doubles there (then, in a second pass, its coefficients): its error against Mitsuba 1.75% -> 0.77% (0.44 of it), the small wall's
-# 1.16% -> 0.59%; the floor (estimate 0.93%, under the target) is left as it was.
+# nodes per axis refinement doubles there, twice (and, once, its coefficients); the floor (its
+# shadow's oblique edges) gets coefficients, the small wall nodes. Measured: the large wall 1.75% ->
+# 0.50%, the scene 1.21% -> 0.48% (every surface's estimate under 1%) at 12.5 s CPU against 1.0 s:
+# a setting that meets the 1% target there.
 @pytest.mark.slow
 @pytest.mark.blender
-def test_refinement_doubles_the_integration_where_the_estimate_says_the_gather_errs():
+def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_errs():
     import validate
 
     r = validate.measure("thin_occluder", "final", {"refine_to_error": 0.01})
@@ -139,10 +141,10 @@ def test_refinement_doubles_the_integration_where_the_estimate_says_the_gather_e
     base = final("thin_occluder")
     refined = {s["name"]: s for s in r["refinement"]["surfaces"]}
     wall = next(s for name, s in refined.items() if name.startswith("Large wall"))
-    assert wall["integration_factor"] == 2, wall  # (then its fit: 16 -> 36 coefficients per direction)
+    assert wall["integration_factor"] >= 2, wall
     before, after = base["surfaces"]["Large wall"]["rel_rmse"], r["surfaces"]["Large wall"]["rel_rmse"]
-    assert after <= 0.65 * before and after <= 0.012, (before, after)
-    assert r["rel_rmse"] < base["rel_rmse"]
+    assert after <= 0.5 * before and after <= 0.010, (before, after)
+    assert r["rel_rmse"] <= min(TARGET["thin_occluder"], 2 * 0.0048), r["rel_rmse"]
 
 
 @pytest.mark.slow
