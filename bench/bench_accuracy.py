@@ -41,11 +41,11 @@ sys.path.insert(0, str(STUDY))
 
 sys.path.insert(0, str(HERE / "validation"))
 SCENES = os.environ.get("BSGI_BENCH_ACCURACY", "cornell_box,contact_shadows,mug,bezier_patches,cornell_box_glossy_wall,"
-                        "open_box,table_spheres,ceiling_light,thin_occluder").split(",")
+                        "open_box,table_spheres,ceiling_light,thin_occluder,leaning_board").split(",")
 PRESETS = ("draft", "preview", "final")
 # The reference preset (5-8 times final's cost) on the validation scenes only, where the README
 # states its figures.
-REFERENCE_SCENES = ("open_box", "table_spheres", "ceiling_light", "thin_occluder")
+REFERENCE_SCENES = ("open_box", "table_spheres", "ceiling_light", "thin_occluder", "leaning_board")
 
 
 def cycles_seconds(scene: str, error: float) -> float | None:

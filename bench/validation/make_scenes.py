@@ -11,6 +11,9 @@ the solver was never tuned. Run with the `bpy` module:
   lit only indirectly, and close to the light), a low block on the floor;
 - thin_occluder: a single square plane reflecting on both sides over a floor (seen from above and
   below), a large wall beside a small one (the small wall's back sees the end of the large one).
+- leaning_board (added 3 December, after the others' figures were known): a corner of two walls of
+  very different sizes, a board (one plane, both sides seen) leaning on the large wall, a box turned
+  30 degrees on the floor (oblique contact lines and shadow edges), under a tilted light.
 
 Each scene's surfaces are separate objects, so the per-object errors are per surface. TWO_SIDED
 names, per scene, the objects whose back side is lit and seen: the references render them with
@@ -29,7 +32,8 @@ sys.path.insert(0, str(ROOT / "bench" / "study" / "scenes"))
 
 # The objects seen (and lit) from both sides, per scene: references.py samples pairs on both their
 # sides and Mitsuba renders them two-sided.
-TWO_SIDED = {"open_box": ["Panel"], "table_spheres": [], "ceiling_light": [], "thin_occluder": ["Occluder", "Small wall"]}
+TWO_SIDED = {"open_box": ["Panel"], "table_spheres": [], "ceiling_light": [], "thin_occluder": ["Occluder", "Small wall"],
+             "leaning_board": ["Board", "Narrow wall"]}
 # GGX alpha 0.3 (the issue's "GGX >= 0.3"; Blender's roughness is sqrt(alpha)).
 GGX_ROUGHNESS = math.sqrt(0.3)
 # White metals: Cycles' Glossy BSDF is its colour times GGX with no Fresnel, the solver uses Schlick's
@@ -132,8 +136,31 @@ def build_thin_occluder():
     return render_settings(scene)
 
 
+def build_leaning_board():
+    _, area_light, box_quads, diffuse, empty_scene, quad_object, _, render_settings = _bpy_parts()
+    scene = empty_scene()
+    quad_object("Floor", [[(-2, -1.5, 0), (2, -1.5, 0), (2, 1.5, 0), (-2, 1.5, 0)]], [diffuse("Floor", (0.7, 0.68, 0.65))], [0])
+    # A large wall (4 x 2.5 m) along the back, and across its left end a narrow one (0.8 x 0.9 m)
+    # facing the room, its back lit by the floor behind it.
+    quad_object("Large wall", [[(-2, 1.5, 0), (2, 1.5, 0), (2, 1.5, 2.5), (-2, 1.5, 2.5)]],
+                [diffuse("Large", (0.65, 0.65, 0.7))], [0])
+    quad_object("Narrow wall", [[(-1.6, 0.7, 0), (-1.6, 1.5, 0), (-1.6, 1.5, 0.9), (-1.6, 0.7, 0.9)]],
+                [diffuse("Narrow", (0.7, 0.55, 0.45))], [0])
+    # A board 1.3 m wide and 1 m long, its foot on the floor 0.5 m out, its top edge against the
+    # large wall: its front faces the room, its back the wedge behind it.
+    top = math.sqrt(1.0 - 0.5 ** 2)
+    quad_object("Board", [[(-0.2, 1.0, 0), (1.1, 1.0, 0), (1.1, 1.499, top), (-0.2, 1.499, top)]],
+                [diffuse("Board", (0.75, 0.7, 0.6))], [0])
+    quad_object("Box", box_quads(-0.7, -0.3, 0.5, 0.5, 0.45, math.radians(30)), [diffuse("Box", (0.55, 0.6, 0.5))],
+                [0] * 6)
+    # 0.6 x 0.4 m, tilted 25 degrees about x towards the back wall.
+    area_light("Light", (0.4, -0.6, 2.2), 60.0, size=0.6, size_y=0.4, rotation=(math.radians(25), 0.0, 0.0))
+    return render_settings(scene)
+
+
 BUILDERS = {"open_box.blend": build_open_box, "table_spheres.blend": build_table_spheres,
-            "ceiling_light.blend": build_ceiling_light, "thin_occluder.blend": build_thin_occluder}
+            "ceiling_light.blend": build_ceiling_light, "thin_occluder.blend": build_thin_occluder,
+            "leaning_board.blend": build_leaning_board}
 
 if __name__ == "__main__":
     from scene_parts import main

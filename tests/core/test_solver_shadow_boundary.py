@@ -231,3 +231,26 @@ def test_contact_lines_of_a_box_on_the_floor_against_mitsuba():
     knots = err["final preset"]
     assert knots[0] <= 0.019 and knots[1] <= 0.031
     assert knots[1] <= 0.75 * without[1]  # measured 0.51: sharper at the contact lines
+
+
+@pytest.mark.parametrize("height, multiplicities", [(0.001, [3]), (0.01, [3]), (0.3, [2, 2])])
+def test_an_edge_just_off_the_floor_casts_a_jump_at_the_splines_scale(height, multiplicities):
+    """A plank leaning up from the floor, its lower edge `height` above it along the floor's v
+    lines, under a square light: within a few millimetres the edge's penumbra (the light's width
+    times height / distance) is far narrower than a knot span and the discontinuity knots put a
+    jump there (a triple knot, as at a contact line: a board leaning on a wall leaked the wall's
+    light into the wedge behind it through the kink of a double knot); 30 cm up its penumbra's two
+    edges get a double knot each."""
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], albedo=[0.5] * 3, emission=[0] * 3)
+    scene.add_bilinear_patch("lamp", [[-0.25, -0.25, 2], [-0.25, 0.25, 2], [0.25, 0.25, 2], [0.25, -0.25, 2]],
+                             albedo=[0] * 3, emission=[10] * 3, receiver=False, occluder=False)
+    scene.add_bilinear_patch("plank", [[0.5, -1, height], [0.5, 1, height], [1.0, 1, 0.9], [1.0, -1, 0.9]],
+                             albedo=[0] * 3, emission=[0] * 3, receiver=False)
+    settings = bsgi.SolverSettings.preset("final")
+    settings.max_bounces, settings.final_gather, settings.estimate_error = 0, False, False
+    knots = np.array(bsgi.solve(scene, settings).radiance[0].axes[0].knots)
+    # Inner knots within 5 cm of the edge's shadow (x = 0.5 to 0.6: u = 0.625 to 0.65), by value.
+    near = knots[(knots > 0.62) & (knots < 0.665)]
+    values, counts = np.unique(np.round(near, 6), return_counts=True)
+    assert sorted(c for c in counts.tolist() if c > 1) == multiplicities, (height, knots)  # (single knots: spread)

@@ -27,9 +27,12 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 MEASURED = {"open_box": (0.0351, 1.0079),  # the GGX panel
             "table_spheres": (0.0185, 1.0034),  # the diffuse sphere
             "ceiling_light": (0.0042, 1.0006),  # the floor
-            "thin_occluder": (0.0121, 1.0024)}  # the floor
+            "thin_occluder": (0.0121, 1.0024),  # the floor
+            # (added 3 December: the board's back 21% bright, the wedge behind it lit through the
+            # coarse bounces' blurred shadow edges at its open ends; README, validation section)
+            "leaning_board": (0.0278, 1.0140)}  # the board
 # The issue's targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
-TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01}
+TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01, "leaning_board": 0.01}
 
 
 def meets_target(scene):
@@ -80,7 +83,11 @@ def test_issue_target(scene, request):
 # of error along a contact line, and neither sees all of it):
 KNOWN_ESTIMATE_MISSES = {("open_box", "Back"): 0.47,  # where the panel pierces it
                          ("open_box", "Block"): 2.12,  # the input term, beside the panel's foot
-                         ("table_spheres", "Diffuse sphere"): 2.57, ("table_spheres", "Table"): 2.08}
+                         ("table_spheres", "Diffuse sphere"): 2.57, ("table_spheres", "Table"): 2.08,
+                         # the board's back: the bounces' bias in the wedge, which no part sees
+                         ("leaning_board", "Board"): 0.26,
+                         ("leaning_board", "Box"): 7.9,  # the input term (the floor's contact lines)
+                         ("leaning_board", "Floor"): 3.5}  # its fit at the wedge's oblique shadow edges
 
 
 @pytest.mark.slow
