@@ -625,7 +625,7 @@ void bind_scene(py::module_& m) {
             "The gather of a phase for receivers [begin, end) given all receivers' coefficients of the previous step "
             "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final', the finals' Le of the "
             "final gather followed by the coarse Le it read for 'regather'): (their new "
-            "coefficients, rays cast). `settled`: receivers of a bounce that do not gather (the runner's 0 nodes; their "
+            "coefficients, for 'regather' the correction the solve adds to the first final gather's, rays cast). `settled`: receivers of a bounce that do not gather (the runner's 0 nodes; their "
             "coefficients come back as they were). Releases the GIL; raises SolveCancelled if progress is cancelled.");
 }
 

@@ -92,7 +92,7 @@ def test_every_scene_member_that_changes_it_is_kept():
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-@pytest.mark.parametrize("final_passes, late_bounces_after", [(1, 0), (2, 1)])
+@pytest.mark.parametrize("final_passes, late_bounces_after", [(1, 0), (2, 1), (4, 1)])
 def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounces_after):
     scene, s = room(), settings(final_passes=final_passes, final_spatial_factor=2, late_bounces_after=late_bounces_after)
     local = bsgi.solve(scene, s)

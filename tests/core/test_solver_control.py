@@ -83,7 +83,7 @@ def test_memory_over_budget_is_refused_before_allocating():
 
 @pytest.mark.parametrize("name, value", [("spatial_coeffs", 2), ("spatial_degree", -1), ("epsilon", 0.6),
                                          ("hemisphere_nodes_theta", 0), ("emitter_coeffs", 1), ("tolerance", -1),
-                                         ("final_passes", 3)])
+                                         ("final_passes", 5)])
 def test_bad_settings_are_refused_by_name(name, value):
     settings = bsgi.SolverSettings()
     setattr(settings, name, value)

@@ -23,14 +23,15 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 # worst object's mean ratio; the bounds sit within about 2x of them (the ratio's distance from 1).
 # (3 December, with the sharpened fit and the hemisphere rule's Gauss nodes; before: 3.76%,
 # 4.13%, 0.81%, 2.25%; thin_occluder then 1.88% until the final preset's discontinuity knots,
-# open_box 3.56% and table_spheres 2.76% until the glossy splines' angular axes were sharpened.)
-MEASURED = {"open_box": (0.0351, 1.0079),  # the GGX panel
-            "table_spheres": (0.0185, 1.0034),  # the diffuse sphere
-            "ceiling_light": (0.0042, 1.0006),  # the floor
-            "thin_occluder": (0.0121, 1.0024),  # the floor
-            # (added 3 December: the board's back 21% bright, the wedge behind it lit through the
+# open_box 3.56% and table_spheres 2.76% until the glossy splines' angular axes were sharpened;
+# with two final passes instead of four 3.51%, 1.85%, 0.42%, 1.21%, 2.78%.)
+MEASURED = {"open_box": (0.0340, 0.9962),  # the ceiling
+            "table_spheres": (0.0172, 0.9974),  # the GGX sphere
+            "ceiling_light": (0.0042, 1.0005),  # the floor
+            "thin_occluder": (0.0118, 0.9977),  # the small wall
+            # (added 3 December: the board's back bright, the wedge behind it lit through the
             # coarse bounces' blurred shadow edges at its open ends; README, validation section)
-            "leaning_board": (0.0278, 1.0140)}  # the board
+            "leaning_board": (0.0266, 1.0063)}  # the board
 # The issue's targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
 TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01, "leaning_board": 0.01}
 
@@ -81,13 +82,10 @@ def test_issue_target(scene, request):
 # two (the issue's test) on every object with at least 100 pairs and an error over twice its
 # reference's noise, but these known misses (measured ratio; checks and pairs both sample a thin band
 # of error along a contact line, and neither sees all of it):
-KNOWN_ESTIMATE_MISSES = {("open_box", "Back"): 0.47,  # where the panel pierces it
-                         ("open_box", "Block"): 2.12,  # the input term, beside the panel's foot
-                         ("table_spheres", "Diffuse sphere"): 2.57, ("table_spheres", "Table"): 2.08,
-                         # the board's back: the bounces' bias in the wedge, which no part sees
-                         ("leaning_board", "Board"): 0.26,
-                         ("leaning_board", "Box"): 7.9,  # the input term (the floor's contact lines)
-                         ("leaning_board", "Floor"): 3.5}  # its fit at the wedge's oblique shadow edges
+KNOWN_ESTIMATE_MISSES = {("open_box", "Floor"): 0.36,  # its fit at the panel's oblique foot
+                         ("table_spheres", "Diffuse sphere"): 2.79, ("table_spheres", "Table"): 2.34,
+                         ("leaning_board", "Box"): 8.5,  # the input term (the floor's contact lines)
+                         ("leaning_board", "Floor"): 3.2}  # its fit at the wedge's oblique shadow edges
 
 
 @pytest.mark.slow
@@ -100,7 +98,7 @@ def test_error_estimate_within_a_factor_of_two_per_object(scene):
     print({name: round(x, 2) for name, x in judged.items()})
     assert judged or scene == "ceiling_light"  # its errors are at its reference's noise
     # (open_box's left wall, where the panel pierces it, was 0.29 before the checks under the
-    # panel's lit back counted: 0.55)
+    # panel's lit back counted: 0.55; 0.67 with four final passes)
     assert all(0.5 <= x <= 2 for x in judged.values()), judged
 
 
@@ -152,6 +150,24 @@ def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_er
     before, after = base["surfaces"]["Large wall"]["rel_rmse"], r["surfaces"]["Large wall"]["rel_rmse"]
     assert after <= 0.5 * before and after <= 0.010, (before, after)
     assert r["rel_rmse"] <= min(TARGET["thin_occluder"], 2 * 0.0048), r["rel_rmse"]
+
+
+# More regather passes (the final preset's four against two) carry the finals' light a bounce
+# further each into leaning_board's wedge behind the board, which the coarse bounces lit through
+# the board's blurred ends (validate.py measure --scene leaning_board --preset final [--overrides
+# '{"final_passes": 2}']): the board's mean 1.0140 -> 1.0063 (three passes: 1.0110), the scene
+# 2.78% -> 2.66%.
+@pytest.mark.slow
+@pytest.mark.blender
+def test_more_regather_passes_carry_the_fine_light_into_a_wedge():
+    import validate
+
+    two = validate.measure("leaning_board", "final", {"final_passes": 2})
+    validate.print_row("leaning_board", "final, two passes", two)
+    r = final("leaning_board")
+    before, after = two["surfaces"]["Board"]["ratio"] - 1, r["surfaces"]["Board"]["ratio"] - 1
+    assert 0 <= after <= 0.6 * before, (before, after)
+    assert r["rel_rmse"] < two["rel_rmse"]
 
 
 @pytest.mark.slow
