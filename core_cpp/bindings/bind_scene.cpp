@@ -201,6 +201,8 @@ void bind_scene(py::module_& m) {
              "Times the final gather's integration nodes per axis for surface `index` (1: the settings').")
         .def("integration_factor", &surface_option<&SurfaceOptions::integration_factor>, py::arg("index"),
              "The factor on the final gather's integration nodes set on surface `index` (1: the settings').")
+        .def_readonly_static("MAX_INTEGRATION_FACTOR", &Scene::kMaxIntegrationFactor,
+                             "The largest factor set_integration_factor takes.")
         .def_property(
             "world_radiance", [](const Scene& s) { return vec(s.world_radiance()); },
             [](Scene& s, const Array& radiance) { s.set_world_radiance(rgb(radiance, "world_radiance")); },

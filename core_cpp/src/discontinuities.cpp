@@ -196,12 +196,16 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             }
         return 2;
     };
+    // Records what line_of found (`k`, `position`) as a line of the given order, if it is one.
+    auto record = [&](int k, double position, int order) {
+        if (k == 0 || k == 1) out.lines[k].push_back({position, order});
+        out.oblique += k == 2;
+    };
     // Adds the segment a-b as a line of the given order, if it is one.
     auto add = [&](const Vec3& a, const Vec3& b, int order) {
         double position = 0;
         const int k = line_of(a, b, position);
-        if (k == 0 || k == 1) out.lines[k].push_back({position, order});
-        out.oblique += k == 2;
+        record(k, position, order);
     };
     // Contact lines: an occluder's feature edge on the receiver's plane with a face leaving it.
     for (size_t o = 0; o < scene.size(); ++o) {
@@ -283,32 +287,34 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             // a jump, one line of order 0 (as a contact line) instead of kinks the spline would
             // blur light across (the wall's light leaked under the board, 1.3x in the wedge).
             for (const auto& e : P.edges) {
-                std::vector<std::array<Vec3, 2>> ends;
-                std::vector<int> orders;
+                struct Event {
+                    int k;  // line_of's answer
+                    double position;
+                    int order;
+                };
+                std::vector<Event> events;
                 for (size_t v = 0; v < E.vertices.size(); ++v) {
                     Vec3 a, b;
                     if (!project(E.vertices[v], P.vertices[e[0]], a) || !project(E.vertices[v], P.vertices[e[1]], b)) continue;
                     int order = 2;
                     for (int f : E.edges_at[v])
                         if (parallel(E.vertices[E.edges[f][1]] - E.vertices[E.edges[f][0]], P.vertices[e[1]] - P.vertices[e[0]])) order = 1;
-                    ends.push_back({a, b});
-                    orders.push_back(order);
+                    Event event{0, 0, order};
+                    event.k = line_of(a, b, event.position);
+                    events.push_back(event);
                 }
-                int axis = -1;
+                const int axis = events.empty() ? -1 : events[0].k;
+                bool narrow = events.size() == E.vertices.size() && (axis == 0 || axis == 1);
                 double lo = 1e300, hi = -1e300;
-                bool narrow = !ends.empty() && ends.size() == E.vertices.size();
-                for (const auto& [a, b] : ends) {
-                    double position = 0;
-                    const int k = line_of(a, b, position);
-                    narrow = narrow && (k == 0 || k == 1) && (axis < 0 || k == axis);
-                    if (!narrow) break;
-                    axis = k, lo = std::min(lo, position), hi = std::max(hi, position);
+                for (const Event& event : events) {
+                    narrow = narrow && event.k == axis;
+                    lo = std::min(lo, event.position), hi = std::max(hi, event.position);
                 }
                 if (narrow && hi - lo <= 2 * tolerance[axis]) {
                     out.lines[axis].push_back({0.5 * (lo + hi), 0});
                     continue;
                 }
-                for (size_t k = 0; k < ends.size(); ++k) add(ends[k][0], ends[k][1], orders[k]);
+                for (const Event& event : events) record(event.k, event.position, event.order);
             }
             // VE: an occluder vertex and an emitter edge.
             for (size_t w = 0; w < P.vertices.size(); ++w)

@@ -115,12 +115,12 @@ double scene_extent(const Scene& scene) {
     return extent;
 }
 
-// "Model only what the scene requires": the representation from the material, the knots from
-// the BSDF's lobe and the surface's size, unless the surface's options say otherwise.
-// `detail`: the coefficients per direction the surface's direct light asks for (0: not probed).
 // A BSDF's lobe width in the angular disc: near the pole r ~ theta / sqrt 2.
 double lobe_in_disc(const Bsdf& b) { return std::max(b.lobe_width(), 1e-3) / std::sqrt(2.0); }
 
+// "Model only what the scene requires": the representation from the material, the knots from
+// the BSDF's lobe and the surface's size, unless the surface's options say otherwise.
+// `detail`: the coefficients per direction the surface's direct light asks for (0: not probed).
 Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double extent, int spatial_scale,
                   const SurfaceSides& lit, std::array<int, 2> detail) {
     const SceneSurface& ss = scene[i];
@@ -1125,15 +1125,15 @@ std::array<bool, 2> sides_seen(const Receiver& r) {
     return {r.solves(0), !r.solves(0) && r.solves(1)};
 }
 
-// The settings of the error estimate's second gather: twice the integration nodes per direction
-// (hemisphere nodes, BSDF samples as a density of 2 would give them, emitter cells half as wide,
-// twice the world's bright directions).
 // The final gather's integration nodes per axis at receiver r: the settings' factor times the
 // surface's own (SurfaceOptions::integration_factor, which refinement raises).
 double final_density(const Scene& scene, const SolverSettings& s, const Receiver& r) {
     return double(s.final_integration_factor) * scene[r.surface].options.integration_factor;
 }
 
+// The settings of the error estimate's second gather: twice the integration nodes per direction
+// (hemisphere nodes, BSDF samples as a density of 2 would give them, emitter cells half as wide,
+// twice the world's bright directions).
 SolverSettings doubled_integration(SolverSettings s) {
     s.hemisphere_nodes_theta *= 2;
     s.hemisphere_nodes_phi *= 2;

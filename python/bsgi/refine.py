@@ -35,7 +35,6 @@ from . import _core
 MET, OVER, NO_GAIN, NOT_OWN = "met", "over target", "no gain", "not its own"
 GAIN = 0.9  # a refined surface's estimate must fall below GAIN times its previous one
 INTEGRATION_STEP = 2  # a refinement's factor on the integration nodes per axis
-MAX_INTEGRATION_FACTOR = 8  # Scene.set_integration_factor's bound
 
 
 def receivers(solution: _core.Solution) -> list:
@@ -65,7 +64,7 @@ def refinements(scene: _core.Scene, index: int, report: dict, settings: _core.So
         coarse = coarse_coeffs(report, settings)
         out["spatial_coeffs"] = max(math.ceil(coarse * settings.refine_factor), coarse + 1)
     factor = scene.integration_factor(index) * INTEGRATION_STEP
-    if settings.final_gather and own_part(report, "integration") and factor <= MAX_INTEGRATION_FACTOR:
+    if settings.final_gather and own_part(report, "integration") and factor <= _core.Scene.MAX_INTEGRATION_FACTOR:
         out["integration_factor"] = factor
     return out
 
