@@ -1,9 +1,12 @@
 #include "bsgi/gather.h"
 #include "bsgi/cosine_rule.h"
 #include "bsgi/radiance.h"
+#include "bsgi/scatter_table.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <memory>
 #include <tuple>
 
 namespace bsgi {
@@ -26,13 +29,11 @@ QuadratureRule emitter_quadrature(int n, int degree) {
     return k.degree() == 2 ? quasi_interpolant_quadrature(k) : schoenberg_quadrature(k);
 }
 
-// Stratified point m of n in [0, 1)^2 (a sqrt(n) x sqrt(n) grid, centred), and a third
-// coordinate spread by the golden ratio: deterministic, so the solve has no noise.
-void stratified(int m, int n, double* u) {
-    const int side = std::max(1, int(std::lround(std::sqrt(double(n)))));
-    u[0] = ((m % side) + 0.5) / side;
-    u[1] = (((m / side) % side) + 0.5) / side;
-    u[2] = std::fmod((m + 0.5) * 0.6180339887498949, 1.0);
+// A Gatherer's serial: its scatter tables are never taken for another's (whose receivers'
+// BSDFs may sit at the same addresses).
+uint64_t next_serial() {
+    static std::atomic<uint64_t> serial{0};
+    return ++serial;
 }
 
 // Integration nodes along an axis at a density (rounded, at least one).
@@ -60,7 +61,7 @@ Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local, co
 }
 
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
-    : scene_(scene), settings_(settings), caster_(caster) {
+    : scene_(scene), settings_(settings), caster_(caster), serial_(next_serial()) {
     for (size_t i = 0; i < scene.size(); ++i) {
         if (!scene[i].material.emits()) continue;
         emitters_.push_back(int(i));
@@ -383,61 +384,48 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
 
 // The hemispherical integral into the values of sides [first, last) of node out: multiple
 // importance sampling of the cosine nodes and, per outgoing direction, bsdf_samples
-// BSDF-sampled directions (balance heuristic). Incoming light from both sides where the surface
-// transmits; for the mirrored back side of an opaque surface, everything is computed as on the
-// front and `incoming` mirrors the directions.
+// BSDF-sampled directions (balance heuristic), the BSDF's factors read from the receiver's
+// ScatterTable. Incoming light from both sides where the surface transmits; for the mirrored
+// back side of an opaque surface, everything is computed as on the front and `incoming`
+// mirrors the directions.
 template <typename Incoming>
 void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                             Incoming&& incoming, Vec3* out) const {
-    const int in_sides = r.bsdf->transmits() ? 2 : 1;
-    const double n_cos = double(nt) * np;
     const int nb = nodes_along(settings_.bsdf_samples, density);
-    // The cosine nodes as one strategy over the sides sampled: n_cos nodes on each side, so
-    // in_sides * n_cos samples of density |cos| / (pi * in_sides). The rule's nodes are not
-    // equally weighted (CosineRule): each node's term takes its weight, the balance heuristic
-    // keeps this smooth density (its weights sum to 1 wherever it is evaluated, so the
-    // combination stays unbiased; with the nodes' own, piecewise density it was 0.1% low).
-    const double n_strategy = in_sides * n_cos;
-    const CosineRule& rule = cosine_rule(nt, np);
-    auto cosine_pdf = [&](const Vec3& w) { return (w.z < 0 && in_sides == 1) ? 0.0 : std::abs(w.z) / kPi / in_sides; };
-    // The outgoing direction of value a, as the BSDF sees it.
-    auto outgoing = [&](int side, size_t a) { return r.outgoing(mirror ? 0 : side, a); };
-    for (int side_in = 0; side_in < in_sides; ++side_in)
-        for (int i = 0; i < nt; ++i)
-            for (int k = 0; k < np; ++k) {
-                Vec3 wi = rule.direction(i, k);
-                if (side_in) wi.z = -wi.z;
-                const Vec3 L = incoming(wi);
-                if (L.x == 0 && L.y == 0 && L.z == 0) continue;  // (a regather's change is signed)
-                const double pc = n_strategy * cosine_pdf(wi), weight = rule.weight(i);
-                for (int side = first; side < last; ++side)
-                    for (size_t a = 0; a < r.per_node; ++a) {
-                        const Vec3 wo = outgoing(side, a);
-                        double pb;
-                        const Vec3 f = r.bsdf->eval_pdf(wo, wi, pb);
-                        if (max_component(f) <= 0) continue;
-                        out[side * r.per_node + a] += L * f * (weight * std::abs(wi.z) / (pc + nb * pb));
-                    }
-            }
-    for (int side = first; side < last; ++side)
-        for (size_t a = 0; a < r.per_node; ++a) {
-            const Vec3 wo = outgoing(side, a);
-            for (int m = 0; m < nb; ++m) {
-                double u[3];
-                stratified(m, nb, u);
-                BsdfSample s;
-                if (!r.bsdf->sample(wo, u[0], u[1], u[2], s)) continue;
-                const Vec3 L = incoming(s.wi);
-                if (L.x == 0 && L.y == 0 && L.z == 0) continue;
-                if (s.delta) {
-                    out[side * r.per_node + a] += L * s.weight / double(nb);
-                    continue;
-                }
-                double pb;
-                const Vec3 f = r.bsdf->eval_pdf(wo, s.wi, pb);
-                out[side * r.per_node + a] += L * f * (std::abs(s.wi.z) / (n_strategy * cosine_pdf(s.wi) + nb * pb));
-            }
+    ScatterTable& table = scatter_table(r, first, last, mirror, nt, np, nb);
+    const size_t values = size_t(last - first) * r.per_node;
+    Vec3* sides_out = out + size_t(first) * r.per_node;
+    for (size_t t = 0; t < table.incoming_count(); ++t) {
+        const Vec3 L = incoming(table.incoming(t));
+        if (L.x == 0 && L.y == 0 && L.z == 0) continue;  // (a regather's change is signed)
+        const ScatterTable::Term* terms = table.terms(t);
+        for (size_t v = 0; v < values; ++v)
+            if (terms[v].used) sides_out[v] += L * terms[v].f * terms[v].scale;
+    }
+    const std::vector<ScatterTable::Sample>& samples = table.samples();
+    for (size_t v = 0; v < values; ++v)
+        for (int m = 0; m < nb; ++m) {
+            const ScatterTable::Sample& s = samples[v * nb + m];
+            if (s.kind == ScatterTable::Sample::Kind::None) continue;
+            const Vec3 L = incoming(s.wi);
+            if (L.x == 0 && L.y == 0 && L.z == 0) continue;
+            sides_out[v] += s.kind == ScatterTable::Sample::Kind::Delta ? L * s.f / double(nb) : L * s.f * s.scale;
         }
+}
+
+// The table of the last few (receiver, density, sides) this thread gathered: a thread takes
+// nodes of one receiver after another, and a regather alternates two densities at a node.
+ScatterTable& Gatherer::scatter_table(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const {
+    constexpr size_t kRecent = 4;
+    thread_local std::vector<std::unique_ptr<ScatterTable>> recent;  // most recently used first
+    for (size_t k = 0; k < recent.size(); ++k)
+        if (recent[k]->matches(serial_, r, first, last, mirror, nt, np, nb)) {
+            std::rotate(recent.begin(), recent.begin() + k, recent.begin() + k + 1);
+            return *recent.front();
+        }
+    if (recent.size() == kRecent) recent.pop_back();
+    recent.insert(recent.begin(), std::make_unique<ScatterTable>(serial_, r, first, last, mirror, nt, np, nb));
+    return *recent.front();
 }
 
 namespace {

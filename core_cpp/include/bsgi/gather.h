@@ -17,6 +17,8 @@
 
 namespace bsgi {
 
+class ScatterTable;
+
 // A receiving surface during the solve: its nodes and its radiance splines (Figure 4), one per
 // side: the lower side where the surface transmits (section 4.3) or where light reaches an opaque
 // surface's back (which reflects it with the BSDF mirrored, as Cycles shades it). A side the
@@ -143,6 +145,7 @@ private:
     template <typename Incoming>
     void gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                       Incoming&& incoming, Vec3* out) const;
+    ScatterTable& scatter_table(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const;
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
                       double t0, double t1, int depth, double ratio, std::array<bool, 2> sides, Visit&& visit,
@@ -161,6 +164,7 @@ private:
     const Scene& scene_;
     const SolverSettings& settings_;
     const RayCaster& caster_;
+    uint64_t serial_;  // tells this gatherer's scatter tables from another's
     std::vector<DistantSample> distant_;  // of all distant lights and the world map's bright part
     std::optional<EnvironmentMap> world_smooth_;
     std::vector<int> emitters_;
