@@ -46,11 +46,11 @@ CosineRule::CosineRule(int nt, int np) : np_(np) {
         sin_theta_.push_back(std::sqrt(std::max(0.0, 1 - s * s)));
         weight_.push_back(share * nt);
     }
-}
-
-Vec3 CosineRule::direction(int i, int k) const {
-    const double phi = 2 * kPi * (k + 0.5 * (1 + (i & 1))) / np_;
-    return {sin_theta_[i] * std::cos(phi), sin_theta_[i] * std::sin(phi), cos_theta_[i]};
+    for (int i = 0; i < nt; ++i)
+        for (int k = 0; k < np; ++k) {
+            const double phi = 2 * kPi * (k + 0.5 * (1 + (i & 1))) / np_;
+            directions_.push_back({sin_theta_[i] * std::cos(phi), sin_theta_[i] * std::sin(phi), cos_theta_[i]});
+        }
 }
 
 const CosineRule& cosine_rule(int nt, int np) {

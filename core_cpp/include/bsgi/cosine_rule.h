@@ -22,14 +22,15 @@ public:
     int theta_nodes() const { return int(cos_theta_.size()); }
     int phi_nodes() const { return np_; }
     int size() const { return theta_nodes() * np_; }
-    // Local direction of node (i, k), z up.
-    Vec3 direction(int i, int k) const;
+    // Local direction of node (i, k), z up (computed once: a gather asks for each at every node).
+    const Vec3& direction(int i, int k) const { return directions_[size_t(i) * np_ + k]; }
     // Weight of the nodes of row i: the share of the cosine-weighted hemisphere they stand for,
     // times size() (mean 1 over the nodes).
     double weight(int i) const { return weight_[i]; }
 
 private:
     std::vector<double> cos_theta_, sin_theta_, weight_;
+    std::vector<Vec3> directions_;
     int np_;
 };
 
