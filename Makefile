@@ -2,6 +2,8 @@
 #   make test   - apt packages, .venv (Python 3.11 + bpy), build the core, run the whole suite
 #                 (with the fuzzing profile in tests/fuzz and the sanitizer run, test-sanitize)
 #   make test-sanitize - the core built with AddressSanitizer + UBSan, tests/core and tests/fuzz under it
+#   make test-references - remake the committed Mitsuba 3 references of the core tests (tests/reference/data)
+#                 that are missing or stale (their scene, settings or reference code changed)
 #   make fuzz-long - the long fuzzing profile (local use; 20 times the examples of CI's)
 #   make demo   - solve and bake example_blends/cornell_box.blend headless, write out/
 #   make bench  - benchmarks, figures to bench/results.json
@@ -40,7 +42,7 @@ SKIP_PY313 := 0
 endif
 CORE_SOURCES := $(shell find core_cpp python -type f \( -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name '*.pyi' -o -name CMakeLists.txt \)) pyproject.toml
 
-.PHONY: test test-sanitize fuzz-long test-fast demo bench study apt venv venv313 build wheels extension clean
+.PHONY: test test-sanitize test-references fuzz-long test-fast demo bench study apt venv venv313 build wheels extension clean
 
 # The packaging tests (slow) install the extension zips, on Python 3.11 (.venv) and 3.13 ($(VENV313)).
 test: build extension venv313
@@ -51,6 +53,12 @@ test: build extension venv313
 # (tools/test_sanitize.py); fails on any sanitizer report. libasan8/libubsan1 come with g++.
 test-sanitize: venv
 	$(PY) tools/test_sanitize.py
+
+# The tests that compare with a committed reference (marker mitsuba_reference) remake it where its
+# key (a hash of the scene, settings and reference code) no longer matches; BSGI_MAKE_REFERENCES=all
+# remakes every one. Commit the files it writes.
+test-references: build
+	BSGI_MAKE_REFERENCES=$${BSGI_MAKE_REFERENCES:-1} $(PY) -m pytest -p no:cacheprovider -m mitsuba_reference tests/core
 
 fuzz-long: build
 	BSGI_FUZZ_PROFILE=long $(PY) -m pytest tests/fuzz -q

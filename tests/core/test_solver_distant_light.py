@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import bsgi
-from reference import mitsuba_reference, scene_spec
+from reference import committed, mitsuba_reference, scene_spec
 from reference.scene_spec import quad
 from test_solver_world import WORLD, open_box, with_world
 
@@ -90,26 +90,33 @@ def test_bad_distant_lights_are_refused_by_name():
     assert np.allclose(scene.distant_lights[0]["direction"], [0, 0, 1])
 
 
+SUN = np.array([0.4, -0.3, 1.0]) / np.linalg.norm([0.4, -0.3, 1.0])
+
+
+def mitsuba_under_sun_and_sky(spec):
+    """The spec's shapes under the constant world and the sun as Mitsuba's directional emitter."""
+    mi = mitsuba_reference.load_mitsuba()
+    reference = with_world(mitsuba_reference.to_mitsuba(spec), WORLD)
+    shapes = {f"shape{i}": s for i, s in enumerate(reference.shapes())}
+    return mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": -1},
+                         "world": {"type": "constant", "radiance": {"type": "rgb", "value": list(WORLD)}},
+                         "sun": {"type": "directional", "direction": list(-SUN),
+                                 "irradiance": {"type": "rgb", "value": list(E)}}, **shapes})
+
+
 @pytest.mark.slow
+@pytest.mark.mitsuba_reference
 def test_open_box_under_sun_and_sky_against_mitsuba():
     # The open box of test_solver_world.py with a sun (a delta direction, as Mitsuba's
     # directional emitter) besides the world: the splines blur the sun's hard shadow edges.
     spec = open_box()
-    sun = np.array([0.4, -0.3, 1.0])
-    sun /= np.linalg.norm(sun)
-    mi = mitsuba_reference.load_mitsuba()
-    reference = with_world(mitsuba_reference.to_mitsuba(spec), WORLD)
-    shapes = {f"shape{i}": s for i, s in enumerate(reference.shapes())}
-    reference = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": -1},
-                              "world": {"type": "constant", "radiance": {"type": "rgb", "value": list(WORLD)}},
-                              "sun": {"type": "directional", "direction": list(-sun),
-                                      "irradiance": {"type": "rgb", "value": list(E)}}, **shapes})
-    pairs = mitsuba_reference.visible_pairs(spec, 1500, seed=7)
-    ref, stderr = mitsuba_reference.radiance_along(reference, pairs["eye"], pairs["point"], spp=8192, seed=4)
+    pairs, ref, stderr = committed.reference("open box under sun and sky", spec, pairs=1500, pair_seed=7, spp=8192,
+                                             seed=4, scene=mitsuba_under_sun_and_sky,
+                                             inputs={"with_world": with_world, "world": WORLD, "sun": SUN, "E": E})
     noise = np.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
     scene = scene_spec.to_bsgi(spec)
     scene.world_radiance = WORLD
-    scene.add_distant_light("sun", sun, E)
+    scene.add_distant_light("sun", SUN, E)
     sol = bsgi.solve(scene, bsgi.SolverSettings.preset("preview"))
     ours = scene_spec.solved_radiance(scene, sol, pairs)
     err = np.sqrt(((ours - ref) ** 2).sum() / (ref ** 2).sum())

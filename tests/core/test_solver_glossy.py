@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import bsgi
-from reference import mitsuba_reference, scene_spec
+from reference import committed, mitsuba_reference, scene_spec
 
 
 def nrmse(ours, ref):
@@ -16,12 +16,12 @@ def nrmse(ours, ref):
 @pytest.fixture(scope="module")
 def glossy_cornell():
     spec = scene_spec.glossy_cornell_box(alpha=0.3)
-    pairs = mitsuba_reference.visible_pairs(spec, 2000, seed=11)
-    ref, stderr = mitsuba_reference.reference_radiance(spec, pairs, spp=8192, seed=5)
+    pairs, ref, stderr = committed.reference("glossy cornell", spec, pairs=2000, pair_seed=11, spp=8192, seed=5)
     return spec, pairs, ref, np.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
 
 
 @pytest.mark.slow
+@pytest.mark.mitsuba_reference
 def test_glossy_cornell_box_presets_against_mitsuba(glossy_cornell):
     spec, pairs, ref, noise = glossy_cornell
     assert noise < 0.01
@@ -215,10 +215,10 @@ def test_glossy_surface_in_a_uniform_furnace_reflects_its_directional_albedo():
 
 
 @pytest.mark.slow
+@pytest.mark.mitsuba_reference
 def test_rough_glass_transmits_onto_a_floor_as_mitsuba_does():
     spec = scene_spec.glass_over_floor(eta=1.5, alpha=0.3)
-    pairs = mitsuba_reference.visible_pairs(spec, 2000, seed=3)
-    ref, stderr = mitsuba_reference.reference_radiance(spec, pairs, spp=8192, seed=7)
+    pairs, ref, stderr = committed.reference("rough glass", spec, pairs=2000, pair_seed=3, spp=8192, seed=7)
     noise = np.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
     scene = scene_spec.to_bsgi(spec)
     sol = bsgi.solve(scene, bsgi.SolverSettings.preset("preview"))

@@ -4,16 +4,15 @@ import numpy as np
 import pytest
 
 import bsgi
-from reference import mitsuba_reference, scene_spec
+from reference import committed, scene_spec
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.mitsuba_reference]
 
 
 @pytest.fixture(scope="module")
 def cornell_reference():
     spec = scene_spec.cornell_box()
-    pairs = mitsuba_reference.visible_pairs(spec, 2000, seed=11)
-    ref, stderr = mitsuba_reference.reference_radiance(spec, pairs, spp=8192, seed=5)
+    pairs, ref, stderr = committed.reference("cornell", spec, pairs=2000, pair_seed=11, spp=8192, seed=5)
     noise = np.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
     return spec, pairs, ref, noise
 

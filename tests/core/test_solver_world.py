@@ -5,7 +5,7 @@ import pytest
 
 import bsgi
 from closed_forms import polygon_irradiance
-from reference import mitsuba_reference, scene_spec
+from reference import committed, mitsuba_reference, scene_spec
 from reference.scene_spec import quad
 
 WORLD = np.array([0.6, 0.8, 1.0])
@@ -124,12 +124,17 @@ def open_box_errors(spec, scene, pairs, ref, stderr):
     return noise, err, bias, err_metal, sol
 
 
+def mitsuba_under_the_world(spec):
+    return with_world(mitsuba_reference.to_mitsuba(spec), WORLD)
+
+
 @pytest.mark.slow
+@pytest.mark.mitsuba_reference
 def test_open_box_under_the_world_against_mitsuba():
     spec = open_box()
-    pairs = mitsuba_reference.visible_pairs(spec, 1500, seed=5)
-    ref, stderr = mitsuba_reference.radiance_along(with_world(mitsuba_reference.to_mitsuba(spec), WORLD), pairs["eye"],
-                                                   pairs["point"], spp=16384, seed=3)
+    pairs, ref, stderr = committed.reference("open box under the world", spec, pairs=1500, pair_seed=5, spp=16384,
+                                             seed=3, scene=mitsuba_under_the_world,
+                                             inputs={"with_world": with_world, "world": WORLD})
     scene = scene_spec.to_bsgi(spec)
     scene.world_radiance = WORLD
     noise, err, bias, err_metal, sol = open_box_errors(spec, scene, pairs, ref, stderr)

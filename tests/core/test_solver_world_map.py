@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import bsgi
-from reference import mitsuba_reference, scene_spec
+from reference import committed, mitsuba_reference, scene_spec
 from reference.scene_spec import quad
 from test_solver_world import open_box, open_box_errors
 
@@ -234,27 +234,36 @@ def test_glossy_floor_sees_a_one_pixel_sun_as_the_distant_light_there():
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * np.abs(b).max())
 
 
-@pytest.mark.slow
-def test_open_box_under_a_sky_map_against_mitsuba():
-    # The open box of test_solver_world.py (a rough metal wall, light bouncing between walls and
-    # boxes) under the sky, glow and sun. Mitsuba 3: the sky and glow as its envmap (Y up, turned
-    # to Z up; its rows' centres run from pole to pole, theta = pi i / (rows - 1), so it gets
-    # its own samples of the same function) and the sun as a directional emitter of the sun
-    # pixels' irradiance.
-    spec = open_box()
-    mi = mitsuba_reference.load_mitsuba()
+def mitsuba_envmap():
+    """The sky and glow for Mitsuba's envmap: its rows' centres run from pole to pole, theta = pi i /
+    (rows - 1), so it gets its own samples of the same function."""
     rows = H + 1
     theta = math.pi * np.arange(rows) / (rows - 1)
     phi = math.pi * (1 - 2 * (np.arange(W) + 0.5) / W)
-    envmap = sky_radiance(*np.meshgrid(theta, phi, indexing="ij")).astype(np.float32)
+    return sky_radiance(*np.meshgrid(theta, phi, indexing="ij")).astype(np.float32)
+
+
+def mitsuba_under_the_sky_map(spec):
+    """The spec's shapes under the sky and glow as Mitsuba's envmap (Y up, turned to Z up) and the
+    sun as a directional emitter of the sun pixels' irradiance."""
+    mi = mitsuba_reference.load_mitsuba()
     to_world = mi.ScalarTransform4f().rotate([0, 0, 1], 90) @ mi.ScalarTransform4f().rotate([1, 0, 0], 90)
     shapes = {f"shape{i}": s for i, s in enumerate(mitsuba_reference.to_mitsuba(spec).shapes())}
-    reference = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": -1},
-                              "sky": {"type": "envmap", "bitmap": mi.Bitmap(envmap), "to_world": to_world},
-                              "sun": {"type": "directional", "direction": list(-sun_centre()),
-                                      "irradiance": {"type": "rgb", "value": list(sun_irradiance())}}, **shapes})
-    pairs = mitsuba_reference.visible_pairs(spec, 1500, seed=7)
-    ref, stderr = mitsuba_reference.radiance_along(reference, pairs["eye"], pairs["point"], spp=16384, seed=4)
+    return mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": -1},
+                         "sky": {"type": "envmap", "bitmap": mi.Bitmap(mitsuba_envmap()), "to_world": to_world},
+                         "sun": {"type": "directional", "direction": list(-sun_centre()),
+                                 "irradiance": {"type": "rgb", "value": list(sun_irradiance())}}, **shapes})
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba_reference
+def test_open_box_under_a_sky_map_against_mitsuba():
+    # The open box of test_solver_world.py (a rough metal wall, light bouncing between walls and
+    # boxes) under the sky, glow and sun, against Mitsuba 3 (mitsuba_under_the_sky_map).
+    spec = open_box()
+    pairs, ref, stderr = committed.reference(
+        "open box under a sky map", spec, pairs=1500, pair_seed=7, spp=16384, seed=4, scene=mitsuba_under_the_sky_map,
+        inputs={"envmap": mitsuba_envmap(), "sun direction": sun_centre(), "sun irradiance": sun_irradiance()})
     scene = scene_spec.to_bsgi(spec)
     scene.world_map = sky()
     noise, err, bias, err_metal, _ = open_box_errors(spec, scene, pairs, ref, stderr)
