@@ -4,7 +4,6 @@
 #include "bsgi/scatter_table.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <memory>
 #include <tuple>
@@ -29,15 +28,6 @@ QuadratureRule emitter_quadrature(int n, int degree) {
     return k.degree() == 2 ? quasi_interpolant_quadrature(k) : schoenberg_quadrature(k);
 }
 
-// A Gatherer's serial: its scatter tables are never taken for another's (whose receivers'
-// BSDFs may sit at the same addresses).
-uint64_t next_serial() {
-    static std::atomic<uint64_t> serial{0};
-    return ++serial;
-}
-
-// Integration nodes along an axis at a density (rounded, at least one).
-int nodes_along(int count, double density) { return std::max(1, int(std::lround(count * density))); }
 
 }  // namespace
 
@@ -61,7 +51,7 @@ Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local, co
 }
 
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
-    : scene_(scene), settings_(settings), caster_(caster), serial_(next_serial()) {
+    : scene_(scene), settings_(settings), caster_(caster) {
     for (size_t i = 0; i < scene.size(); ++i) {
         if (!scene[i].material.emits()) continue;
         emitters_.push_back(int(i));
@@ -400,7 +390,7 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
         if (L.x == 0 && L.y == 0 && L.z == 0) continue;  // (a regather's change is signed)
         const ScatterTable::Term* terms = table.terms(t);
         for (size_t v = 0; v < values; ++v)
-            if (terms[v].used) sides_out[v] += L * terms[v].f * terms[v].scale;
+            if (terms[v].scale != 0) sides_out[v] += L * terms[v].f * terms[v].scale;
     }
     const std::vector<ScatterTable::Sample>& samples = table.samples();
     for (size_t v = 0; v < values; ++v)
@@ -415,17 +405,21 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
 
 // The table of the last few (receiver, density, sides) this thread gathered: a thread takes
 // nodes of one receiver after another, and a regather alternates two densities at a node.
+// Each thread's tables live as long as this gatherer (a solve's), not as long as the thread.
 ScatterTable& Gatherer::scatter_table(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const {
-    constexpr size_t kRecent = 4;
-    thread_local std::vector<std::unique_ptr<ScatterTable>> recent;  // most recently used first
-    for (size_t k = 0; k < recent.size(); ++k)
-        if (recent[k]->matches(serial_, r, first, last, mirror, nt, np, nb)) {
-            std::rotate(recent.begin(), recent.begin() + k, recent.begin() + k + 1);
-            return *recent.front();
+    std::vector<std::unique_ptr<ScatterTable>>* recent;
+    {
+        std::lock_guard<std::mutex> lock(scatter_mutex_);
+        recent = &scatter_tables_[std::this_thread::get_id()];  // stays put when the map grows
+    }
+    for (size_t k = 0; k < recent->size(); ++k)
+        if ((*recent)[k]->matches(r, first, last, mirror, nt, np, nb)) {
+            std::rotate(recent->begin(), recent->begin() + k, recent->begin() + k + 1);
+            return *recent->front();
         }
-    if (recent.size() == kRecent) recent.pop_back();
-    recent.insert(recent.begin(), std::make_unique<ScatterTable>(serial_, r, first, last, mirror, nt, np, nb));
-    return *recent.front();
+    if (recent->size() == ScatterTable::kRecent) recent->pop_back();
+    recent->insert(recent->begin(), std::make_unique<ScatterTable>(r, first, last, mirror, nt, np, nb));
+    return *recent->front();
 }
 
 namespace {

@@ -22,8 +22,8 @@ void stratified(int m, int n, double* u) {
 
 }  // namespace
 
-ScatterTable::ScatterTable(uint64_t gatherer, const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb)
-    : gatherer_(gatherer), bsdf_(r.bsdf), first_(first), last_(last), nt_(nt), np_(np), nb_(nb),
+ScatterTable::ScatterTable(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb)
+    : bsdf_(r.bsdf), first_(first), last_(last), nt_(nt), np_(np), nb_(nb),
       per_node_(r.per_node), mirror_(mirror) {
     in_sides_ = r.bsdf->transmits() ? 2 : 1;
     for (int side = first; side < last; ++side)
@@ -44,7 +44,7 @@ ScatterTable::ScatterTable(uint64_t gatherer, const Receiver& r, int first, int 
                 node_weight_.push_back(rule.weight(i));
             }
     const size_t row = outgoing_.size();
-    const bool keep = incoming_.size() * row * sizeof(Term) <= kKeptBytes;
+    const bool keep = kept(row, incoming_.size());
     terms_.resize(keep ? incoming_.size() * row : row);
     if (keep) filled_.assign(incoming_.size(), 0);
     auto cosine_pdf = [&](const Vec3& w) { return (w.z < 0 && in_sides_ == 1) ? 0.0 : std::abs(w.z) / kPi / in_sides_; };
@@ -71,8 +71,13 @@ ScatterTable::ScatterTable(uint64_t gatherer, const Receiver& r, int first, int 
     }
 }
 
-bool ScatterTable::matches(uint64_t gatherer, const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const {
-    if (gatherer != gatherer_ || r.bsdf != bsdf_ || first != first_ || last != last_ || mirror != mirror_ || nt != nt_ ||
+size_t ScatterTable::bytes(size_t values, size_t incoming, int nb) {
+    return (kept(values, incoming) ? incoming : 1) * values * sizeof(Term) + values * size_t(nb) * sizeof(Sample) +
+           incoming * (sizeof(Vec3) + sizeof(double) + 1) + values * sizeof(Vec3);
+}
+
+bool ScatterTable::matches(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const {
+    if (r.bsdf != bsdf_ || first != first_ || last != last_ || mirror != mirror_ || nt != nt_ ||
         np != np_ || nb != nb_ || r.per_node != per_node_)
         return false;
     size_t v = 0;
@@ -102,8 +107,8 @@ void ScatterTable::fill(size_t t, Term* row) const {
         double pb;
         Term& term = row[v];
         term.f = bsdf_->eval_pdf(outgoing_[v], wi, pb);
-        term.used = max_component(term.f) > 0;
-        term.scale = term.used ? node_weight_[t] * std::abs(wi.z) / (pc + nb_ * pb) : 0;
+        // (weight |cos| / pdf > 0 at every cosine node: 0 marks a term without light.)
+        term.scale = max_component(term.f) > 0 ? node_weight_[t] * std::abs(wi.z) / (pc + nb_ * pb) : 0;
     }
 }
 

@@ -919,6 +919,22 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     const size_t bounce = (settings.settle_factor > 0 ? 3 : 2) * coarse, final = final_plans.empty() ? 0 : std::max(coarse, regather) + 2 * fine + fine_nodes;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
+    // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
+    // the final gather's density and twice that for the error estimate's second gather.
+    size_t table = 0;
+    for (const Plan& p : plans) {
+        if (p.kind == Representation::Diffuse) continue;
+        const bool transmits = p.bsdf->transmits();
+        double density = settings.final_gather ? std::max(1.0, double(settings.final_integration_factor) *
+                                                                   scene[p.surface].options.integration_factor)
+                                               : 1.0;
+        if (settings.estimate_error) density *= 2;
+        const size_t incoming = size_t(transmits ? 2 : 1) * nodes_along(settings.hemisphere_nodes_theta, density) *
+                                nodes_along(settings.hemisphere_nodes_phi, density);
+        table = std::max(table, ScatterTable::bytes(size_t(transmits ? p.sides : 1) * p.na * p.na, incoming,
+                                                    nodes_along(settings.bsdf_samples, density)));
+    }
+    resident += size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
     // The ray caster: a 64-byte record and about as much BVH a triangle, and an Embree geometry
     // a surface (about 1 kB: 410 MB for the 350,000 quads of the interior of 50,000 objects). The
     // gather's copy of the scene, the plans and the sides: about 8 kB a receiver (measured on the

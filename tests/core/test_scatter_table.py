@@ -82,7 +82,7 @@ def test_the_same_coefficients_whatever_the_threads_gathered_before():
 
 def test_a_table_too_large_to_keep_gives_the_closed_form_too():
     # 8 x 8 times the nodes of the final gather on the smooth floor: 144 values x 96 x 192 nodes,
-    # about 100 MB of terms, over the 32 MB kept.
+    # about 85 MB of terms, over the 32 MB kept.
     scene = floors()
     scene.set_integration_factor(0, 8)
     s = settings()

@@ -2,22 +2,26 @@
 // integral (8)/(35) over the emitters (direct light), and the hemispherical integral (26)-(32)
 // of the radiance other surfaces send (indirect light).
 #pragma once
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
+#include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "bsgi/hemisphere_map.h"
 #include "bsgi/quadrature.h"
 #include "bsgi/ray_caster.h"
+#include "bsgi/scatter_table.h"
 #include "bsgi/scene.h"
 #include "bsgi/solver.h"
 #include "bsgi/tensor_spline.h"
 
 namespace bsgi {
-
-class ScatterTable;
 
 // A receiving surface during the solve: its nodes and its radiance splines (Figure 4), one per
 // side: the lower side where the surface transmits (section 4.3) or where light reaches an opaque
@@ -81,6 +85,9 @@ struct TransportTerm {
     uint8_t side;
     float weight;
 };
+
+// Integration nodes along an axis at a density (rounded, at least one).
+inline int nodes_along(int count, double density) { return std::max(1, int(std::lround(count * density))); }
 
 // Directional albedo at normal incidence, the integral of rho cos over the hemisphere, by the
 // gather's cosine-weighted node rule.
@@ -164,7 +171,9 @@ private:
     const Scene& scene_;
     const SolverSettings& settings_;
     const RayCaster& caster_;
-    uint64_t serial_;  // tells this gatherer's scatter tables from another's
+    // Per thread, the scatter tables of its last few glossy receivers (scatter_table()).
+    mutable std::mutex scatter_mutex_;
+    mutable std::unordered_map<std::thread::id, std::vector<std::unique_ptr<ScatterTable>>> scatter_tables_;
     std::vector<DistantSample> distant_;  // of all distant lights and the world map's bright part
     std::optional<EnvironmentMap> world_smooth_;
     std::vector<int> emitters_;

@@ -6,7 +6,7 @@
 // receiver, density and side, and read at each node, instead of evaluating the BSDF nodes x
 // directions x angular nodes times (a third of a glossy scene's bounce time went there).
 // The terms are the gather's own arithmetic, factor by factor: the gathered values are the same
-// to the last bit with and without the table.
+// to the last bit as with the BSDF evaluated at every node.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -20,11 +20,11 @@ class Bsdf;
 
 class ScatterTable {
 public:
-    // A cosine node's term for one outgoing value: L * f * scale, if used (f has a positive part).
+    // A cosine node's term for one outgoing value: L * f * scale; scale 0 where f has no
+    // positive part (the term is skipped).
     struct Term {
         Vec3 f;
         double scale = 0;
-        bool used = false;
     };
     // A BSDF sample for one outgoing value: along wi, L * f / nb for a delta lobe (f is its
     // throughput), L * f * scale for a smooth one.
@@ -39,9 +39,11 @@ public:
     // with nt x np cosine nodes per incoming side and nb BSDF samples per outgoing value. Rows of
     // terms are kept while all of them take at most kKeptBytes; beyond, one row is recomputed
     // at each use (a refined gather of 16 times the nodes).
-    ScatterTable(uint64_t gatherer, const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb);
+    ScatterTable(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb);
     // Whether this table is the one those arguments would build.
-    bool matches(uint64_t gatherer, const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const;
+    bool matches(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const;
+    // Bytes of the table for `values` outgoing values, `incoming` cosine nodes and nb samples.
+    static size_t bytes(size_t values, size_t incoming, int nb);
 
     // Cosine nodes over the incoming sides: incoming side slowest, then theta, then phi.
     size_t incoming_count() const { return incoming_.size(); }
@@ -52,11 +54,13 @@ public:
     const std::vector<Sample>& samples() const { return samples_; }
 
     static constexpr size_t kKeptBytes = size_t(32) << 20;
+    // Tables a thread keeps (Gatherer::scatter_table).
+    static constexpr size_t kRecent = 2;
 
 private:
+    static bool kept(size_t values, size_t incoming) { return incoming * values * sizeof(Term) <= kKeptBytes; }
     void fill(size_t t, Term* row) const;
 
-    uint64_t gatherer_;
     const Bsdf* bsdf_;
     int first_, last_, nt_, np_, nb_;
     size_t per_node_;
