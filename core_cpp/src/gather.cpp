@@ -28,7 +28,6 @@ QuadratureRule emitter_quadrature(int n, int degree) {
     return k.degree() == 2 ? quasi_interpolant_quadrature(k) : schoenberg_quadrature(k);
 }
 
-
 }  // namespace
 
 Vec3 directional_albedo(const Bsdf& b) {
