@@ -47,7 +47,6 @@ ScatterTable::ScatterTable(const Receiver& r, int first, int last, bool mirror, 
     const bool keep = kept(row, incoming_.size());
     terms_.resize(keep ? incoming_.size() * row : row);
     if (keep) filled_.assign(incoming_.size(), 0);
-    auto cosine_pdf = [&](const Vec3& w) { return (w.z < 0 && in_sides_ == 1) ? 0.0 : std::abs(w.z) / kPi / in_sides_; };
     samples_.resize(row * size_t(nb));
     for (size_t v = 0; v < row; ++v) {
         const Vec3& wo = outgoing_[v];
@@ -69,6 +68,10 @@ ScatterTable::ScatterTable(const Receiver& r, int first, int last, bool mirror, 
             out.scale = std::abs(s.wi.z) / (n_strategy_ * cosine_pdf(s.wi) + nb * pb);
         }
     }
+}
+
+double ScatterTable::cosine_pdf(const Vec3& w) const {
+    return (w.z < 0 && in_sides_ == 1) ? 0.0 : std::abs(w.z) / kPi / in_sides_;
 }
 
 size_t ScatterTable::bytes(size_t values, size_t incoming, int nb) {
@@ -102,7 +105,7 @@ const ScatterTable::Term* ScatterTable::terms(size_t t) {
 
 void ScatterTable::fill(size_t t, Term* row) const {
     const Vec3& wi = incoming_[t];
-    const double pc = n_strategy_ * ((wi.z < 0 && in_sides_ == 1) ? 0.0 : std::abs(wi.z) / kPi / in_sides_);
+    const double pc = n_strategy_ * cosine_pdf(wi);
     for (size_t v = 0; v < outgoing_.size(); ++v) {
         double pb;
         Term& term = row[v];

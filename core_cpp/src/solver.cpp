@@ -893,6 +893,12 @@ RayCaster ray_caster_of(const Scene& scene) {
     return RayCaster(occluders, panes);
 }
 
+// The final gather's integration nodes per axis at scene surface i: the settings' factor times
+// the surface's own (SurfaceOptions::integration_factor, which refinement raises).
+double final_density(const Scene& scene, const SolverSettings& s, int i) {
+    return double(s.final_integration_factor) * scene[i].options.integration_factor;
+}
+
 // The bytes a solve of these plans (and final plans) allocates after the sides probe, at its
 // peak: the ray caster, the receivers (three spline sets and the nodes), the form-factor rows,
 // and then the larger of a bounce's two packed copies of a set (and the settling pairs) and the final gather's finer
@@ -925,9 +931,7 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     for (const Plan& p : plans) {
         if (p.kind == Representation::Diffuse) continue;
         const bool transmits = p.bsdf->transmits();
-        double density = settings.final_gather ? std::max(1.0, double(settings.final_integration_factor) *
-                                                                   scene[p.surface].options.integration_factor)
-                                               : 1.0;
+        double density = settings.final_gather ? std::max(1.0, final_density(scene, settings, p.surface)) : 1.0;
         if (settings.estimate_error) density *= 2;
         const size_t incoming = size_t(transmits ? 2 : 1) * nodes_along(settings.hemisphere_nodes_theta, density) *
                                 nodes_along(settings.hemisphere_nodes_phi, density);
@@ -1141,12 +1145,6 @@ std::array<bool, 2> sides_seen(const Receiver& r) {
     return {r.solves(0), !r.solves(0) && r.solves(1)};
 }
 
-// The final gather's integration nodes per axis at receiver r: the settings' factor times the
-// surface's own (SurfaceOptions::integration_factor, which refinement raises).
-double final_density(const Scene& scene, const SolverSettings& s, const Receiver& r) {
-    return double(s.final_integration_factor) * scene[r.surface].options.integration_factor;
-}
-
 // The settings of the error estimate's second gather: twice the integration nodes per direction
 // (hemisphere nodes, BSDF samples as a density of 2 would give them, emitter cells half as wide,
 // twice the world's bright directions).
@@ -1262,7 +1260,7 @@ struct SolveSteps::State {
                                         size_t& rays, std::vector<std::array<double, 4>>& parts) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
         // The integration nodes per axis of the gather that made a receiver's result.
-        auto density_at = [&](const Receiver& q) { return settings.final_gather ? final_density(scene, settings, q) : 1.0; };
+        auto density_at = [&](const Receiver& q) { return settings.final_gather ? final_density(scene, settings, q.surface) : 1.0; };
         const size_t n = size_t(settings.error_checks);
         // The others' splines a gather read err (the contact shadows blurred over a coarse grid),
         // and that error enters each surface's light through its gather, where its own splines
@@ -1602,7 +1600,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
         rays += gather_all(targets, begin, end, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             std::vector<Vec3> direct(r.sides * r.per_node);
             gather.direct(r, j, direct.data(), n);
-            gather.indirect(r, j, s.receiver_of, &Receiver::Le, final_density(scene, settings, r), true, out, n);
+            gather.indirect(r, j, s.receiver_of, &Receiver::Le, final_density(scene, settings, r.surface), true, out, n);
             for (size_t k = 0; k < direct.size(); ++k) out[k] += direct[k];
         });
         return pack(targets, begin, end, &Receiver::Le);
@@ -1624,7 +1622,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     unpack(input.data() + fine_size, coarse_size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
     for (size_t k = begin; k < end; ++k) targets[k].L = targets[k].Le;
     rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-        const double full = final_density(scene, settings, r);
+        const double full = final_density(scene, settings, r.surface);
         if (gather.indirect_change(r, j, s.final_of, s.receiver_of, kRegatherDensity * full, kSharpLobe, out, n))
             gather.indirect_change(r, j, s.final_of, s.receiver_of, full, kSharpLobe, out, n);
     });

@@ -60,6 +60,8 @@ public:
 private:
     static bool kept(size_t values, size_t incoming) { return incoming * values * sizeof(Term) <= kKeptBytes; }
     void fill(size_t t, Term* row) const;
+    // The cosine nodes' density at w, as one strategy over the incoming sides.
+    double cosine_pdf(const Vec3& w) const;
 
     const Bsdf* bsdf_;
     int first_, last_, nt_, np_, nb_;
