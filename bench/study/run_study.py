@@ -5,8 +5,8 @@ table is generated from).
 
     .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--blend FILE ...] [--out DIR]
 
-Scenes: example_blends/*.blend and bench/study/scenes/*.blend (Cornell boxes with a
-glossy and a near-mirror back wall; named apart from the examples). Per scene:
+Scenes: example_blends/*.blend (but the two interiors, NOT_STUDIED) and bench/study/scenes/*.blend
+(Cornell boxes with a glossy and a near-mirror back wall; named apart from the examples). Per scene:
 the three presets and one knob at a time around the preview preset (spatial coefficients,
 angular coefficients, degree, hemisphere nodes, bounces; the costliest settings only where the
 preview is quick, see EXPENSIVE_KNOBS); each solve in a
@@ -68,12 +68,18 @@ FIELDS = ["scene", "method", "setting", "knob", "value", "seconds", "cpu_seconds
           "rel_rmse_diffuse", "rel_rmse_glossy", "pairs", "reference_noise"]
 
 
+# Example scenes the study leaves out: their image textures, world maps and window panes have no
+# Mitsuba 3 scene here (mitsuba_scene.py). The textured interior is compared with Cycles
+# (example_blends/render_comparison.py), the furnished interior measured for scale (bench/run.py scale).
+NOT_STUDIED = {"textured_interior", "furnished_interior"}
+
+
 def scenes(names=None):
-    """The example scenes (whatever example_blends/ holds today) and the study's own."""
+    """The example scenes (whatever example_blends/ holds today, but NOT_STUDIED) and the study's own."""
     subprocess.run([sys.executable, str(HERE / "scenes" / "make_cornell_box_glossy.py"), "--if-missing"], check=True,
                    stdout=subprocess.DEVNULL)
     found = sorted((ROOT / "example_blends").glob("*.blend")) + sorted((HERE / "scenes").glob("*.blend"))
-    return [p for p in found if not names or p.stem in names]
+    return [p for p in found if p.stem not in NOT_STUDIED and (not names or p.stem in names)]
 
 
 def rel_rmse(ours, ref, mask=None):
