@@ -62,8 +62,8 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     refine_to_error: FloatProperty(
         name="Refine to Error", default=0.0, min=0.0, max=1.0, precision=3,
         description="After the solve, surfaces whose estimated relative error is above this get more spatial "
-        "coefficients and the scene is solved again (each pass costs a solve), up to Refine Passes times or the "
-        "memory budget; 0: off")
+        "coefficients (or, where the final gather's integration errs, more of its nodes) and the scene is solved "
+        "again (each pass costs a solve), up to Refine Passes times or the memory budget; 0: off")
     refine_passes: IntProperty(
         name="Refine Passes", default=2, min=0, max=8,
         description="At most this many solves after the first while surfaces are over Refine to Error")
