@@ -77,6 +77,8 @@ const char* phase_name(SolveSteps::Phase p) {
         case SolveSteps::Phase::Final: return "final";
         case SolveSteps::Phase::Regather: return "regather";
         case SolveSteps::Phase::LateBounce: return "late bounce";
+        case SolveSteps::Phase::EstimateChecks: return "estimate checks";
+        case SolveSteps::Phase::EstimateInput: return "estimate input";
     }
     return "";
 }
@@ -87,7 +89,10 @@ SolveSteps::Phase phase_of(const std::string& name) {
     if (name == "final") return SolveSteps::Phase::Final;
     if (name == "regather") return SolveSteps::Phase::Regather;
     if (name == "late bounce") return SolveSteps::Phase::LateBounce;
-    throw std::invalid_argument("solve phase must be 'direct', 'bounce', 'late bounce', 'final' or 'regather', got '" + name + "'");
+    if (name == "estimate checks") return SolveSteps::Phase::EstimateChecks;
+    if (name == "estimate input") return SolveSteps::Phase::EstimateInput;
+    throw std::invalid_argument("solve phase must be 'direct', 'bounce', 'late bounce', 'final', 'regather', 'estimate checks' or "
+                                "'estimate input', got '" + name + "'");
 }
 
 // Sides travel to Python as (front solved, back solved, why, why, encloses its emission) per surface.
@@ -598,7 +603,8 @@ void bind_scene(py::module_& m) {
             },
             py::arg("progress"), py::arg("runner") = py::none(),
             "The whole solve, once. runner(phase, input, nodes) -> (coefficients, rays), if given, gathers each phase "
-            "('direct', 'bounce', 'final', 'regather') for all receivers, wherever it likes (called with the GIL); a receiver "
+            "('direct', 'bounce', 'late bounce', 'final', 'regather', and the error estimate's 'estimate checks' and 'estimate "
+            "input') for all receivers, wherever it likes (called with the GIL); a receiver "
             "of 0 nodes has settled and does not gather (its coefficients are not read). The bookkeeping between phases "
             "stays here. Releases the GIL.")
         .def(
@@ -607,7 +613,8 @@ void bind_scene(py::module_& m) {
                 py::gil_scoped_release release;
                 return steps.nodes(phase_of(phase), progress);
             },
-            py::arg("phase"), py::arg("progress"), "Spatial nodes of each receiver of phase 'direct', 'bounce', 'final' or 'regather'.")
+            py::arg("phase"), py::arg("progress"),
+            "Spatial nodes of each receiver of a phase (for the error estimate's passes, its checks).")
         .def(
             "gather",
             [](SolveSteps& steps, const std::string& phase, size_t begin, size_t end, const Array& input, Progress& progress,
@@ -626,7 +633,8 @@ void bind_scene(py::module_& m) {
             py::arg("settled") = std::vector<size_t>{},
             "The gather of a phase for receivers [begin, end) given all receivers' coefficients of the previous step "
             "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final', the finals' Le of the "
-            "final gather followed by the coarse Le it read for 'regather'): (their new "
+            "final gather followed by the coarse Le it read for 'regather'; for the error estimate's passes, SolveSteps::gather "
+            "in bsgi/solver.h says what): (their new "
             "coefficients, for 'regather' the correction the solve adds to the first final gather's, rays cast). `settled`: receivers of a bounce that do not gather (the runner's 0 nodes; their "
             "coefficients come back as they were). Releases the GIL; raises SolveCancelled if progress is cancelled.");
 }

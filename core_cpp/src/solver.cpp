@@ -1038,7 +1038,8 @@ int begin_solve(const Scene& scene, const SolverSettings& settings, Progress& pr
         throw std::invalid_argument("scene has no emitter: add a light, an emissive material or world light");
     // Form factors carry one scalar weight per coefficient: not the colour of albedo textures.
     const int ff_stage = settings.form_factors && !scene.has_albedo_textures() && settings.max_bounces > 0 ? 1 : 0;
-    const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? settings.final_passes : 0);
+    const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? settings.final_passes : 0) +
+                       (settings.estimate_error ? 1 : 0);
     progress.begin_stage("building ray scene", 0, stages, 1);
     return stages;
 }
@@ -1247,114 +1248,123 @@ struct SolveSteps::State {
     }
 
     // The per-surface error estimate (SurfaceReport::estimated_error) of the last phase's
-    // splines Le of `result` (the finals, or the receivers without a final gather), indexed like
-    // them (NaN for partners, which count with their surface): at each check point, the light
-    // gathered as the last phase would gather it (direct light, and the others' cumulative
-    // radiance Le with the world's along the same rays: without a final gather, the bounces'
-    // sum Le is the fixed point of that gather) against the spline, relative RMS over the
-    // visible checks; at every other check the error of the input the gather read (the others'
-    // splines, from their coarse and final ones), at every fourth the gather at doubled
-    // integration nodes; and `tail`, per receiver, the bounces' radiance still missing.
-    // `parts`: per receiver, the four parts added in quadrature (SurfaceReport::error_parts).
-    std::vector<double> estimate_errors(const std::vector<Receiver>& result, const std::vector<double>& tail, Progress& progress,
-                                        size_t& rays, std::vector<std::array<double, 4>>& parts) {
+    // splines Le (estimated(): the finals, or the receivers without a final gather), indexed
+    // like them (NaN for partners, which count with their surface): at each check point, the
+    // light gathered as the last phase would gather it (direct light, and the others'
+    // cumulative radiance Le with the world's along the same rays: without a final gather, the
+    // bounces' sum Le is the fixed point of that gather) against the spline, relative RMS over
+    // the visible checks; at every other check the error of the input the gather read (the
+    // others' splines, from their coarse and final ones), at every fourth the gather at doubled
+    // integration nodes; and the bounces' radiance still missing (the tail).
+    //
+    // It runs in two passes over receivers, each a phase a solve's runner can split over
+    // workers: estimate_checks (the spline against the gathers) and, with a final gather,
+    // estimate_inputs (the input's error, weighted by every surface's input_scales from the
+    // first pass's records); estimate_errors adds the parts up.
+    std::vector<Receiver>& estimated() { return settings.final_gather ? finals : receivers; }
+    // A receiver's record of the first pass: the count of its checks, then per check these
+    // fields (weighted sums over its visible values, and where it lies).
+    enum CheckField { Fit, CoarseFit, Integration, Radiance, Values, U, V, Weight, Visible, kCheckFields };
+    size_t record_size() const { return 1 + size_t(kCheckFields) * size_t(settings.error_checks); }
+    // Every other check measures the input's error, every fourth also gathers at doubled
+    // integration nodes (four times the rays): spread over the surface as all of them are.
+    static bool input_check(size_t i) { return i % 2 == 0; }
+    static bool fine_check(size_t i) { return i % 4 == 0; }
+    // The integration nodes per axis of the gather that made a receiver's result.
+    double density_at(const Receiver& q) const { return settings.final_gather ? final_density(scene, settings, q.surface) : 1.0; }
+
+    // Behind the back of an opaque surface (not a pane) that no light reaches (its back side
+    // not solved): inside a closed object, seen by no viewer. A lit back (a plane leaning on
+    // a wall, two-sided) is seen: the wedge under it was left out of the checks, where its
+    // splines err most (the validation's open box: the left wall estimated at 0.29 of its error).
+    bool behind(const Vec3& p, const Vec3& normal, const Vec3& d, size_t& counted) const {
+        const SurfaceHit hit = caster.closest_hit(caster.spawn(p, normal, d), d);
+        ++counted;
+        if (hit.surface < 0 || dot(hit.frame.z, d) <= 0) return false;
+        const Material& m = scene[hit.surface].material;
+        if (m.thin_glass || (m.bsdf && m.bsdf->transmits())) return false;
+        const Receiver* h = receiver_of[hit.surface];
+        return !(h && h->solves(1));
+    }
+    // Which (side, direction) values of a check count, bit side * kCheckDirections + a: only
+    // what a viewer can see. A value along a direction whose ray meets the back of an opaque
+    // surface (the floor under a box, the ceiling behind a lamp) lies inside a closed object.
+    uint16_t visible_values(const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& dirs, size_t& counted) const {
+        static_assert(2 * kCheckDirections <= 16, "a check's values are bits of a uint16_t");
+        const std::array<bool, 2> seen = sides_seen(r);
+        uint16_t bits = 0;
+        for (int side = 0; side < 2; ++side)
+            for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
+                const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
+                if (!behind(p.p, p.frame.z, d, counted)) bits |= uint16_t(1u << (side * dirs.size() + a));
+            }
+        return bits;
+    }
+    // The weight in the surface's means of value x of a check of weight `weight` (0 where not
+    // seen), and its index among the nd values per side that values_of gives: a diffuse value
+    // counts by its share of visible directions.
+    static double value_weight(const Receiver& r, double weight, uint16_t visible, size_t x) {
+        if (!(visible >> x & 1u)) return 0.0;
+        const bool diffuse = r.kind == Representation::Diffuse && !r.partner;
+        return weight * (diffuse ? 1.0 / kCheckDirections : 1.0);
+    }
+    static size_t value_index(size_t x, size_t nd) { return (x / kCheckDirections) * nd + (nd == 1 ? 0 : x % kCheckDirections); }
+    // The surface's light is the sum of its parts (D and S of (38), a tint's pair), compared
+    // at (side, direction) values; a diffuse part has one per side. `gathered(q, part, out)`
+    // adds a part's light at the probe q into `out` (side-major, then direction).
+    template <class Gathered>
+    static std::vector<Vec3> values_of(const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& dirs, Gathered&& gathered) {
+        const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
+        std::vector<Vec3> values(2 * nd, Vec3{0, 0, 0}), out;
+        const std::array<bool, 2> seen = sides_seen(r);
+        for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
+            const Receiver q = probe_of(*part, p, dirs);
+            out.assign(q.sides * q.per_node, {0, 0, 0});
+            gathered(q, *part, out);
+            for (int side = 0; side < q.sides; ++side)
+                for (size_t a = 0; a < nd && seen[side]; ++a) values[side * nd + a] += out[side * q.per_node + (q.per_node == 1 ? 0 : a)];
+        }
+        return values;
+    }
+    static double squared(const Vec3& e) { return dot(e, e) / 3; }
+
+    // The first pass for receivers [begin, end) of estimated(): their records (record_size()
+    // each). At each check the spline (and the coarse one) against the last phase's gather, and
+    // the gather at doubled nodes against the phase's.
+    std::vector<double> estimate_checks(size_t begin, size_t end, Progress& progress, size_t& rays) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
-        // The integration nodes per axis of the gather that made a receiver's result.
-        auto density_at = [&](const Receiver& q) { return settings.final_gather ? final_density(scene, settings, q.surface) : 1.0; };
-        const size_t n = size_t(settings.error_checks);
+        const std::vector<Receiver>& result = estimated();
+        const size_t n = size_t(settings.error_checks), size = record_size();
         // The others' splines a gather read err (the contact shadows blurred over a coarse grid),
         // and that error enters each surface's light through its gather, where its own splines
-        // cannot show it: it is measured from the others' coarse and final splines.
+        // cannot show it: it is measured from the others' coarse and final splines (estimate_inputs).
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
         // A regather read the previous final splines, close to the result's: its gather is
         // checked from the result's.
         const bool regathered = settings.final_gather && settings.final_passes > 1;
         const std::vector<const Receiver*>& last_of = regathered ? result_of : receiver_of;
-        // Per (receiver, check), weighted: squared errors of the spline and of the coarse one
-        // against the gather, of the input, of the gather against doubled nodes; the gathered
-        // radiance; the weight.
-        struct Check {
-            double fit = 0, coarse_fit = 0, input = 0, integration = 0, radiance = 0, values = 0;  // values: their weight
-        };
-        std::vector<Check> checks(result.size() * n);
-        std::vector<std::vector<CheckPoint>> points(result.size());
-        // Behind the back of an opaque surface (not a pane) that no light reaches (its back side
-        // not solved): inside a closed object, seen by no viewer. A lit back (a plane leaning on
-        // a wall, two-sided) is seen: the wedge under it was left out of the checks, where its
-        // splines err most (the validation's open box: the left wall estimated at 0.29 of its error).
-        auto behind = [&](const Vec3& p, const Vec3& normal, const Vec3& d, size_t& counted) {
-            const SurfaceHit hit = caster.closest_hit(caster.spawn(p, normal, d), d);
-            ++counted;
-            if (hit.surface < 0 || dot(hit.frame.z, d) <= 0) return false;
-            const Material& m = scene[hit.surface].material;
-            if (m.thin_glass || (m.bsdf && m.bsdf->transmits())) return false;
-            const Receiver* h = receiver_of[hit.surface];
-            return !(h && h->solves(1));
-        };
+        std::vector<double> records((end - begin) * size, 0.0);
+        std::vector<std::vector<CheckPoint>> points(end - begin);
         std::atomic<size_t> candidate_rays{0};
-        parallel_for(result.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+        parallel_for(end - begin, 1, settings.threads, [&](size_t b, size_t e) {
             size_t local = 0;
-            for (size_t k = begin; k < end; ++k) {
-                if (result[k].is_partner) continue;
-                const Surface& surface = *scene[result[k].surface].surface;
-                const double side = result[k].solves(0) || !result[k].solves(1) ? 1.0 : -1.0;
-                points[k] = check_points(result[k], n, [&](double u, double v) {
+            for (size_t k = b; k < e; ++k) {
+                const Receiver& r = result[begin + k];
+                if (r.is_partner) continue;
+                const Surface& surface = *scene[r.surface].surface;
+                const double side = r.solves(0) || !r.solves(1) ? 1.0 : -1.0;
+                points[k] = check_points(r, n, [&](double u, double v) {
                     const SurfacePoint p = surface.evaluate(u, v);
                     return behind(p.p, p.frame.z, p.frame.z * side, local);
                 });
+                records[k * size] = double(points[k].size());
             }
             candidate_rays += local;
         }, progress.cancel_flag());
         progress.throw_if_cancelled();
         rays += candidate_rays;
-        // Every other check measures the input's error, every fourth also gathers at doubled
-        // integration nodes (four times the rays): spread over the surface as all of them are.
-        auto input_check = [](size_t i) { return i % 2 == 0; };
-        auto fine_check = [](size_t i) { return i % 4 == 0; };
-        // Which (side, direction) values of check w count, bit side * kCheckDirections + a: only
-        // what a viewer can see. A value along a direction whose ray meets the back of an opaque
-        // surface (the floor under a box, the ceiling behind a lamp) lies inside a closed object.
-        // Kept per check, so that the input's pass casts no ray twice.
-        static_assert(2 * kCheckDirections <= 16, "a check's values are bits of a uint16_t");
-        std::vector<uint16_t> visible(checks.size(), 0);
-        auto visible_values = [&](size_t w, const SurfacePoint& p, const std::vector<Vec3>& dirs, size_t& counted) {
-            const std::array<bool, 2> seen = sides_seen(result[w / n]);
-            uint16_t bits = 0;
-            for (int side = 0; side < 2; ++side)
-                for (size_t a = 0; a < dirs.size() && seen[side]; ++a) {
-                    const Vec3 d = p.frame.to_world(side == 0 ? dirs[a] : Vec3{dirs[a].x, dirs[a].y, -dirs[a].z});
-                    if (!behind(p.p, p.frame.z, d, counted)) bits |= uint16_t(1u << (side * dirs.size() + a));
-                }
-            return bits;
-        };
-        // The weight in the surface's means of value x of check w (0 where not seen), and its
-        // index among the nd values per side that values_of gives: a diffuse value counts by its
-        // share of visible directions.
-        auto value_weight = [&](size_t w, size_t x) {
-            if (!(visible[w] >> x & 1u)) return 0.0;
-            const Receiver& r = result[w / n];
-            const bool diffuse = r.kind == Representation::Diffuse && !r.partner;
-            return points[w / n][w % n].weight * (diffuse ? 1.0 / kCheckDirections : 1.0);
-        };
-        auto value_index = [](size_t x, size_t nd) { return (x / kCheckDirections) * nd + (nd == 1 ? 0 : x % kCheckDirections); };
-        // The surface's light is the sum of its parts (D and S of (38), a tint's pair), compared
-        // at (side, direction) values; a diffuse part has one per side. `gathered(q, part)` adds
-        // a part's light at the probe q into `out` (m of them: side-major, then direction).
-        auto values_of = [&](const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& dirs, auto&& gathered) {
-            const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
-            std::vector<Vec3> values(2 * nd, Vec3{0, 0, 0}), out;
-            const std::array<bool, 2> seen = sides_seen(r);
-            for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
-                const Receiver q = probe_of(*part, p, dirs);
-                out.assign(q.sides * q.per_node, {0, 0, 0});
-                gathered(q, *part, out);
-                for (int side = 0; side < q.sides; ++side)
-                    for (size_t a = 0; a < nd && seen[side]; ++a) values[side * nd + a] += out[side * q.per_node + (q.per_node == 1 ? 0 : a)];
-            }
-            return values;
-        };
         auto gather_from = [&](const Gatherer& by, const std::vector<const Receiver*>& from, size_t& counted) {
-            return [&by, &from, &counted, &density_at](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
+            return [this, &by, &from, &counted](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
                 std::vector<Vec3> direct(out.size());
                 by.direct(q, 0, direct.data(), counted);
                 by.indirect(q, 0, from, &Receiver::Le, density_at(q), true, out.data(), counted);
@@ -1371,17 +1381,14 @@ struct SolveSteps::State {
                     for (size_t b = 0; b < q.per_node; ++b) out[side * q.per_node + b] += own->own_radiance(&Receiver::Le, u, v, q.outgoing(side, b));
             };
         };
-        auto squared = [](const Vec3& e) { return dot(e, e) / 3; };
         std::atomic<size_t> check_rays{0};
-        // First: the spline (and the coarse one) against the last phase's gather, and the gather
-        // at doubled nodes.
-        parallel_for(checks.size(), 1, settings.threads, [&](size_t begin, size_t end) {
+        parallel_for((end - begin) * n, 1, settings.threads, [&](size_t b, size_t e) {
             size_t local = 0;
-            for (size_t w = begin; w < end; ++w) {
-                const Receiver& r = result[w / n];
-                const size_t i = w % n;
-                if (r.is_partner || i >= points[w / n].size()) continue;
-                const auto [u, v, _] = points[w / n][i];
+            for (size_t w = b; w < e; ++w) {
+                const size_t k = w / n, i = w % n;
+                const Receiver& r = result[begin + k];
+                if (r.is_partner || i >= points[k].size()) continue;
+                const auto [u, v, weight] = points[k][i];
                 const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
                 const std::vector<Vec3> dirs = check_directions(i);
                 const std::vector<Vec3> G = values_of(r, p, dirs, gather_from(*gather, last_of, local));
@@ -1393,91 +1400,155 @@ struct SolveSteps::State {
                     // The doubled nodes' baseline: the gather at the phase's nodes of the same splines.
                     I = regathered || !settings.final_gather ? G : values_of(r, p, dirs, gather_from(*gather, result_of, local));
                 }
-                visible[w] = visible_values(w, p, dirs, local);
-                Check& c = checks[w];
+                const uint16_t visible = visible_values(r, p, dirs, local);
+                double* c = &records[k * size + 1 + i * kCheckFields];
+                c[U] = u, c[V] = v, c[Weight] = weight, c[Visible] = visible;
                 for (size_t x = 0; x < 2 * dirs.size(); ++x) {
-                    const double weight = value_weight(w, x);
-                    if (weight == 0) continue;
-                    const size_t k = value_index(x, S.size() / 2);
-                    c.fit += weight * squared(S[k] - G[k]);
-                    if (!C.empty()) c.coarse_fit += weight * squared(C[k] - G[k]);
-                    if (fine_check(i)) c.integration += weight * squared(F[k] - I[k]);
-                    c.radiance += weight * (G[k].x + G[k].y + G[k].z) / 3;
-                    c.values += weight;
+                    const double share = value_weight(r, weight, visible, x);
+                    if (share == 0) continue;
+                    const size_t j = value_index(x, S.size() / 2);
+                    c[Fit] += share * squared(S[j] - G[j]);
+                    if (!C.empty()) c[CoarseFit] += share * squared(C[j] - G[j]);
+                    if (fine_check(i)) c[Integration] += share * squared(F[j] - I[j]);
+                    c[Radiance] += share * (G[j].x + G[j].y + G[j].z) / 3;
+                    c[Values] += share;
                 }
             }
             check_rays += local;
+            progress.advance(e - b);
         }, progress.cancel_flag());
         progress.throw_if_cancelled();
-        // Each surface's finals against its coarse splines: a fraction r of the coarse error
-        // remains (measured above, at its checks, against the gather), so what the coarse
-        // splines err is the difference between the two over 1 - r, what the finals err that
-        // over 1/r - 1 (Richardson, with the order measured rather than assumed). The input a
-        // surface read (the others' coarse splines, or after a regather their finals) errs by
-        // their difference gathered, each other surface's weighted so. r is taken as at most
-        // 1/2 (first order, as at a contact shadow): nearer 1 the difference is noise.
-        std::vector<double> input_scale(scene.size(), 1.0);
-        if (settings.final_gather)
-            for (size_t k = 0; k < result.size(); ++k) {
-                if (result[k].is_partner) continue;
-                double fine = 0, coarse = 0;
-                for (size_t i = 0; i < n; ++i) fine += checks[k * n + i].fit, coarse += checks[k * n + i].coarse_fit;
-                const double r = coarse > 0 ? std::min(std::sqrt(fine / coarse), 0.5) : 0.5;
-                input_scale[result[k].surface] = regathered ? r / (1 - r) : 1 / (1 - r);
+        rays += check_rays;
+        return records;
+    }
+
+    // Per scene surface, how its finals' difference from its coarse splines scales to the
+    // error of what a gather read from it, from the first pass's records of all receivers.
+    // A fraction r of the coarse error remains (measured at its checks, against the gather), so
+    // what the coarse splines err is the difference between the two over 1 - r, what the finals
+    // err that over 1/r - 1 (Richardson, with the order measured rather than assumed). r is
+    // taken as at most 1/2 (first order, as at a contact shadow): nearer 1 the difference is noise.
+    std::vector<double> input_scales(const std::vector<double>& records) {
+        const std::vector<Receiver>& result = estimated();
+        const size_t n = size_t(settings.error_checks), size = record_size();
+        const bool regathered = settings.final_gather && settings.final_passes > 1;
+        std::vector<double> scale(scene.size(), 1.0);
+        for (size_t k = 0; k < result.size(); ++k) {
+            if (result[k].is_partner) continue;
+            double fine = 0, coarse = 0;
+            for (size_t i = 0; i < n; ++i) {
+                const double* c = &records[k * size + 1 + i * kCheckFields];
+                fine += c[Fit], coarse += c[CoarseFit];
             }
-        // Then the input: the others' finals less their coarse splines, gathered and weighted.
-        if (settings.final_gather)
-            parallel_for(checks.size(), 1, settings.threads, [&](size_t begin, size_t end) {
-                size_t local = 0;
-                for (size_t w = begin; w < end; ++w) {
-                    const Receiver& r = result[w / n];
-                    const size_t i = w % n;
-                    if (r.is_partner || i >= points[w / n].size() || !input_check(i)) continue;
-                    const auto [u, v, _] = points[w / n][i];
-                    const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
-                    const std::vector<Vec3> dirs = check_directions(i);
-                    const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
-                        gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
-                    });
-                    for (size_t x = 0; x < 2 * dirs.size(); ++x)
-                        checks[w].input += value_weight(w, x) * squared(E[value_index(x, E.size() / 2)]);
-                }
-                check_rays += local;
-            }, progress.cancel_flag());
+            const double r = coarse > 0 ? std::min(std::sqrt(fine / coarse), 0.5) : 0.5;
+            scale[result[k].surface] = regathered ? r / (1 - r) : 1 / (1 - r);
+        }
+        return scale;
+    }
+
+    // The second pass (with a final gather) for receivers [begin, end) of estimated(): per
+    // check (n each, 0 where none), the input's error: the others' finals less their coarse
+    // splines, gathered, each surface's weighted by `scale` (input_scales). `records`: the first
+    // pass's of all receivers, which say where the checks lie and what they see.
+    std::vector<double> estimate_inputs(size_t begin, size_t end, const double* scale, const double* records,
+                                        Progress& progress, size_t& rays) {
+        const std::vector<Receiver>& result = estimated();
+        const size_t n = size_t(settings.error_checks), size = record_size();
+        const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
+        const std::vector<double> input_scale(scale, scale + scene.size());
+        std::vector<double> inputs((end - begin) * n, 0.0);
+        std::atomic<size_t> check_rays{0};
+        parallel_for((end - begin) * n, 1, settings.threads, [&](size_t b, size_t e) {
+            size_t local = 0;
+            for (size_t w = b; w < e; ++w) {
+                const size_t k = w / n, i = w % n;
+                const Receiver& r = result[begin + k];
+                const double* c = &records[(begin + k) * size + 1 + i * kCheckFields];
+                if (r.is_partner || i >= size_t(records[(begin + k) * size]) || !input_check(i)) continue;
+                const SurfacePoint p = scene[r.surface].surface->evaluate(c[U], c[V]);
+                const std::vector<Vec3> dirs = check_directions(i);
+                const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
+                    gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
+                });
+                for (size_t x = 0; x < 2 * dirs.size(); ++x)
+                    inputs[w] += value_weight(r, c[Weight], uint16_t(c[Visible]), x) * squared(E[value_index(x, E.size() / 2)]);
+            }
+            check_rays += local;
+            progress.advance(e - b);
+        }, progress.cancel_flag());
         progress.throw_if_cancelled();
         rays += check_rays;
+        return inputs;
+    }
+
+    // Each receiver's estimate from the first pass's records and the second's input errors
+    // (empty without a final gather) of all receivers, and `tail`, per receiver, the bounces'
+    // radiance still missing. `parts`: per receiver, the four parts added in quadrature
+    // (SurfaceReport::error_parts).
+    std::vector<double> estimate_errors(const std::vector<double>& records, const std::vector<double>& inputs,
+                                        const std::vector<double>& tail, std::vector<std::array<double, 4>>& parts) {
+        const std::vector<Receiver>& result = estimated();
+        const size_t n = size_t(settings.error_checks), size = record_size();
         std::vector<double> errors(result.size(), std::nan(""));
         for (size_t k = 0; k < result.size(); ++k) {
             if (result[k].is_partner) continue;
-            Check all, input, fine;
+            // Sums over the checks: all of them, the input's, the doubled nodes'.
+            double fit = 0, radiance = 0, values = 0, input = 0, input_values = 0, integration = 0, fine_values = 0;
             for (size_t i = 0; i < n; ++i) {
-                const Check& c = checks[k * n + i];
-                all.fit += c.fit, all.radiance += c.radiance, all.values += c.values;
-                if (input_check(i)) input.input += c.input, input.values += c.values;
-                if (fine_check(i)) fine.integration += c.integration, fine.values += c.values;
+                const double* c = &records[k * size + 1 + i * kCheckFields];
+                fit += c[Fit], radiance += c[Radiance], values += c[Values];
+                if (input_check(i)) input += inputs.empty() ? 0.0 : inputs[k * n + i], input_values += c[Values];
+                if (fine_check(i)) integration += c[Integration], fine_values += c[Values];
             }
             // Emission leaves the front side (and the back where two-sided) on top of the spline.
             const Material& m = scene[result[k].surface].material;
             // Seen by no viewer (every check's directions meet the back of an opaque surface: a
             // face pressed against another): no estimate, rather than a 0 that would pass for an
             // exact one and lower its object's.
-            if (!(all.values > 0)) continue;
-            const double mean = all.radiance / all.values + (m.emission.x + m.emission.y + m.emission.z) / 3;
+            if (!(values > 0)) continue;
+            const double mean = radiance / values + (m.emission.x + m.emission.y + m.emission.z) / 3;
             if (!(mean > 0)) {
                 errors[k] = 0;  // seen, and no light: nothing to be wrong about
                 continue;
             }
-            auto rms = [&](double squared, double values) { return values > 0 ? std::sqrt(squared / values) / mean : 0.0; };
-            const double e_fit = rms(all.fit, all.values);
+            auto rms = [&](double sum, double weight) { return weight > 0 ? std::sqrt(sum / weight) / mean : 0.0; };
+            const double e_fit = rms(fit, values);
             // The doubled integration nodes' difference is taken as the integration error itself
             // (the rules converge faster where smooth).
-            const double e_input = rms(input.input, input.values);
-            const double e_int = rms(fine.integration, fine.values);
+            const double e_input = rms(input, input_values);
+            const double e_int = rms(integration, fine_values);
             const double e_tail = std::min(tail[k], 1.0);  // not converged: as large as the radiance
             errors[k] = std::sqrt(e_fit * e_fit + e_input * e_input + e_int * e_int + e_tail * e_tail);
             parts[k] = {e_fit, e_input, e_int, e_tail};
         }
         return errors;
+    }
+
+    // A pass of the estimate for receivers [begin, end) of estimated() on a worker: `input`
+    // holds the estimated splines' Le, then with a final gather the coarse Le, then for the
+    // second pass each scene surface's input scale and the first pass's records of all receivers.
+    std::vector<double> estimate_step(SolveSteps::Phase phase, size_t begin, size_t end, const std::vector<double>& input,
+                                      const std::vector<size_t>& settled, Progress& progress, size_t& rays) {
+        if (!settings.estimate_error) throw std::invalid_argument("solve step: the settings estimate no error");
+        if (phase == SolveSteps::Phase::EstimateInput && !settings.final_gather)
+            throw std::invalid_argument("solve step: without a final gather the error estimate has no input pass");
+        if (!settled.empty()) throw std::invalid_argument("solve step: only a bounce's receivers settle");
+        build_finals(progress);
+        std::vector<Receiver>& result = estimated();
+        if (begin > end || end > result.size())
+            throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
+                                        " out of " + std::to_string(result.size()));
+        const size_t result_size = packed_size(result, 0, result.size(), &Receiver::Le);
+        const size_t coarse_size = settings.final_gather ? packed_size(receivers, 0, receivers.size(), &Receiver::Le) : 0;
+        const size_t extra = phase == SolveSteps::Phase::EstimateInput ? scene.size() + result.size() * record_size() : 0;
+        if (input.size() != result_size + coarse_size + extra)
+            throw std::invalid_argument("solve step: the error estimate's pass reads " + std::to_string(result_size + coarse_size + extra) +
+                                        " values, given " + std::to_string(input.size()));
+        unpack(input.data(), result_size, result, 0, result.size(), &Receiver::Le);
+        if (settings.final_gather) unpack(input.data() + result_size, coarse_size, receivers, 0, receivers.size(), &Receiver::Le);
+        if (phase == SolveSteps::Phase::EstimateChecks) return estimate_checks(begin, end, progress, rays);
+        const double* scale = input.data() + result_size + coarse_size;
+        return estimate_inputs(begin, end, scale, scale + scene.size(), progress, rays);
     }
 
     // The rows of the transport operator of receivers [begin, end) that use them, cast once.
@@ -1526,9 +1597,17 @@ constexpr double kRegatherDensity = 0.5, kSharpLobe = 2 * 0.3;
 bool on_finals(SolveSteps::Phase phase) {
     return phase == SolveSteps::Phase::Final || phase == SolveSteps::Phase::Regather;
 }
+// The error estimate's two passes check the estimated splines (the finals, or the coarse ones).
+bool on_estimate(SolveSteps::Phase phase) {
+    return phase == SolveSteps::Phase::EstimateChecks || phase == SolveSteps::Phase::EstimateInput;
+}
 }  // namespace
 
 std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
+    if (on_estimate(phase)) {
+        state_->build_finals(progress);
+        return std::vector<size_t>(state_->estimated().size(), size_t(state_->settings.error_checks));
+    }
     if (!on_finals(phase)) return nodes_of(state_->receivers);
     state_->build_finals(progress);
     return nodes_of(state_->finals);
@@ -1537,6 +1616,7 @@ std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
 std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                        Progress& progress, size_t& rays, const std::vector<size_t>& settled) {
     State& s = *state_;
+    if (on_estimate(phase)) return s.estimate_step(phase, begin, end, input, settled, progress, rays);
     const bool fine = on_finals(phase);
     if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
     if (phase == Phase::Regather && s.settings.final_passes < 2)
@@ -1732,7 +1812,8 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     if (settings.final_gather) {
         const auto t2 = std::chrono::steady_clock::now();
         st.build_finals(progress);
-        progress.begin_stage("final gather", stages - settings.final_passes, stages, node_count(st.finals));
+        const int first_final = stages - settings.final_passes - (settings.estimate_error ? 1 : 0);
+        progress.begin_stage("final gather", first_final, stages, node_count(st.finals));
         const std::vector<double> first = phase(Phase::Final, pack(receivers, 0, all, &Receiver::Le));
         unpack(first, st.finals, 0, st.finals.size(), &Receiver::Le);
         // Each regather: the first final gather's light plus the change that reading the
@@ -1740,7 +1821,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         // point iteration whose later passes carry the finer light a bounce further (into a
         // wedge lit through a narrow opening, which the coarse bounces blurred).
         for (int pass = 2; pass <= settings.final_passes; ++pass) {
-            progress.begin_stage("final gather " + std::to_string(pass), stages - 1 - settings.final_passes + pass, stages,
+            progress.begin_stage("final gather " + std::to_string(pass), first_final - 1 + pass, stages,
                                  node_count(st.finals));
             std::vector<double> input;
             input.reserve(first.size() + packed_size(receivers, 0, all, &Receiver::Le));
@@ -1758,10 +1839,34 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     std::vector<std::array<double, 4>> error_parts(result.size(), SurfaceReport().error_parts);
     if (settings.estimate_error) {
         const auto t3 = std::chrono::steady_clock::now();
+        const size_t checks = size_t(settings.error_checks);
+        progress.begin_stage("error estimate", stages - 1, stages, (settings.final_gather ? 2 : 1) * result.size() * checks);
+        // Each pass here, or wherever `run` sends its groups, given the estimated splines (and the
+        // coarse ones they were gathered from); the second pass also each surface's input scale
+        // and the first pass's records.
+        auto pass = [&](Phase p, const std::vector<double>& scale, const std::vector<double>& records) {
+            size_t& counted = solution.stats.estimate_rays;
+            if (!run)
+                return p == Phase::EstimateChecks ? st.estimate_checks(0, result.size(), progress, counted)
+                                                  : st.estimate_inputs(0, result.size(), scale.data(), records.data(), progress, counted);
+            std::vector<double> input;
+            input.reserve(packed_size(result, 0, result.size(), &Receiver::Le) +
+                          (settings.final_gather ? packed_size(receivers, 0, all, &Receiver::Le) : 0) + scale.size() + records.size());
+            pack_onto(input, result, 0, result.size(), &Receiver::Le);
+            if (settings.final_gather) pack_onto(input, receivers, 0, all, &Receiver::Le);
+            input.insert(input.end(), scale.begin(), scale.end());
+            input.insert(input.end(), records.begin(), records.end());
+            std::vector<double> out = run(p, input, std::vector<size_t>(result.size(), checks), counted);
+            progress.throw_if_cancelled();
+            return out;
+        };
+        const std::vector<double> records = pass(Phase::EstimateChecks, {}, {});
+        std::vector<double> inputs;
+        if (settings.final_gather) inputs = pass(Phase::EstimateInput, st.input_scales(records), records);
         std::vector<double> tail(result.size(), 0.0);
         for (size_t k = 0; k < result.size(); ++k)
             if (const Receiver* coarse = st.receiver_of[result[k].surface]) tail[k] = convergence.error(coarse->index);
-        errors = st.estimate_errors(result, tail, progress, solution.stats.estimate_rays, error_parts);
+        errors = st.estimate_errors(records, inputs, tail, error_parts);
         solution.stats.seconds_estimate = seconds_since(t3);
     }
     const std::vector<Plan>& plans = st.plans;

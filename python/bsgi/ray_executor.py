@@ -1,9 +1,10 @@
 """The solve on a Ray cluster (https://docs.ray.io): each phase's gather split over workers.
 
-Every phase of the solve (the direct light, each bounce, the final gather) is a gather each
-receiving surface does on its own from the previous step's coefficients of all receivers
-(bsgi.SolveSteps). Here the driver keeps the bookkeeping between phases (the sums, when to stop,
-the extrapolated tail) and sends each phase's gather out in groups of receivers to Ray actors.
+Every phase of the solve (the direct light, each bounce, the final gather, and the error
+estimate's two passes) is a gather each receiving surface does on its own from the previous
+step's coefficients of all receivers (bsgi.SolveSteps). Here the driver keeps the bookkeeping
+between phases (the sums, when to stop, the extrapolated tail, the estimate's sums) and sends
+each phase's gather out in groups of receivers to Ray actors.
 Each actor holds the scene, its BVH and its receivers once (rebuilt from the pickled scene) and
 gets the previous step's coefficients from Ray's object store, put there once per phase. The
 result equals the local solve's: the same code gathers the same nodes.

@@ -72,6 +72,12 @@ def assert_same_coefficients(a, b):
         np.testing.assert_allclose(y, x, rtol=1e-12, atol=0)
     assert a.stats["bounces"] == b.stats["bounces"] == 3
     assert a.stats["rays"] == b.stats["rays"]
+    # The error estimate, its passes gathered in groups too: the same per surface, and its parts.
+    assert a.stats["estimate_rays"] == b.stats["estimate_rays"]
+    estimated = [(r["estimated_error"], *r["error_parts"].values()) for r in a.reports if r is not None]
+    assert np.isfinite(estimated).any()
+    np.testing.assert_allclose([(r["estimated_error"], *r["error_parts"].values()) for r in b.reports if r is not None], estimated,
+                               rtol=1e-12, atol=0)
 
 
 def test_scene_pickles_to_the_same_solve():
@@ -102,8 +108,10 @@ def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounce
     executor = bsgi.RayExecutor(workers=2)
     assert_same_coefficients(local, bsgi.solve(scene, s, executor=executor))
     # Each phase sent once: the direct light (nothing), three bounces (L), the final gather (Le),
-    # and a regather (the finals' Le).
-    assert len(executor.bytes_sent) == 4 + final_passes and executor.bytes_sent[0] == 0
+    # a regather (the finals' Le) each further pass, and the error estimate's two passes (the
+    # finals' and the coarse Le, then also the first pass's records).
+    assert len(executor.bytes_sent) == 6 + final_passes and executor.bytes_sent[0] == 0
+    assert executor.bytes_sent[-1] > executor.bytes_sent[-2] > executor.bytes_sent[1]
 
 
 @pytest.mark.parametrize("late_bounces_after", [0, 2])
@@ -123,7 +131,7 @@ def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_a
     steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
     assert_same_coefficients(local, steps.solve(bsgi.Progress(), runner))
     bounces = ["bounce", "bounce", "late bounce"] if late_bounces_after else ["bounce"] * 3
-    assert phases == ["direct", *bounces, "final", "regather"]
+    assert phases == ["direct", *bounces, "final", "regather", "estimate checks", "estimate input"]
     with pytest.raises(ValueError, match="one final pass, no regather"):
         bsgi.SolveSteps(scene, settings(), bsgi.Progress()).gather("regather", 0, 1, np.zeros(0), bsgi.Progress())
 
@@ -195,6 +203,22 @@ def test_worker_lost_for_good_leaves_its_groups_to_the_others(ray_cluster):
     assert_same_coefficients(local, solution)
 
 
+def test_steps_gathered_in_groups_equal_the_solve_without_a_final_gather():
+    # Without a final gather the estimate checks the coarse splines, in one pass (no input read).
+    scene, s = room(), settings(final_gather=False)
+    local = bsgi.solve(scene, s)
+    worker = bsgi.SolveSteps(scene, s, bsgi.Progress())
+    phases = []
+
+    def runner(phase, coefficients, nodes):
+        phases.append(phase)
+        parts = [worker.gather(phase, b, e, coefficients, bsgi.Progress()) for b, e in ((0, 3), (3, len(nodes)))]
+        return np.concatenate([p[0] for p in parts]), sum(p[1] for p in parts)
+
+    assert_same_coefficients(local, bsgi.SolveSteps(scene, s, bsgi.Progress()).solve(bsgi.Progress(), runner))
+    assert phases == ["direct", "bounce", "bounce", "bounce", "estimate checks"]
+
+
 def test_solve_steps_check_what_they_are_given():
     scene, s = room(), settings(max_bounces=1, final_gather=False)
     steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
@@ -209,6 +233,15 @@ def test_solve_steps_check_what_they_are_given():
     two = bsgi.SolveSteps(scene, settings(max_bounces=1, final_passes=2), bsgi.Progress())
     with pytest.raises(ValueError, match=r"a regather reads the finals' Le \(\d+ coefficients\) and the coarse Le"):
         two.gather("regather", 0, 1, np.zeros(7), bsgi.Progress())
+    # The estimate's passes read the estimated splines (and the coarse ones), the input pass
+    # also the scales and the checks' records; without a final gather there is no input pass.
+    with pytest.raises(ValueError, match="the error estimate's pass reads"):
+        two.gather("estimate checks", 0, 1, np.zeros(7), bsgi.Progress())
+    with pytest.raises(ValueError, match="has no input pass"):
+        steps.gather("estimate input", 0, 1, np.zeros(0), bsgi.Progress())
+    with pytest.raises(ValueError, match="estimate no error"):
+        bsgi.SolveSteps(scene, settings(estimate_error=False), bsgi.Progress()).gather("estimate checks", 0, 1, np.zeros(0),
+                                                                                       bsgi.Progress())
     steps.solve(bsgi.Progress())
     with pytest.raises(RuntimeError, match="runs once"):
         steps.solve(bsgi.Progress())

@@ -192,7 +192,9 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings, 
 // knots. Coefficients travel flat: receiver after receiver, each one's spline sides in order.
 class SolveSteps {
 public:
-    enum class Phase { Direct = 0, Bounce = 1, Final = 2, Regather = 3, LateBounce = 4 };
+    // The error estimate's two passes (SolverSettings::estimate_error) are phases too: its checks
+    // (the spline against the gathers), and with a final gather the error of the input read.
+    enum class Phase { Direct = 0, Bounce = 1, Final = 2, Regather = 3, LateBounce = 4, EstimateChecks = 5, EstimateInput = 6 };
     // Gathers a phase for every receiver (in groups wherever it likes): the coefficients of all
     // receivers of the phase, given `input` (empty, L or Le) and the nodes each receiver gathers
     // (the work; 0 for a settled receiver, which does not gather: its coefficients in the result
@@ -218,7 +220,11 @@ public:
     // gather; to regather, the finals' Le of the final gather followed by the coarse Le it read):
     // their new coefficients. `settled`: receivers of a bounce that do not gather (their
     // coefficients are returned as they were). Advances `progress` by nodes; throws Cancelled if
-    // it is cancelled.
+    // it is cancelled. The error estimate's passes read the estimated splines' Le (the finals',
+    // or the coarse ones' without a final gather), then with a final gather the coarse Le; the
+    // input pass then also each scene surface's input scale and the checks pass's result for all
+    // receivers; they give per receiver its checks' record (the checks pass) or each check's
+    // input error (the input pass), and count their rays as the estimate's.
     std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                Progress& progress, size_t& rays, const std::vector<size_t>& settled = {});
     // The whole solve, each phase's gather run by `run` (here, on all threads, if empty), the
