@@ -39,10 +39,13 @@ class SolveWorker:
         self.progress = _core.Progress()
 
     def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int, settled: list) -> tuple:
+        """(the group's coefficients, its rays, the seconds it took here)."""
         progress = _core.Progress()
         progress.begin_stage(phase, 0, 1, nodes)
         self.progress = progress  # what cancel() sees, from Ray's second actor thread
-        return self.steps.gather(phase, begin, end, coefficients, progress, settled)
+        start = time.perf_counter()
+        part, rays = self.steps.gather(phase, begin, end, coefficients, progress, settled)
+        return part, rays, time.perf_counter() - start
 
     def cancel(self) -> None:
         """Stops the running gather (it raises SolveCancelled)."""
@@ -53,16 +56,22 @@ class SolveWorker:
         return time.process_time()
 
 
-def receiver_groups(nodes: list, count: int) -> list:
-    """Consecutive receivers in `count` groups of about equal nodes: (begin, end, nodes) each."""
-    total = sum(nodes)
-    groups, begin, within, share = [], 0, 0, max(total / max(count, 1), 1)
-    for k, n in enumerate(nodes):
-        within += n
-        if within >= share or k + 1 == len(nodes):
-            groups.append((begin, k + 1, within))
-            begin, within = k + 1, 0
-    return groups
+def receiver_groups(nodes: list, count: int, cost_per_node=None) -> list:
+    """Consecutive receivers in at most `count` groups of about equal cost (nodes times
+    `cost_per_node`, 1 if None): (begin, end, nodes) each. A group ends at the receiver whose
+    cumulative cost is nearest its share of the total."""
+    cost = np.asarray(nodes, float) * (1.0 if cost_per_node is None else np.asarray(cost_per_node, float))
+    if len(cost) == 0:
+        return []
+    cumulative = np.cumsum(cost)
+    ends = set()
+    for g in range(1, count):
+        target = cumulative[-1] * g / count
+        k = int(np.searchsorted(cumulative, target))  # the first receiver that reaches it
+        before = cumulative[k - 1] if k > 0 else 0.0
+        ends.add(k + 1 if k < len(cost) and cumulative[k] - target <= target - before else k)
+    bounds = [0, *sorted(e for e in ends if 0 < e < len(cost)), len(cost)]
+    return [(b, e, int(sum(nodes[b:e]))) for b, e in zip(bounds, bounds[1:])]
 
 
 class RayExecutor:
@@ -94,6 +103,10 @@ class RayExecutor:
         self.lost: set = set()  # workers gone for good (their groups went to the others)
         self.worker_cpu_seconds: list = []  # of each worker's process, at the end of the last solve
         self.receiver_nodes: list = []  # of each receiver of the bounces, as the direct light gathered them
+        # Seconds a node of each receiver takes, as last measured on the workers (up to a factor
+        # the same for all receivers in a phase): a glossy node costs many diffuse ones, so
+        # groups of equal nodes would leave a worker idle while another gathers the glossy group.
+        self.cost_per_node: Optional[np.ndarray] = None
 
     def connect(self) -> Any:
         ray = import_ray()
@@ -123,6 +136,7 @@ class RayExecutor:
         self.bytes_sent = []
         self.lost = set()
         self.keep_groups = settings.form_factors
+        self.cost_per_node = None
         try:
             solution = steps.solve(progress, lambda *args: self.run_phase(ray, progress, *args))
             alive = [a for w, a in enumerate(self.actors) if w not in self.lost]
@@ -143,18 +157,25 @@ class RayExecutor:
         alive = [w for w in range(len(self.actors)) if w not in self.lost]
         queues = {w: deque() for w in alive}
         # A receiver of 0 nodes has settled (SolverSettings.settle_factor): it does not gather.
-        # The groups are the same every phase, for the workers' form-factor rows, and so split by
-        # the receivers' own nodes.
+        # With form-factor rows the groups are the same every phase, and so split by the
+        # receivers' own nodes.
         if phase == "direct":
             self.receiver_nodes = nodes  # before any receiver settles
-        own = self.receiver_nodes if phase in ("bounce", "late bounce") else nodes
-        for g, (begin, end, _) in enumerate(receiver_groups(own, len(alive) * self.groups_per_worker)):
+        own = self.receiver_nodes if self.keep_groups and phase in ("bounce", "late bounce") else nodes
+        # Without form-factor rows to keep, each phase's groups are of equal cost as measured in
+        # the phases before (the receivers' relative costs hold from phase to phase: the final
+        # gather's nodes are finer, its glossy ones as much dearer).
+        if self.cost_per_node is None or len(self.cost_per_node) != len(nodes):
+            self.cost_per_node = np.ones(len(nodes))
+        per_node = None if self.keep_groups else self.cost_per_node
+        for g, (begin, end, _) in enumerate(receiver_groups(own, len(alive) * self.groups_per_worker, per_node)):
             settled = [k for k in range(begin, end) if nodes[k] == 0]
             queues[alive[g % len(alive)]].append((begin, end, sum(nodes[begin:end]), settled))
         idle = list(alive)
         running: dict = {}
         parts: dict = {}
         rays = 0
+        measured = []  # (begin, end, seconds) of each group
         while any(queues.values()) or running:
             if progress.cancelled:
                 for w, _ in running.values():
@@ -173,7 +194,7 @@ class RayExecutor:
             for ref in ready:
                 w, group = running.pop(ref)
                 try:
-                    part, group_rays = ray.get(ref)
+                    part, group_rays, seconds = ray.get(ref)
                 except ray.exceptions.RayActorError:
                     # Gone beyond Ray's restarts (its machine left the cluster): its groups go to the others.
                     self.lost.add(w)
@@ -183,6 +204,25 @@ class RayExecutor:
                     continue
                 parts[group[0]] = part
                 rays += group_rays
+                measured.append((group[0], group[1], seconds))
                 progress.advance(group[2])
                 idle.append(w)
+        self.learn_costs(measured, nodes)
         return np.concatenate([parts[b] for b in sorted(parts)]) if parts else np.zeros(0), rays
+
+    def learn_costs(self, measured: list, nodes: list) -> None:
+        """Each group's receivers' cost per node scaled so that their predicted seconds are the
+        group's measured ones; receivers that did not gather (settled) by the phase's overall scale."""
+        nodes = np.asarray(nodes, float)
+        cost = self.cost_per_node
+        gathered = np.zeros(len(cost), bool)
+        predicted_sum = seconds_sum = 0.0
+        for begin, end, seconds in measured:
+            predicted = float((cost[begin:end] * nodes[begin:end]).sum())
+            if predicted > 0 and seconds > 0:
+                live = nodes[begin:end] > 0
+                cost[begin:end][live] *= seconds / predicted
+                gathered[begin:end] |= live
+                predicted_sum, seconds_sum = predicted_sum + predicted, seconds_sum + seconds
+        if predicted_sum > 0:
+            cost[~gathered] *= seconds_sum / predicted_sum

@@ -219,6 +219,37 @@ def test_steps_gathered_in_groups_equal_the_solve_without_a_final_gather():
     assert phases == ["direct", "bounce", "bounce", "bounce", "estimate checks"]
 
 
+def test_receiver_groups_balance_the_measured_cost():
+    from bsgi.ray_executor import receiver_groups
+
+    # Equal costs: equal nodes a group; every receiver in exactly one group, in order.
+    assert receiver_groups([10] * 8, 4) == [(0, 2, 20), (2, 4, 20), (4, 6, 20), (6, 8, 20)]
+    assert receiver_groups([], 3) == [] and receiver_groups([5], 4) == [(0, 1, 5)]
+    # Two glossy receivers whose nodes cost ten times a diffuse one's: each in a group of its
+    # own cost, where equal nodes would put both in the last group.
+    nodes, cost = [4] * 10, [1] * 8 + [10] * 2
+    assert receiver_groups(nodes, 2) == [(0, 5, 20), (5, 10, 20)]
+    groups = receiver_groups(nodes, 3, cost)
+    assert [(b, e) for b, e, _ in groups] == [(0, 8), (8, 9), (9, 10)]
+
+
+def test_costs_learned_from_a_phase_rebalance_the_next():
+    executor = bsgi.RayExecutor(workers=2)
+    nodes = [4] * 10
+    executor.cost_per_node = np.ones(10)
+    # Measured: the second half of the receivers took five times the first half's seconds.
+    executor.learn_costs([(0, 5, 1.0), (5, 10, 5.0)], nodes)
+    np.testing.assert_allclose(executor.cost_per_node, [0.05] * 5 + [0.25] * 5)
+    groups = bsgi.ray_executor.receiver_groups(nodes, 2, executor.cost_per_node)
+    assert groups[0][:2] == (0, 7)  # 5 cheap and 2 dear receivers (1 + 2 s) against 3 dear ones (3 s)
+    # A receiver that did not gather (settled, 0 nodes) keeps its cost on the phase's scale.
+    executor.cost_per_node = np.ones(4)
+    executor.learn_costs([(0, 4, 6.0)], [2, 2, 2, 0])
+    np.testing.assert_allclose(executor.cost_per_node, [1.0, 1.0, 1.0, 1.0])
+    executor.learn_costs([(0, 2, 4.0), (2, 4, 8.0)], [2, 2, 2, 0])  # predicted 4 s and 2 s: the phase 2x dearer
+    np.testing.assert_allclose(executor.cost_per_node, [1.0, 1.0, 4.0, 2.0])
+
+
 def test_solve_steps_check_what_they_are_given():
     scene, s = room(), settings(max_bounces=1, final_gather=False)
     steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
