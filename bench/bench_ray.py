@@ -7,6 +7,9 @@ locally (ray.init(num_cpus=2)); worker start-up (process, scene, BVH) counts in 
 ray_cpu_overhead_fraction compares CPU time (the driver's and the workers' processes) instead.
 ray_bounce_mb is what one bounce puts into the object store (the increment L of all receivers,
 float64), which a cluster sends once to each machine; the workers send as much back.
+ray_final_gather_mb, ray_regather_mb and ray_estimate_mb: the same for the final gather (the
+coarse Le), a regather (the finals' Le and the coarse Le) and the error estimate's input pass
+(those, each surface's input scale and the checks pass's records).
 
     .venv/bin/python bench/bench_ray.py [--objects N] [--preset NAME]
 """
@@ -60,6 +63,7 @@ def run(objects: int = OBJECTS, preset: str = "preview") -> dict:
           f"{two_cpu:.1f} s); "
           f"{local.stats['bounces']} bounces; coefficients equal: {same}; the driver's error estimate "
           f"{solution.stats['seconds_estimate']:.1f} s of the 2 workers' solve")
+    bounces = solution.stats["bounces"]
     return {
         "ray_objects": objects,
         "ray_surfaces": len(scene),
@@ -74,7 +78,11 @@ def run(objects: int = OBJECTS, preset: str = "preview") -> dict:
         "ray_2workers_cpu_seconds": two_cpu,
         "ray_cpu_overhead_fraction": two_cpu / local_cpu - 1,
         "ray_bounce_mb": two.bytes_sent[1] / 2**20,
-        "ray_final_gather_mb": two.bytes_sent[-1] / 2**20 if settings.final_gather else 0.0,
+        # Phases in order: the direct light, the bounces, the final gather and its regathers, the
+        # error estimate's two passes (see bsgi.SolveSteps).
+        "ray_final_gather_mb": two.bytes_sent[1 + bounces] / 2**20 if settings.final_gather else 0.0,
+        "ray_regather_mb": two.bytes_sent[2 + bounces] / 2**20 if settings.final_passes > 1 else 0.0,
+        "ray_estimate_mb": two.bytes_sent[-1] / 2**20 if settings.estimate_error else 0.0,
         "ray_equal_to_local": float(same),
         "ray_2workers_estimate_seconds": solution.stats["seconds_estimate"],
     }
