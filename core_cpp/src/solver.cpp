@@ -1328,6 +1328,24 @@ struct SolveSteps::State {
     }
     static double squared(const Vec3& e) { return dot(e, e) / 3; }
 
+    // body(k, i, receiver, rays) for check i of each receiver begin + k of estimated() but the
+    // partners, on all threads: it adds the rays it casts to `rays`, as this adds all to `rays`.
+    template <class Body>
+    void for_each_check(size_t begin, size_t end, Progress& progress, size_t& rays, Body&& body) {
+        const std::vector<Receiver>& result = estimated();
+        const size_t n = size_t(settings.error_checks);
+        std::atomic<size_t> counted{0};
+        parallel_for((end - begin) * n, 1, settings.threads, [&](size_t b, size_t e) {
+            size_t local = 0;
+            for (size_t w = b; w < e; ++w)
+                if (!result[begin + w / n].is_partner) body(w / n, w % n, result[begin + w / n], local);
+            counted += local;
+            progress.advance(e - b);
+        }, progress.cancel_flag());
+        progress.throw_if_cancelled();
+        rays += counted;
+    }
+
     // The first pass for receivers [begin, end) of estimated(): their records (record_size()
     // each). At each check the spline (and the coarse one) against the last phase's gather, and
     // the gather at doubled nodes against the phase's.
@@ -1381,44 +1399,34 @@ struct SolveSteps::State {
                     for (size_t b = 0; b < q.per_node; ++b) out[side * q.per_node + b] += own->own_radiance(&Receiver::Le, u, v, q.outgoing(side, b));
             };
         };
-        std::atomic<size_t> check_rays{0};
-        parallel_for((end - begin) * n, 1, settings.threads, [&](size_t b, size_t e) {
-            size_t local = 0;
-            for (size_t w = b; w < e; ++w) {
-                const size_t k = w / n, i = w % n;
-                const Receiver& r = result[begin + k];
-                if (r.is_partner || i >= points[k].size()) continue;
-                const auto [u, v, weight] = points[k][i];
-                const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
-                const std::vector<Vec3> dirs = check_directions(i);
-                const std::vector<Vec3> G = values_of(r, p, dirs, gather_from(*gather, last_of, local));
-                const std::vector<Vec3> S = values_of(r, p, dirs, spline_at(result_of, u, v));
-                std::vector<Vec3> C, F, I;
-                if (settings.final_gather) C = values_of(r, p, dirs, spline_at(receiver_of, u, v));
-                if (fine_check(i)) {
-                    F = values_of(r, p, dirs, gather_from(*fine_gather, result_of, local));
-                    // The doubled nodes' baseline: the gather at the phase's nodes of the same splines.
-                    I = regathered || !settings.final_gather ? G : values_of(r, p, dirs, gather_from(*gather, result_of, local));
-                }
-                const uint16_t visible = visible_values(r, p, dirs, local);
-                double* c = &records[k * size + 1 + i * kCheckFields];
-                c[U] = u, c[V] = v, c[Weight] = weight, c[Visible] = visible;
-                for (size_t x = 0; x < 2 * dirs.size(); ++x) {
-                    const double share = value_weight(r, weight, visible, x);
-                    if (share == 0) continue;
-                    const size_t j = value_index(x, S.size() / 2);
-                    c[Fit] += share * squared(S[j] - G[j]);
-                    if (!C.empty()) c[CoarseFit] += share * squared(C[j] - G[j]);
-                    if (fine_check(i)) c[Integration] += share * squared(F[j] - I[j]);
-                    c[Radiance] += share * (G[j].x + G[j].y + G[j].z) / 3;
-                    c[Values] += share;
-                }
+        for_each_check(begin, end, progress, rays, [&](size_t k, size_t i, const Receiver& r, size_t& local) {
+            if (i >= points[k].size()) return;
+            const auto [u, v, weight] = points[k][i];
+            const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
+            const std::vector<Vec3> dirs = check_directions(i);
+            const std::vector<Vec3> G = values_of(r, p, dirs, gather_from(*gather, last_of, local));
+            const std::vector<Vec3> S = values_of(r, p, dirs, spline_at(result_of, u, v));
+            std::vector<Vec3> C, F, I;
+            if (settings.final_gather) C = values_of(r, p, dirs, spline_at(receiver_of, u, v));
+            if (fine_check(i)) {
+                F = values_of(r, p, dirs, gather_from(*fine_gather, result_of, local));
+                // The doubled nodes' baseline: the gather at the phase's nodes of the same splines.
+                I = regathered || !settings.final_gather ? G : values_of(r, p, dirs, gather_from(*gather, result_of, local));
             }
-            check_rays += local;
-            progress.advance(e - b);
-        }, progress.cancel_flag());
-        progress.throw_if_cancelled();
-        rays += check_rays;
+            const uint16_t visible = visible_values(r, p, dirs, local);
+            double* c = &records[k * size + 1 + i * kCheckFields];
+            c[U] = u, c[V] = v, c[Weight] = weight, c[Visible] = visible;
+            for (size_t x = 0; x < 2 * dirs.size(); ++x) {
+                const double share = value_weight(r, weight, visible, x);
+                if (share == 0) continue;
+                const size_t j = value_index(x, S.size() / 2);
+                c[Fit] += share * squared(S[j] - G[j]);
+                if (!C.empty()) c[CoarseFit] += share * squared(C[j] - G[j]);
+                if (fine_check(i)) c[Integration] += share * squared(F[j] - I[j]);
+                c[Radiance] += share * (G[j].x + G[j].y + G[j].z) / 3;
+                c[Values] += share;
+            }
+        });
         return records;
     }
 
@@ -1457,27 +1465,17 @@ struct SolveSteps::State {
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
         const std::vector<double> input_scale(scale, scale + scene.size());
         std::vector<double> inputs((end - begin) * n, 0.0);
-        std::atomic<size_t> check_rays{0};
-        parallel_for((end - begin) * n, 1, settings.threads, [&](size_t b, size_t e) {
-            size_t local = 0;
-            for (size_t w = b; w < e; ++w) {
-                const size_t k = w / n, i = w % n;
-                const Receiver& r = result[begin + k];
-                const double* c = &records[(begin + k) * size + 1 + i * kCheckFields];
-                if (r.is_partner || i >= size_t(records[(begin + k) * size]) || !input_check(i)) continue;
-                const SurfacePoint p = scene[r.surface].surface->evaluate(c[U], c[V]);
-                const std::vector<Vec3> dirs = check_directions(i);
-                const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
-                    gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
-                });
-                for (size_t x = 0; x < 2 * dirs.size(); ++x)
-                    inputs[w] += value_weight(r, c[Weight], uint16_t(c[Visible]), x) * squared(E[value_index(x, E.size() / 2)]);
-            }
-            check_rays += local;
-            progress.advance(e - b);
-        }, progress.cancel_flag());
-        progress.throw_if_cancelled();
-        rays += check_rays;
+        for_each_check(begin, end, progress, rays, [&](size_t k, size_t i, const Receiver& r, size_t& local) {
+            const double* c = &records[(begin + k) * size + 1 + i * kCheckFields];
+            if (i >= size_t(records[(begin + k) * size]) || !input_check(i)) return;
+            const SurfacePoint p = scene[r.surface].surface->evaluate(c[U], c[V]);
+            const std::vector<Vec3> dirs = check_directions(i);
+            const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
+                gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
+            });
+            for (size_t x = 0; x < 2 * dirs.size(); ++x)
+                inputs[k * n + i] += value_weight(r, c[Weight], uint16_t(c[Visible]), x) * squared(E[value_index(x, E.size() / 2)]);
+        });
         return inputs;
     }
 
