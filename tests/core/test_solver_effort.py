@@ -58,8 +58,9 @@ def test_small_box_faces_cost_a_quarter_of_the_rays_of_uniform_coefficients():
     print(f"\nrays per box face: uniform {per_face['uniform']:.0f}, adaptive {per_face['adaptive']:.0f} "
           f"({per_face['uniform'] / per_face['adaptive']:.1f}x fewer); floor {floor}")
     assert floor == [24, 24]  # the largest surface keeps the preset's 12 (x 2 in the final gather)
-    # Issue 16's target: 4x fewer rays per small surface (measured 7.6x here).
-    assert per_face["adaptive"] <= per_face["uniform"] / 4
+    # Issue 16's target: 4x fewer rays per small surface. Measured 8.4x here (297,000 -> 35,000
+    # rays a face); the bound sits within 2x of it.
+    assert per_face["adaptive"] <= per_face["uniform"] / 5
 
 
 def test_evenly_lit_box_tops_match_the_closed_form_with_few_coefficients():
