@@ -66,7 +66,12 @@ def main(argv=None) -> int:
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="solve on a Ray cluster: 'auto' (the cluster this machine joined with `ray start`), "
                              "'ray://host:10001' or host:port (needs `pip install ray`, and bsgi on every node)")
+    parser.add_argument("--ray-threads-per-worker", type=int, default=1, metavar="N",
+                        help="with --ray-address: CPUs each Ray worker reserves and gathers on (default 1; a "
+                             "machine's cores: one worker a machine, faster where the machines are alike)")
     args = parser.parse_args(argv)
+    if args.ray_threads_per_worker < 1:
+        parser.error("--ray-threads-per-worker must be at least 1")
 
     import bpy
 
@@ -96,7 +101,8 @@ def main(argv=None) -> int:
         print(f"bsgi: {fraction * 100:5.1f}% {stage}", flush=True)
 
     try:
-        rep = pipeline.solve_and_bake(context, on_progress=on_progress, ray_address=args.ray_address or "")
+        rep = pipeline.solve_and_bake(context, on_progress=on_progress, ray_address=args.ray_address or "",
+                                     ray_threads_per_worker=args.ray_threads_per_worker)
     except (ExportError, ValueError, RuntimeError, MemoryError, ImportError) as error:
         print(f"bsgi: error: {error}", file=sys.stderr)
         return 1

@@ -49,19 +49,24 @@ def one_solve():
         release()
 
 
-def executor_for(address: str) -> bsgi.RayExecutor | None:
-    """Where the solve runs: a Ray cluster at `address` ('auto': the one this machine joined), or
-    here (''). ImportError saying so when Ray is not installed."""
+def executor_for(address: str, threads_per_worker: int = 1) -> bsgi.RayExecutor | None:
+    """Where the solve runs: a Ray cluster at `address` ('auto': the one this machine joined),
+    with workers of `threads_per_worker` CPUs each, or here (''). ImportError saying so when Ray
+    is not installed."""
     if not address:
         return None
     bsgi.ray_executor.import_ray()
-    return bsgi.RayExecutor(address)
+    return bsgi.RayExecutor(address, threads_per_worker=threads_per_worker)
 
 
-def prepare(context, progress: bsgi.Progress | None = None, ray_address: str | None = None) -> Job:
+def prepare(context, progress: bsgi.Progress | None = None, ray_address: str | None = None,
+            ray_threads_per_worker: int | None = None) -> Job:
     """Main thread: read the scene. Raises ExportError naming the object on bad input.
-    ray_address: a Ray cluster to solve on (None: the add-on's preferences say)."""
-    executor = executor_for(preferences.ray_address(context) if ray_address is None else ray_address)
+    ray_address, ray_threads_per_worker: the Ray cluster to solve on and its workers' threads
+    (None: the add-on's preferences say)."""
+    address, threads = preferences.ray_cluster(context)
+    executor = executor_for(address if ray_address is None else ray_address,
+                            threads if ray_threads_per_worker is None else ray_threads_per_worker)
     depsgraph = context.evaluated_depsgraph_get()
     # Objects that cannot be baked (curves, texts, metaballs; meshes whose modifiers carry no
     # chart) are solved but left out of export.objects, with a warning each.
@@ -95,14 +100,15 @@ def finish(context, job: Job, solution: bsgi.Solution) -> None:
     error_view.refresh(context.scene)
 
 
-def solve_and_bake(context, on_progress=None, progress: bsgi.Progress | None = None, ray_address: str | None = None) -> dict:
+def solve_and_bake(context, on_progress=None, progress: bsgi.Progress | None = None, ray_address: str | None = None,
+                   ray_threads_per_worker: int | None = None) -> dict:
     """The whole job on the calling thread; returns a report of what was done. progress.cancel()
     from another thread stops the solve or the bake (bsgi.SolveCancelled), leaving the scene as
-    it was; a second solve while one runs raises RuntimeError (BUSY_MESSAGE). ray_address: as
-    for prepare()."""
+    it was; a second solve while one runs raises RuntimeError (BUSY_MESSAGE). ray_address,
+    ray_threads_per_worker: as for prepare()."""
     with one_solve():
         t0 = time.perf_counter()
-        job = prepare(context, progress, ray_address)
+        job = prepare(context, progress, ray_address, ray_threads_per_worker)
         solution = bsgi.solve(job.export.scene, job.settings, job.progress, on_progress=on_progress, executor=job.executor)
         t1 = time.perf_counter()
         finish(context, job, solution)

@@ -125,6 +125,11 @@ class RayExecutor:
         if count * self.threads_per_worker > cpus:  # the workers that do not fit would never start
             raise ValueError(f"RayExecutor: {count} workers of {self.threads_per_worker} threads need "
                              f"{count * self.threads_per_worker} CPUs; the Ray cluster has {cpus}")
+        # A worker's CPUs are on one machine: one of more threads than any machine has would wait forever.
+        largest = int(max((n["Resources"].get("CPU", 0) for n in ray.nodes() if n.get("Alive")), default=0))
+        if self.threads_per_worker > largest:
+            raise ValueError(f"RayExecutor: a worker of {self.threads_per_worker} threads needs a machine of as many "
+                             f"CPUs; the largest in the Ray cluster has {largest}")
         fields = settings_fields(settings)
         fields["threads"] = self.threads_per_worker
         actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,

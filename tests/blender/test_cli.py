@@ -46,6 +46,11 @@ def test_python_m_entry_refines_to_an_error_target(context, tmp_path):
     assert "surfaces refined in 1 more solves" in run.stdout, run.stdout
 
 
+def test_python_m_entry_refuses_workers_of_no_threads():
+    run = run_module("--ray-address", "auto", "--ray-threads-per-worker", "0")
+    assert run.returncode == 2 and "--ray-threads-per-worker must be at least 1" in run.stderr, run.stderr
+
+
 def test_python_m_entry_fails_with_status_1_and_a_message_on_a_scene_without_emitters(context, tmp_path):
     scenes.add_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
     source = tmp_path / "dark.blend"

@@ -33,3 +33,12 @@ def test_exported_scene_solves_on_ray_as_here(context, ray_cluster):
                 np.testing.assert_allclose(y.coefficients, x.coefficients, rtol=1e-12, atol=0)
                 compared += 1
     assert compared >= 8
+
+
+def test_threads_per_worker_reach_the_executor(context):
+    """cli.py --ray-threads-per-worker and the preferences' Threads per Worker: one worker a machine
+    of all its cores (README, Solving on a Ray cluster)."""
+    scenes.floor_under_lamp()
+    assert pipeline.prepare(context, ray_address="auto", ray_threads_per_worker=2).executor.threads_per_worker == 2
+    # Not given: the preferences say (1 where the add-on is not enabled as an add-on, as here).
+    assert pipeline.prepare(context, ray_address="auto").executor.threads_per_worker == 1
