@@ -99,6 +99,9 @@ class RayExecutor:
         self.poll_seconds = poll_seconds
         self.actors: list = []
         self.bytes_sent: list = []  # of each phase's coefficients put into the object store
+        # Of each phase: (its name, when it began and ended on the driver's perf_counter, each
+        # group's seconds on its worker); what the driver did alone lies between the phases.
+        self.phase_times: list = []
         self.keep_groups = False  # each group stays on its worker (which keeps its form-factor rows)
         self.lost: set = set()  # workers gone for good (their groups went to the others)
         self.worker_cpu_seconds: list = []  # of each worker's process, at the end of the last solve
@@ -139,6 +142,7 @@ class RayExecutor:
         scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
         self.actors = [actor.remote(scene_ref, fields, steps.sides) for _ in range(count)]
         self.bytes_sent = []
+        self.phase_times = []
         self.lost = set()
         self.keep_groups = settings.form_factors
         self.cost_per_node = None
@@ -154,6 +158,7 @@ class RayExecutor:
 
     def run_phase(self, ray: Any, progress: _core.Progress, phase: str, coefficients: np.ndarray, nodes: list) -> tuple:
         """One phase's gather for all receivers, group by group on the free workers."""
+        began = time.perf_counter()
         coefficients_ref = ray.put(coefficients)  # once per phase, fetched once per machine
         self.bytes_sent.append(coefficients.nbytes)
         # Group g goes to worker g mod n, the same every phase: a worker casts the form-factor rows of
@@ -213,6 +218,7 @@ class RayExecutor:
                 progress.advance(group[2])
                 idle.append(w)
         self.learn_costs(measured, nodes)
+        self.phase_times.append((phase, began, time.perf_counter(), [seconds for *_, seconds in measured]))
         return np.concatenate([parts[b] for b in sorted(parts)]) if parts else np.zeros(0), rays
 
     def learn_costs(self, measured: list, nodes: list) -> None:

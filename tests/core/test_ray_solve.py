@@ -112,6 +112,11 @@ def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounce
     # finals' and the coarse Le, then also the first pass's records).
     assert len(executor.bytes_sent) == 6 + final_passes and executor.bytes_sent[0] == 0
     assert executor.bytes_sent[-1] > executor.bytes_sent[-2] > executor.bytes_sent[1]
+    # Each phase's times (bench/ray_phases.py prints them): in order, a group's seconds each.
+    bounces = ["bounce", "late bounce", "late bounce"] if late_bounces_after else ["bounce"] * 3
+    assert [p[0] for p in executor.phase_times] == ["direct", *bounces, "final", *["regather"] * (final_passes - 1),
+                                                    "estimate checks", "estimate input"]
+    assert all(began < ended and len(seconds) >= 2 for _, began, ended, seconds in executor.phase_times)
 
 
 @pytest.mark.parametrize("late_bounces_after", [0, 2])
