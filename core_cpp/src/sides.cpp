@@ -119,12 +119,24 @@ std::string light_name(const Scene& scene, int light) {
     return "world light";
 }
 
-// What lights point p of surface i on a side directly (emitters and distant lights; the world
-// only if `world`, which the caller may find with its own rays): a light as above, or kNoLight.
-int direct_light(const Scene& scene, const RayCaster& caster, int i, const SurfacePoint& p, int side, bool world) {
-    const Vec3 n = side ? -p.frame.z : p.frame.z;
+// The scene's emitters by index, found once: a probe asks for them at every cell and ray end,
+// and a loop over all surfaces there made the probe quadratic in the surfaces (half its time at
+// 7,000 surfaces).
+std::vector<int> emitters_of(const Scene& scene) {
+    std::vector<int> emitters;
     for (size_t e = 0; e < scene.size(); ++e)
-        if (int(e) != i && scene[e].material.emits() && sees_emitter(caster, p, n, scene[e])) return int(e);
+        if (scene[e].material.emits()) emitters.push_back(int(e));
+    return emitters;
+}
+
+// What lights point p of surface i on a side directly (`emitters`, then distant lights; the
+// world only if `world`, which the caller may find with its own rays): a light as above, or
+// kNoLight.
+int direct_light(const Scene& scene, const std::vector<int>& emitters, const RayCaster& caster, int i,
+                 const SurfacePoint& p, int side, bool world) {
+    const Vec3 n = side ? -p.frame.z : p.frame.z;
+    for (const int e : emitters)
+        if (e != i && sees_emitter(caster, p, n, scene[e])) return e;
     const std::vector<DistantLight>& distant = scene.distant_lights();
     for (size_t l = 0; l < distant.size(); ++l)
         if (dot(distant[l].direction, n) > 0 &&
@@ -138,14 +150,15 @@ int direct_light(const Scene& scene, const RayCaster& caster, int i, const Surfa
     return kNoLight;
 }
 
-std::vector<CellView> probe_side(const Scene& scene, const RayCaster& caster, int i, int side) {
+std::vector<CellView> probe_side(const Scene& scene, const std::vector<int>& emitters, const RayCaster& caster, int i,
+                                 int side) {
     std::vector<CellView> cells(kCells);
     const Surface& surface = *scene[i].surface;
     for (int c = 0; c < kCells; ++c) {
         CellView& view = cells[c];
         if (!surface.in_domain((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints)) continue;
         const SurfacePoint p = cell_centre(surface, c);
-        view.light = direct_light(scene, caster, i, p, side, false);
+        view.light = direct_light(scene, emitters, caster, i, p, side, false);
         const double turn = cell_turn(i, c, side);
         for (int k = 0; k < kRays; ++k) {
             const Vec3 dir = probe_direction(p, side, k, turn);
@@ -203,10 +216,11 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         }
     }
     if (probed.empty()) return out;
+    const std::vector<int> emitters = emitters_of(scene);
     std::vector<std::array<std::vector<CellView>, 2>> views(n);
     parallel_for(probed.size(), 1, settings.threads, [&](size_t begin, size_t end) {
         for (size_t k = begin; k < end; ++k)
-            for (int side = 0; side < 2; ++side) views[probed[k]][side] = probe_side(scene, caster, probed[k], side);
+            for (int side = 0; side < 2; ++side) views[probed[k]][side] = probe_side(scene, emitters, caster, probed[k], side);
     });
     // Cells lit directly (or emitting), then cells that see a lit cell, to a fixed point; `why`
     // keeps what lit each first. Light is carried per cell rather than per side, so that only
@@ -260,7 +274,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     auto check_end = [&](uint32_t end, const SurfaceHit& h, std::vector<uint32_t>& out) {
         const int surface = int(end / (2 * kCells)), end_side = (end / kCells) % 2;
         const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
-        if (direct_light(scene, caster, surface, p, end_side, true) != kNoLight) return true;
+        if (direct_light(scene, emitters, caster, surface, p, end_side, true) != kNoLight) return true;
         std::array<uint32_t, kRays> reached;
         size_t m = 0;
         for (int r = 0; r < kRays; ++r) {
