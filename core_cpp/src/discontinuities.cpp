@@ -164,8 +164,10 @@ bool clip_unit(std::array<double, 2>& a, std::array<double, 2>& b) {
 
 DiscontinuityFinder::DiscontinuityFinder(const Scene& scene) : scene_(&scene) {
     polys_.resize(scene.size());
-    for (size_t i = 0; i < scene.size(); ++i)
+    for (size_t i = 0; i < scene.size(); ++i) {
         if (scene[i].occluder || scene[i].material.emits()) polys_[i] = polygonal_of(*scene[i].surface);
+        if (scene[i].material.emits()) emitters_.push_back(int(i));
+    }
 }
 
 DiscontinuityFinder::~DiscontinuityFinder() = default;
@@ -222,9 +224,9 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
     // Occluders that can stand between the receiver and an emitter, nearest first.
     size_t pairs = 0;
     int skipped = 0;
-    for (size_t em = 0; em < scene.size(); ++em) {
+    for (const int em : emitters_) {
         const Poly& E = polys_[em];
-        if (int(em) == surface || !scene[em].material.emits()) continue;
+        if (em == surface) continue;
         if (E.edges.empty()) {
             if (out.note.empty()) out.note = "emitter '" + scene[em].surface->name() + "' is curved: its shadows left to the probe";
             continue;
@@ -237,7 +239,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
         std::vector<std::pair<double, size_t>> between;
         for (size_t o = 0; o < scene.size(); ++o) {
             const Poly& P = polys_[o];
-            if (int(o) == surface || o == em || !scene[o].occluder || P.edges.empty()) continue;
+            if (int(o) == surface || int(o) == em || !scene[o].occluder || P.edges.empty()) continue;
             bool near = false, front = !one_sided;
             double closest = 1e300;
             for (const Vec3& v : P.vertices) {

@@ -212,7 +212,7 @@ Vec3 Gatherer::irradiance(int surface, const SurfacePoint& p, size_t& rays, std:
 }
 
 void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
-    const SurfacePoint& p = r.nodes[j];
+    const SurfacePoint p = node_point(r, j);
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     // Glossy receivers: emitter cells no wider than a fraction of the lobe, seen from here.
@@ -334,7 +334,7 @@ void Gatherer::through_panes(const Vec3& o, const Vec3& dir, double weight, int 
 template <typename Incoming>
 void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&& radiance_along, Vec3* out,
                           size_t& rays) const {
-    const SurfacePoint& p = r.nodes[j];
+    const SurfacePoint p = node_point(r, j);
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     const int nt = nodes_along(settings_.hemisphere_nodes_theta, density), np = nodes_along(settings_.hemisphere_nodes_phi, density);
@@ -456,7 +456,7 @@ void basis_terms(const TensorSpline& s, const double* x, std::vector<std::pair<s
 
 void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const std::vector<const Receiver*>& receiver_of,
                              std::vector<TransportTerm>& row, size_t& rays) const {
-    const SurfacePoint& p = r.nodes[j];
+    const SurfacePoint p = node_point(r, j);
     const int nt = settings_.hemisphere_nodes_theta, np = settings_.hemisphere_nodes_phi;
     const CosineRule& rule = cosine_rule(nt, np);
     std::vector<std::pair<size_t, double>> terms;

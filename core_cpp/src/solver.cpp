@@ -207,7 +207,7 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
 
 size_t plan_bytes(const Plan& p) {
     // Three spline sets (Le, L, Ltmp) of RGB doubles, plus the nodes.
-    return 3 * p.coefficients() * 3 * sizeof(double) + size_t(p.nu) * p.nv * sizeof(SurfacePoint);
+    return 3 * p.coefficients() * 3 * sizeof(double) + size_t(p.nu) * p.nv * sizeof(SpatialNode);
 }
 
 // `detail`: per scene surface, the coefficients its direct light asks for (empty: none probed).
@@ -465,7 +465,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
     const Surface& surface = *scene[p.surface].surface;
     const std::vector<double> nu = nodes_beside_jumps(ku), nv = nodes_beside_jumps(kv);
     for (double u : nu)
-        for (double v : nv) r.nodes.push_back(surface.evaluate(u, v));
+        for (double v : nv) r.nodes.push_back({u, v});
     return r;
 }
 
@@ -493,7 +493,7 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
             const std::vector<double> us = r.axes[0].schoenberg_nodes(), vs = r.axes[1].schoenberg_nodes();
             std::vector<uint8_t> is_hidden(r.nodes.size());
             size_t count = 0;
-            for (size_t j = 0; j < r.nodes.size(); ++j) count += is_hidden[j] = hidden(r.nodes[j]);
+            for (size_t j = 0; j < r.nodes.size(); ++j) count += is_hidden[j] = hidden(surface.evaluate(r.nodes[j].u, r.nodes[j].v));
             if (count == 0 || count == r.nodes.size()) continue;
             const size_t nv = vs.size();
             for (size_t j = 0; j < r.nodes.size(); ++j) {
@@ -508,7 +508,7 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
                     if (hidden(surface.evaluate(um, vm))) u0 = um, v0 = vm;
                     else u1 = um, v1 = vm;
                 }
-                r.nodes[j] = surface.evaluate(u1, v1);
+                r.nodes[j] = {u1, v1};
             }
         }
         probe_rays += local;
@@ -906,7 +906,8 @@ double final_density(const Scene& scene, const SolverSettings& s, int i) {
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
     auto set_bytes = [](const Plan& p) { return p.coefficients() * 3 * sizeof(double); };
-    auto node_bytes = [](const Plan& p) { return size_t(p.nu) * p.nv * sizeof(SurfacePoint); };
+    // A receiver's nodes, and a gather's list of them all (gather_all: receiver and node, 8 bytes).
+    auto node_bytes = [](const Plan& p) { return size_t(p.nu) * p.nv * (sizeof(SpatialNode) + 2 * sizeof(int)); };
     size_t coarse = 0, resident = 0, fine = 0, fine_nodes = 0, triangles = 0, occluders = 0;
     for (const Plan& p : plans) {
         coarse += set_bytes(p);
@@ -926,24 +927,29 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
     // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
-    // the final gather's density and twice that for the error estimate's second gather.
-    size_t table = 0;
-    for (const Plan& p : plans) {
-        if (p.kind == Representation::Diffuse) continue;
-        const bool transmits = p.bsdf->transmits();
-        double density = settings.final_gather ? std::max(1.0, final_density(scene, settings, p.surface)) : 1.0;
-        if (settings.estimate_error) density *= 2;
-        const size_t incoming = size_t(transmits ? 2 : 1) * nodes_along(settings.hemisphere_nodes_theta, density) *
-                                nodes_along(settings.hemisphere_nodes_phi, density);
-        table = std::max(table, ScatterTable::bytes(size_t(transmits ? p.sides : 1) * p.na * p.na, incoming,
-                                                    nodes_along(settings.bsdf_samples, density)));
-    }
-    resident += size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
+    // the final gather's density; the error estimate's second gatherer keeps its own at twice
+    // that, but only after the final gather's packed copies are freed (measured: on the interior
+    // at 10 objects the estimate does not raise the peak the final gather set).
+    auto tables_at = [&](double factor) {
+        size_t table = 0;
+        for (const Plan& p : plans) {
+            if (p.kind == Representation::Diffuse) continue;
+            const bool transmits = p.bsdf->transmits();
+            const double density = factor * (settings.final_gather ? std::max(1.0, final_density(scene, settings, p.surface)) : 1.0);
+            const size_t incoming = size_t(transmits ? 2 : 1) * nodes_along(settings.hemisphere_nodes_theta, density) *
+                                    nodes_along(settings.hemisphere_nodes_phi, density);
+            table = std::max(table, ScatterTable::bytes(size_t(transmits ? p.sides : 1) * p.na * p.na, incoming,
+                                                        nodes_along(settings.bsdf_samples, density)));
+        }
+        return size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
+    };
+    resident += tables_at(1);
+    const size_t estimate = settings.estimate_error ? tables_at(2) : 0;
     // The ray caster: a 64-byte record and about as much BVH a triangle, and an Embree geometry
     // a surface (about 1 kB: 410 MB for the 350,000 quads of the interior of 50,000 objects). The
     // gather's copy of the scene, the plans and the sides: about 8 kB a receiver (measured on the
     // furnished interior).
-    return triangles * 128 + occluders * 1024 + plans.size() * 8192 + resident + std::max(bounce, final);
+    return triangles * 128 + occluders * 1024 + plans.size() * 8192 + resident + std::max({bounce, final, estimate});
 }
 
 }  // namespace
@@ -1121,9 +1127,9 @@ std::vector<Vec3> check_directions(size_t i) {
     return d;
 }
 
-// A receiver of r's material and sides whose one node is the check point p and whose angular
+// A receiver of r's material and sides whose one node is the check point (u, v) and whose angular
 // nodes are `directions` (if glossy): gathering at it is the phase's gather where no node sits.
-Receiver probe_of(const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& directions) {
+Receiver probe_of(const Receiver& r, double u, double v, const std::vector<Vec3>& directions) {
     Receiver q;
     q.surface = r.surface;
     q.index = r.index;
@@ -1134,7 +1140,7 @@ Receiver probe_of(const Receiver& r, const SurfacePoint& p, const std::vector<Ve
     q.sides = r.sides;
     q.live = r.live;
     q.map = r.map;
-    q.nodes = {p};
+    q.nodes = {{u, v}};
     if (r.kind != Representation::Diffuse) q.directions = directions, q.per_node = directions.size();
     return q;
 }
@@ -1313,12 +1319,12 @@ struct SolveSteps::State {
     // at (side, direction) values; a diffuse part has one per side. `gathered(q, part, out)`
     // adds a part's light at the probe q into `out` (side-major, then direction).
     template <class Gathered>
-    static std::vector<Vec3> values_of(const Receiver& r, const SurfacePoint& p, const std::vector<Vec3>& dirs, Gathered&& gathered) {
+    static std::vector<Vec3> values_of(const Receiver& r, double u, double v, const std::vector<Vec3>& dirs, Gathered&& gathered) {
         const size_t nd = r.kind == Representation::Diffuse && !r.partner ? 1 : dirs.size();
         std::vector<Vec3> values(2 * nd, Vec3{0, 0, 0}), out;
         const std::array<bool, 2> seen = sides_seen(r);
         for (const Receiver* part = &r; part; part = part == &r ? part->partner : nullptr) {
-            const Receiver q = probe_of(*part, p, dirs);
+            const Receiver q = probe_of(*part, u, v, dirs);
             out.assign(q.sides * q.per_node, {0, 0, 0});
             gathered(q, *part, out);
             for (int side = 0; side < q.sides; ++side)
@@ -1404,14 +1410,14 @@ struct SolveSteps::State {
             const auto [u, v, weight] = points[k][i];
             const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
             const std::vector<Vec3> dirs = check_directions(i);
-            const std::vector<Vec3> G = values_of(r, p, dirs, gather_from(*gather, last_of, local));
-            const std::vector<Vec3> S = values_of(r, p, dirs, spline_at(result_of, u, v));
+            const std::vector<Vec3> G = values_of(r, u, v, dirs, gather_from(*gather, last_of, local));
+            const std::vector<Vec3> S = values_of(r, u, v, dirs, spline_at(result_of, u, v));
             std::vector<Vec3> C, F, I;
-            if (settings.final_gather) C = values_of(r, p, dirs, spline_at(receiver_of, u, v));
+            if (settings.final_gather) C = values_of(r, u, v, dirs, spline_at(receiver_of, u, v));
             if (fine_check(i)) {
-                F = values_of(r, p, dirs, gather_from(*fine_gather, result_of, local));
+                F = values_of(r, u, v, dirs, gather_from(*fine_gather, result_of, local));
                 // The doubled nodes' baseline: the gather at the phase's nodes of the same splines.
-                I = regathered || !settings.final_gather ? G : values_of(r, p, dirs, gather_from(*gather, result_of, local));
+                I = regathered || !settings.final_gather ? G : values_of(r, u, v, dirs, gather_from(*gather, result_of, local));
             }
             const uint16_t visible = visible_values(r, p, dirs, local);
             double* c = &records[k * size + 1 + i * kCheckFields];
@@ -1468,9 +1474,8 @@ struct SolveSteps::State {
         for_each_check(begin, end, progress, rays, [&](size_t k, size_t i, const Receiver& r, size_t& local) {
             const double* c = &records[(begin + k) * size + 1 + i * kCheckFields];
             if (i >= size_t(records[(begin + k) * size]) || !input_check(i)) return;
-            const SurfacePoint p = scene[r.surface].surface->evaluate(c[U], c[V]);
             const std::vector<Vec3> dirs = check_directions(i);
-            const std::vector<Vec3> E = values_of(r, p, dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
+            const std::vector<Vec3> E = values_of(r, c[U], c[V], dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
                 gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
             });
             for (size_t x = 0; x < 2 * dirs.size(); ++x)

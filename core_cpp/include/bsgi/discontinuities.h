@@ -52,6 +52,7 @@ public:
 
 private:
     std::vector<Polygonal> polys_;  // by scene index; empty edges: not polygonal
+    std::vector<int> emitters_;     // scene indices, found once: find() runs for every receiver
     const Scene* scene_;
 };
 
