@@ -4,7 +4,8 @@ core scene built from Python, of the ray caster (Embree's BVH and the per-triang
 the solve's own estimate (bsgi.estimate_solve_bytes) at the preview preset, as is and with
 coeffs_from_size (small faces fewer coefficients), with and without the final gather. The
 estimates are of front sides only (two_sided off): the sides probe of every surface's both sides
-takes hours at this size; its own memory is the `memory_probe_bytes_per_surface` figure, measured
+would take about half an hour and hold about 12 GB at this size; its own memory is the
+`memory_probe_bytes_per_surface` figure, measured
 at 100 objects by the probe's own count (bsgi.probe_sides), and that times this size's surfaces.
 In a process of its own.
 
@@ -52,7 +53,7 @@ def measure(objects: int) -> dict:
             setattr(settings, key, value)
         figures[f"memory_{objects}_estimate_{label}_mb"] = bsgi.estimate_solve_bytes(scene, settings) / 2**20
     # The sides probe's peak a surface, its own count at 100 objects (bsgi.probe_sides), and what
-    # that makes at this size (the probe of every surface's both sides takes hours here).
+    # that makes at this size (the probe of every surface's both sides would hold about 12 GB here).
     small, _ = interior_core.build_scene(100)
     per_surface = bsgi.probe_sides(small, bsgi.SolverSettings.preset("draft"))[1] / len(small)
     figures["memory_probe_bytes_per_surface"] = per_surface

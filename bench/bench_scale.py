@@ -5,8 +5,8 @@ growth exponent of time and memory between sizes. 100 and 1,000 objects by defau
 BSGI_BENCH_SCALE=100,1000,10000 sets the sizes (10,000 objects take hours today). With
 BSGI_BENCH_SCALE_OVERRIDES='{"coeffs_from_size": true, "detail_tolerance": 0.005}' the preset's
 settings are changed and the keys are scale_custom_<objects>_* (scale_custom_overrides says how).
-Each row also gives the phases' seconds, the sides probe's (once, for the estimate and the
-solve) and the estimate's own seconds.
+Each row also gives the phases' seconds (the error estimate's among them), the sides probe's
+(once, for the memory estimate and the solve) and the memory estimate's own seconds.
 
     python bench/run.py scale
 """
@@ -51,7 +51,7 @@ def measure(objects: int) -> dict:
     return {"objects": objects, "surfaces": len(scene), "seconds": seconds, "peak_mb": peak,
             "estimate_mb": estimate / 2**20, "coefficients": stats["coefficients"], "rays": stats["rays"],
             "bounces": stats["bounces"], "probe_seconds": estimating - probing, "estimate_seconds": solving - estimating,
-            **{k: stats[k] for k in ("seconds_direct", "seconds_indirect", "seconds_final")}}
+            **{k: stats[k] for k in ("seconds_direct", "seconds_indirect", "seconds_final", "seconds_estimate")}}
 
 
 def run() -> dict:
@@ -63,7 +63,7 @@ def run() -> dict:
         rows.append(row)
         print(f"  {objects} objects, {row['surfaces']} surfaces: {row['seconds']:.1f} s (sides probe {row['probe_seconds']:.1f} s, estimate {row['estimate_seconds']:.1f} s, "
               f"direct {row['seconds_direct']:.1f} s, {row['bounces']} bounces {row['seconds_indirect']:.1f} s, final "
-              f"{row['seconds_final']:.1f} s), peak {row['peak_mb']:.0f} MB, estimate {row['estimate_mb']:.0f} MB", flush=True)
+              f"{row['seconds_final']:.1f} s, error estimate {row['seconds_estimate']:.1f} s), peak {row['peak_mb']:.0f} MB, estimate {row['estimate_mb']:.0f} MB", flush=True)
         figures[f"{prefix}_{objects}_seconds"] = row["seconds"]
         figures[f"{prefix}_{objects}_peak_mb"] = row["peak_mb"]
         figures[f"{prefix}_{objects}_estimate_mb"] = row["estimate_mb"]
