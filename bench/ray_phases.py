@@ -48,5 +48,6 @@ def main() -> None:
               f"{len(seconds)} groups, longest {max(seconds, default=0.0):.1f} s")
         driver_since = ended
 
+
 if __name__ == "__main__":
     main()

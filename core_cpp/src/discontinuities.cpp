@@ -162,12 +162,10 @@ bool clip_unit(std::array<double, 2>& a, std::array<double, 2>& b) {
 
 }  // namespace
 
-DiscontinuityFinder::DiscontinuityFinder(const Scene& scene) : scene_(&scene) {
+DiscontinuityFinder::DiscontinuityFinder(const Scene& scene) : emitters_(scene.emitters()), scene_(&scene) {
     polys_.resize(scene.size());
-    for (size_t i = 0; i < scene.size(); ++i) {
+    for (size_t i = 0; i < scene.size(); ++i)
         if (scene[i].occluder || scene[i].material.emits()) polys_[i] = polygonal_of(*scene[i].surface);
-        if (scene[i].material.emits()) emitters_.push_back(int(i));
-    }
 }
 
 DiscontinuityFinder::~DiscontinuityFinder() = default;

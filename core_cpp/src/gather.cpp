@@ -50,10 +50,8 @@ Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local, co
 }
 
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
-    : scene_(scene), settings_(settings), caster_(caster) {
-    for (size_t i = 0; i < scene.size(); ++i) {
-        if (!scene[i].material.emits()) continue;
-        emitters_.push_back(int(i));
+    : scene_(scene), settings_(settings), caster_(caster), emitters_(scene.emitters()) {
+    for (const int i : emitters_) {
         // A curved emitter can light itself (non-convex surfaces, the inside of a sphere); a flat
         // one cannot, and integrating over it from its own points would only cost time.
         const Surface& e = *scene[i].surface;
@@ -61,7 +59,7 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
         bool flat = true;
         for (double u : {0.1, 0.5, 0.9})
             for (double v : {0.1, 0.5, 0.9}) flat &= dot(e.evaluate(u, v).frame.z, n0) > 1 - 1e-9;
-        if (!flat) self_lit_.push_back(int(i));
+        if (!flat) self_lit_.push_back(i);
     }
     cell_rule_ = emitter_quadrature(settings.emitter_coeffs, settings.emitter_degree);
     // Node p covers the share of the cell its weight gives it (midway between nodes where a

@@ -119,16 +119,6 @@ std::string light_name(const Scene& scene, int light) {
     return "world light";
 }
 
-// The scene's emitters by index, found once: a probe asks for them at every cell and ray end,
-// and a loop over all surfaces there made the probe quadratic in the surfaces (half its time at
-// 7,000 surfaces).
-std::vector<int> emitters_of(const Scene& scene) {
-    std::vector<int> emitters;
-    for (size_t e = 0; e < scene.size(); ++e)
-        if (scene[e].material.emits()) emitters.push_back(int(e));
-    return emitters;
-}
-
 // What lights point p of surface i on a side directly (`emitters`, then distant lights; the
 // world only if `world`, which the caller may find with its own rays): a light as above, or
 // kNoLight.
@@ -216,7 +206,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         }
     }
     if (probed.empty()) return out;
-    const std::vector<int> emitters = emitters_of(scene);
+    const std::vector<int> emitters = scene.emitters();
     std::vector<std::array<std::vector<CellView>, 2>> views(n);
     parallel_for(probed.size(), 1, settings.threads, [&](size_t begin, size_t end) {
         for (size_t k = begin; k < end; ++k)

@@ -493,7 +493,7 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
             const std::vector<double> us = r.axes[0].schoenberg_nodes(), vs = r.axes[1].schoenberg_nodes();
             std::vector<uint8_t> is_hidden(r.nodes.size());
             size_t count = 0;
-            for (size_t j = 0; j < r.nodes.size(); ++j) count += is_hidden[j] = hidden(surface.evaluate(r.nodes[j].u, r.nodes[j].v));
+            for (size_t j = 0; j < r.nodes.size(); ++j) count += is_hidden[j] = hidden(gather.node_point(r, j));
             if (count == 0 || count == r.nodes.size()) continue;
             const size_t nv = vs.size();
             for (size_t j = 0; j < r.nodes.size(); ++j) {

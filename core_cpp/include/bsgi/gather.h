@@ -23,10 +23,6 @@
 
 namespace bsgi {
 
-// A receiving surface during the solve: its nodes and its radiance splines (Figure 4), one per
-// side: the lower side where the surface transmits (section 4.3) or where light reaches an opaque
-// surface's back (which reflects it with the BSDF mirrored, as Cycles shades it). A side the
-// scene does not light (sides.h) is not solved: its spline is a single zero coefficient.
 // A spatial Schoenberg node (u_i, v_j) of a receiver, or the point of the surface it was moved to
 // (a hidden node moved to the contact line). Its point is evaluated where it is gathered: 16
 // bytes a node instead of a SurfacePoint's 152 (the final gather's nodes were the largest item
@@ -35,6 +31,10 @@ struct SpatialNode {
     double u = 0, v = 0;
 };
 
+// A receiving surface during the solve: its nodes and its radiance splines (Figure 4), one per
+// side: the lower side where the surface transmits (section 4.3) or where light reaches an opaque
+// surface's back (which reflects it with the BSDF mirrored, as Cycles shades it). A side the
+// scene does not light (sides.h) is not solved: its spline is a single zero coefficient.
 struct Receiver {
     int surface = -1;
     int index = -1;                   // position among the receivers

@@ -133,6 +133,15 @@ public:
     }
     const EnvironmentMap* world_map() const { return world_map_.get(); }
     bool has_world() const { return world_map_ || max_component(world_) > 0; }
+    // The indices of the surfaces that emit. A loop over the whole scene: callers that ask per
+    // point or per receiver keep the list (asked at every probed cell, it made the sides probe
+    // quadratic in the surfaces).
+    std::vector<int> emitters() const {
+        std::vector<int> out;
+        for (size_t i = 0; i < surfaces_.size(); ++i)
+            if (surfaces_[i].material.emits()) out.push_back(int(i));
+        return out;
+    }
 
     void add_distant_light(DistantLight light) {
         const std::string what = "distant light '" + light.name + "': ";
