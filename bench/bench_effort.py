@@ -1,10 +1,13 @@
 """Effort where the light needs it (issue 16, item 1): the issue's scene of boxes (five 0.4 m
 quads each) scattered on a 20 m floor under one square light, solved at the preview preset with
-the core API, with spatial coefficients from each surface's size and its direct light's detail
+the core API, with spatial coefficients from each surface's size and its light's detail
 (coeffs_from_size, detail_tolerance) against the preset's uniform 12 x 12. Figures: time, rays
 of the whole solve, and rays per box face, i.e. the solve's rays less those of the floor and
 light alone, over the box faces. The same for the furnished interior of bench/interior_core.py
-at 100 objects (books on shelves, a table, chairs; a sun and a sky): time and rays per surface.
+at 100 objects (books on shelves, a table, chairs; a sun and a sky): time and rays per surface,
+and each solve's error per surface against the final preset's solve (no path tracer reaches a
+core-only scene): the median and 90th percentile, over the diffuse sides at least 1% as bright
+as the scene's mean, of the RMS difference at 16 random points over the side's mean.
 
     python bench/run.py effort
 """
@@ -54,14 +57,37 @@ def box_quads(centre, size):
     return [np.array(q, float) for q in quads]
 
 
-def solve(scene, overrides: dict) -> dict:
-    settings = bsgi.SolverSettings.preset("preview")
+def solve(scene, overrides: dict, preset: str = "preview") -> dict:
+    settings = bsgi.SolverSettings.preset(preset)
     for name, value in overrides.items():
         setattr(settings, name, value)
     start = time.perf_counter()
     solution = bsgi.solve(scene, settings)
     return {"seconds": time.perf_counter() - start, "rays": solution.stats["rays"],
-            "coefficients": solution.stats["coefficients"]}
+            "coefficients": solution.stats["coefficients"], "samples": diffuse_samples(solution)}
+
+
+def diffuse_samples(solution, points: int = 16) -> dict:
+    """{(surface, side): radiance (R + G + B) at `points` fixed random points} of the diffuse sides."""
+    rng = np.random.default_rng(7)
+    out = {}
+    for i, (surface, report) in enumerate(zip(solution.surfaces, solution.reports)):
+        uv = rng.uniform(0.02, 0.98, (points, 2))
+        if surface is None or not report["representation"].startswith("diffuse"):
+            continue
+        for side, part in enumerate((surface.upper, surface.lower)):
+            if part is not None:
+                out[i, side] = surface.evaluate(uv, np.tile([0, 0, 1.0 - 2 * side], (points, 1))).sum(axis=1)
+    return out
+
+
+def surface_errors(samples: dict, reference: dict) -> tuple:
+    """(median, 90th percentile) over the sides at least 1% as bright as the mean of the
+    reference's: the RMS difference from the reference over its mean."""
+    scene_mean = np.mean([r.mean() for r in reference.values()])
+    errors = [np.sqrt(np.mean((samples[k] - r) ** 2)) / r.mean() for k, r in reference.items()
+              if k in samples and r.mean() >= 0.01 * scene_mean]
+    return float(np.median(errors)), float(np.percentile(errors, 90))
 
 
 def run() -> dict:
@@ -79,11 +105,15 @@ def run() -> dict:
     import interior_core
 
     scene, _ = interior_core.build_scene(INTERIOR_OBJECTS)
+    reference = solve(scene, {}, "final")["samples"]
     for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE)):
         solved = solve(scene, overrides)
+        median, p90 = surface_errors(solved["samples"], reference)
         figures.update({f"effort_interior_{INTERIOR_OBJECTS}_{name}_seconds": solved["seconds"],
                         f"effort_interior_{INTERIOR_OBJECTS}_{name}_rays_per_surface": solved["rays"] / len(scene),
-                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_coefficients": solved["coefficients"]})
+                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_coefficients": solved["coefficients"],
+                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_surface_error_median": median,
+                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_surface_error_p90": p90})
     return figures
 
 

@@ -189,7 +189,7 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     p.nv = spatial(1, detail[1]);
     why << "; " << p.nu << " x " << p.nv << " spatial coefficients";
     if (from_size && !ss.options.spatial_coeffs)
-        why << (detail[0] || detail[1] ? " (from its size and its direct light's detail)" : " (from its size)");
+        why << (detail[0] || detail[1] ? " (from its size and its light's detail)" : " (from its size)");
     if (p.kind != Representation::Diffuse) {
         if (ss.options.angular_coeffs) {
             p.na = std::max(ss.options.angular_coeffs, s.angular_degree + 1);
@@ -353,26 +353,14 @@ std::pair<KnotVector, KnotVector> knots_at_discontinuities(const DiscontinuityFi
     return {ku, kv};
 }
 
-// The spatial coefficients per direction a surface's direct light asks for, where its size
-// alone gave it fewer than spatial_coeffs (paper 3.1: knots where there is detail): the
-// irradiance is probed on a (2 spatial_coeffs_min + 1)^2 grid; its largest second difference
-// along u (v), w = h_p^2 |f''|, sets the knot spacing h at which a quadratic's interpolation
-// error h^2 |f''| / 8 is detail_tolerance times the brightest probe. A shadow edge or a light
-// close by asks for many, a face evenly lit by a distant light for few.
-std::array<int, 2> coeffs_for_detail(const Gatherer& gather, const Scene& scene, const Plan& p,
-                                     const SolverSettings& s, size_t& rays) {
-    const int m = 2 * s.spatial_coeffs_min + 1;
-    const double a = s.epsilon, b = 1 - s.epsilon;
-    const Surface& surface = *scene[p.surface].surface;
-    std::vector<double> f(size_t(m) * m);
-    double fmax = 0;
-    for (int i = 0; i < m; ++i)
-        for (int j = 0; j < m; ++j) {
-            const Vec3 e = gather.irradiance(p.surface, surface.evaluate(a + (b - a) * i / (m - 1), a + (b - a) * j / (m - 1)),
-                                             rays, p.live);
-            fmax = std::max(fmax, f[size_t(i) * m + j] = e.x + e.y + e.z);
-        }
-    if (!(fmax > 0)) return {0, 0};  // no direct light: its size decides
+// The spatial coefficients per direction that light sampled on an m x m grid over [eps, 1 - eps]^2
+// (`f`, u slowest) asks for (paper 3.1: knots where there is detail): its largest second
+// difference along u (v), w = h_p^2 |f''|, sets the knot spacing h at which a quadratic's
+// interpolation error h^2 |f''| / 8 is detail_tolerance times the brightest sample. A shadow
+// edge or a light close by asks for many, a face evenly lit by a distant light for few.
+std::array<int, 2> coeffs_for_samples(const std::vector<double>& f, int m, const SolverSettings& s) {
+    const double fmax = *std::max_element(f.begin(), f.end());
+    if (!(fmax > 0)) return {0, 0};  // no light: its size decides
     std::array<int, 2> n{0, 0};
     for (int along = 0; along < 2; ++along) {
         double w = 0;
@@ -383,6 +371,49 @@ std::array<int, 2> coeffs_for_detail(const Gatherer& gather, const Scene& scene,
             }
         const double spans = (m - 1) * std::sqrt(w / (8 * s.detail_tolerance * fmax));
         n[along] = int(std::min<double>(std::ceil(spans) + s.spatial_degree, s.spatial_coeffs));
+    }
+    return n;
+}
+
+// The probe's grid: 2 spatial_coeffs_min + 1 samples per axis, twice the fewest coefficients'.
+int detail_grid(const SolverSettings& s) { return 2 * s.spatial_coeffs_min + 1; }
+double detail_grid_at(const SolverSettings& s, int i) {
+    const double a = s.epsilon, b = 1 - s.epsilon;
+    return a + (b - a) * i / (detail_grid(s) - 1);
+}
+
+// The spatial coefficients per direction a surface's direct light asks for, where its size
+// alone gave it fewer than spatial_coeffs: its irradiance probed on the detail grid.
+std::array<int, 2> coeffs_for_detail(const Gatherer& gather, const Scene& scene, const Plan& p,
+                                     const SolverSettings& s, size_t& rays) {
+    const int m = detail_grid(s);
+    const Surface& surface = *scene[p.surface].surface;
+    std::vector<double> f(size_t(m) * m);
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) {
+            const Vec3 e = gather.irradiance(p.surface, surface.evaluate(detail_grid_at(s, i), detail_grid_at(s, j)), rays, p.live);
+            f[size_t(i) * m + j] = e.x + e.y + e.z;
+        }
+    return coeffs_for_samples(f, m, s);
+}
+
+// The spatial coefficients per direction the converged coarse light of a diffuse receiver asks
+// its final gather for: its spline Le on the detail grid, each side's on its own (they are
+// lit apart). This sees the light the direct probe cannot, free of rays: a face turned from
+// the lamp, lit by its neighbours, brightening toward the floor it stands on.
+std::array<int, 2> coeffs_for_coarse_light(const Receiver& r, const SolverSettings& s) {
+    const int m = detail_grid(s);
+    std::array<int, 2> n{0, 0};
+    std::vector<double> f(size_t(m) * m);
+    for (int side = 0; side < r.sides; ++side) {
+        if (!r.solves(side)) continue;
+        for (int i = 0; i < m; ++i)
+            for (int j = 0; j < m; ++j) {
+                const Vec3 L = r.own_radiance(&Receiver::Le, detail_grid_at(s, i), detail_grid_at(s, j), r.outgoing(side, 0));
+                f[size_t(i) * m + j] = L.x + L.y + L.z;
+            }
+        const std::array<int, 2> d = coeffs_for_samples(f, m, s);
+        n = {std::max(n[0], d[0]), std::max(n[1], d[1])};
     }
     return n;
 }
@@ -1175,6 +1206,8 @@ struct SolveSteps::State {
     const RayCaster caster;
     std::vector<SurfaceSides> sides;
     std::vector<Plan> plans, final_plans;
+    // Per scene surface, the coefficients its direct light asked for (detail_tolerance).
+    std::vector<std::array<int, 2>> direct_detail;
     size_t bytes = 0;
     Scene lit_scene;
     std::optional<Gatherer> gather;
@@ -1183,6 +1216,8 @@ struct SolveSteps::State {
     size_t knot_rays = 0;  // of placing the knots, counted once by the solve however many steps place them
     std::vector<Receiver> receivers, finals;
     bool finals_built = false;
+    // Whether the receivers hold the converged coarse light Le that the finals are planned from.
+    bool coarse_light = false;
     std::vector<const Receiver*> receiver_of, final_of;
     // With form factors, Lambertian receivers keep their rows of the transport operator. A row's
     // weights are scalars: they cannot carry the colour of a textured surface its rays hit.
@@ -1209,23 +1244,12 @@ struct SolveSteps::State {
             if (sides[i].encloses_emission) lit_scene.set_two_sided_emission(i, false);
         gather.emplace(lit_scene, settings, caster);
         plans = plan_scene(scene, settings, 1, sides);
-        const std::vector<std::array<int, 2>> detail = detail_of_scene(*gather, scene, plans, settings, progress, knot_rays);
-        if (std::any_of(detail.begin(), detail.end(), [](const std::array<int, 2>& d) { return d[0] || d[1]; }))
-            plans = plan_scene(scene, settings, 1, sides, detail);
-        if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides, detail);
+        direct_detail = detail_of_scene(*gather, scene, plans, settings, progress, knot_rays);
+        if (std::any_of(direct_detail.begin(), direct_detail.end(), [](const std::array<int, 2>& d) { return d[0] || d[1]; }))
+            plans = plan_scene(scene, settings, 1, sides, direct_detail);
+        if (settings.final_gather) final_plans = plan_scene(scene, settings, settings.final_spatial_factor, sides, direct_detail);
         bytes = estimate_bytes(scene, settings, plans, final_plans);
-        if (bytes > settings.memory_budget_mb * 1024 * 1024) {
-            const Plan* largest = nullptr;
-            for (const Plan& p : plans)
-                if (!largest || plan_bytes(p) > plan_bytes(*largest)) largest = &p;
-            std::ostringstream msg;
-            msg << "solve needs about " << bytes / (1024 * 1024) << " MB, over the budget of " << settings.memory_budget_mb << " MB";
-            if (largest)
-                msg << "; the largest is surface '" << scene[largest->surface].surface->name() << "' with "
-                    << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest) / (1024 * 1024) << " MB: "
-                    << largest->reason << ")";
-            throw std::runtime_error(msg.str());
-        }
+        check_budget(plans);
         for (const Plan& p : plans)
             if (p.kind != Representation::Diffuse && p.bsdf->lobe_width() <= 0)
                 throw std::invalid_argument("surface '" + scene[p.surface].surface->name() +
@@ -1240,13 +1264,58 @@ struct SolveSteps::State {
         rows_done.assign(receivers.size(), 0);
     }
 
+    // Refuses, naming the largest surface of `of`, a solve whose estimate is over the budget.
+    void check_budget(const std::vector<Plan>& of) const {
+        if (bytes <= settings.memory_budget_mb * 1024 * 1024) return;
+        const Plan* largest = nullptr;
+        for (const Plan& p : of)
+            if (!largest || plan_bytes(p) > plan_bytes(*largest)) largest = &p;
+        std::ostringstream msg;
+        msg << "solve needs about " << bytes / (1024 * 1024) << " MB, over the budget of " << settings.memory_budget_mb << " MB";
+        if (largest)
+            msg << "; the largest is surface '" << scene[largest->surface].surface->name() << "' with "
+                << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest) / (1024 * 1024) << " MB: "
+                << largest->reason << ")";
+        throw std::runtime_error(msg.str());
+    }
+
     bool uses_rows(const Receiver& r) const {
         return rows_possible && r.kind == Representation::Diffuse && !r.bsdf->transmits();
     }
 
-    // The final gather's finer receivers, with their own knots.
+    // The receivers' converged coarse light Le, packed (what the final gather reads): the finals
+    // are planned from it.
+    void take_coarse_light(const double* coarse, size_t size) {
+        unpack(coarse, size, receivers, 0, receivers.size(), &Receiver::Le);
+        coarse_light = true;
+    }
+
+    // The final gather's finer receivers, with their own knots. With detail_tolerance a diffuse
+    // surface's finals get the coefficients its converged coarse light asks for where its direct
+    // light asked for fewer (coeffs_for_coarse_light): their count is known only once the
+    // bounces are done, on every worker from the coarse light its phase reads.
     void build_finals(Progress& progress) {
         if (finals_built || !settings.final_gather) return;
+        if (plans_from_detail()) {
+            if (!coarse_light) throw std::logic_error("solve steps: the finals are planned from the coarse light, not yet given");
+            std::vector<std::array<int, 2>> detail = direct_detail;
+            parallel_for(receivers.size(), 16, settings.threads, [&](size_t begin, size_t end) {
+                for (size_t k = begin; k < end; ++k) {
+                    const Receiver& r = receivers[k];
+                    if (r.is_partner || r.kind != Representation::Diffuse || scene[r.surface].options.spatial_coeffs) continue;
+                    const std::array<int, 2> d = coeffs_for_coarse_light(r, settings);
+                    detail[r.surface] = {std::max(detail[r.surface][0], d[0]), std::max(detail[r.surface][1], d[1])};
+                }
+            });
+            std::vector<Plan> planned = plan_scene(scene, settings, settings.final_spatial_factor, sides, detail);
+            for (size_t k = 0; k < planned.size(); ++k)
+                if (planned[k].nu != final_plans[k].nu || planned[k].nv != final_plans[k].nv)
+                    planned[k].reason += "; its light after the bounces asked for more than its direct light's " +
+                                         std::to_string(final_plans[k].nu) + " x " + std::to_string(final_plans[k].nv);
+            final_plans = std::move(planned);
+            bytes = estimate_bytes(scene, settings, plans, final_plans);
+            check_budget(final_plans);
+        }
         finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays, false);
         move_hidden_nodes(finals, scene, *gather, receiver_of, settings, progress, knot_rays);
         final_of = index_by_surface(scene, finals);
@@ -1268,6 +1337,7 @@ struct SolveSteps::State {
     // estimate_inputs (the input's error, weighted by every surface's input_scales from the
     // first pass's records); estimate_errors adds the parts up.
     std::vector<Receiver>& estimated() { return settings.final_gather ? finals : receivers; }
+    bool plans_from_detail() const { return settings.coeffs_from_size && settings.detail_tolerance > 0; }
     // A receiver's record of the first pass: the count of its checks, then per check these
     // fields (weighted sums over its visible values, and where it lies).
     enum CheckField { Fit, CoarseFit, Integration, Radiance, Values, U, V, Weight, Visible, kCheckFields };
@@ -1536,14 +1606,21 @@ struct SolveSteps::State {
         if (phase == SolveSteps::Phase::EstimateInput && !settings.final_gather)
             throw std::invalid_argument("solve step: without a final gather the error estimate has no input pass");
         if (!settled.empty()) throw std::invalid_argument("solve step: only a bounce's receivers settle");
+        const size_t coarse_size = settings.final_gather ? packed_size(receivers, 0, receivers.size(), &Receiver::Le) : 0;
+        // The finals count as many receivers as the coarse ones (each surface's parts alike).
+        const size_t extra = phase == SolveSteps::Phase::EstimateInput ? scene.size() + receivers.size() * record_size() : 0;
+        if (settings.final_gather && !finals_built && plans_from_detail()) {
+            if (input.size() < coarse_size + extra)
+                throw std::invalid_argument("solve step: the error estimate's pass reads the coarse Le (" + std::to_string(coarse_size) +
+                                            " coefficients) and more, given " + std::to_string(input.size()));
+            take_coarse_light(input.data() + input.size() - extra - coarse_size, coarse_size);
+        }
         build_finals(progress);
         std::vector<Receiver>& result = estimated();
         if (begin > end || end > result.size())
             throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
                                         " out of " + std::to_string(result.size()));
         const size_t result_size = packed_size(result, 0, result.size(), &Receiver::Le);
-        const size_t coarse_size = settings.final_gather ? packed_size(receivers, 0, receivers.size(), &Receiver::Le) : 0;
-        const size_t extra = phase == SolveSteps::Phase::EstimateInput ? scene.size() + result.size() * record_size() : 0;
         if (input.size() != result_size + coarse_size + extra)
             throw std::invalid_argument("solve step: the error estimate's pass reads " + std::to_string(result_size + coarse_size + extra) +
                                         " values, given " + std::to_string(input.size()));
@@ -1624,6 +1701,15 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
     if (phase == Phase::Regather && s.settings.final_passes < 2)
         throw std::invalid_argument("solve step: the settings have one final pass, no regather");
+    if (fine && !s.finals_built && s.plans_from_detail()) {
+        // The finals are planned from the coarse light, which both read last.
+        const size_t coarse_size = packed_size(s.receivers, 0, s.receivers.size(), &Receiver::Le);
+        if (input.size() < coarse_size)
+            throw std::invalid_argument(std::string("solve step: ") + (phase == Phase::Final ? "a final gather" : "a regather") +
+                                        " reads the coarse Le (" + std::to_string(coarse_size) + " coefficients) last, given " +
+                                        std::to_string(input.size()));
+        s.take_coarse_light(input.data() + input.size() - coarse_size, coarse_size);
+    }
     if (fine) s.build_finals(progress);
     std::vector<Receiver>& targets = fine ? s.finals : s.receivers;
     if (begin > end || end > targets.size())
@@ -1814,7 +1900,9 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     // Final gather (Algorithm 1's last phase), from the cumulative radiance Le.
     if (settings.final_gather) {
         const auto t2 = std::chrono::steady_clock::now();
+        st.coarse_light = true;  // the bounces are done: the receivers hold it
         st.build_finals(progress);
+        solution.stats.bytes = st.bytes;  // with the finals as planned from it
         const int first_final = stages - settings.final_passes - (settings.estimate_error ? 1 : 0);
         progress.begin_stage("final gather", first_final, stages, node_count(st.finals));
         const std::vector<double> first = phase(Phase::Final, pack(receivers, 0, all, &Receiver::Le));

@@ -41,6 +41,25 @@ def room():
     return scene
 
 
+def room_with_a_box():
+    """The room with a block standing on its floor: the block's side faces are small and turned
+    from the lamp, lit by the walls and the floor, so that with coeffs_from_size and a detail
+    tolerance their finals are planned from their light after the bounces."""
+    scene = room()
+    x0, x1, y0, y1, h = 0.3, 0.7, 0.4, 0.8, 0.5
+    faces = {"box top": [[x0, y0, h], [x1, y0, h], [x1, y1, h], [x0, y1, h]],
+             "box -y": [[x0, y0, 0], [x1, y0, 0], [x1, y0, h], [x0, y0, h]],
+             "box +y": [[x1, y1, 0], [x0, y1, 0], [x0, y1, h], [x1, y1, h]],
+             "box -x": [[x0, y1, 0], [x0, y0, 0], [x0, y0, h], [x0, y1, h]],
+             "box +x": [[x1, y0, 0], [x1, y1, 0], [x1, y1, h], [x1, y0, h]]}
+    for name, corners in faces.items():
+        scene.add_bilinear_patch(name, np.array(corners, float), albedo=[0.6] * 3, emission=[0, 0, 0])
+    return scene
+
+
+PLANNED_FROM_LIGHT = dict(coeffs_from_size=True, detail_tolerance=0.005, spatial_coeffs_min=3)
+
+
 def settings(**kw):
     s = bsgi.SolverSettings()
     s.spatial_coeffs = 6
@@ -139,6 +158,32 @@ def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_a
     assert phases == ["direct", *bounces, "final", "regather", "estimate checks", "estimate input"]
     with pytest.raises(ValueError, match="one final pass, no regather"):
         bsgi.SolveSteps(scene, settings(), bsgi.Progress()).gather("regather", 0, 1, np.zeros(0), bsgi.Progress())
+
+
+def test_finals_planned_from_the_coarse_light_on_fresh_workers():
+    # With a detail tolerance the finals' coefficients follow the light after the bounces; a
+    # worker that starts at any later phase (a retry on a new process) plans the same finals
+    # from the coarse light its phase reads.
+    scene, s = room_with_a_box(), settings(final_passes=2, final_spatial_factor=2, **PLANNED_FROM_LIGHT)
+    local = bsgi.solve(scene, s)
+    raised = [r["name"] for r in local.reports if r and "its light after the bounces asked for more" in r["reason"]]
+    assert raised and all(name.startswith("box") for name in raised)
+    phases = []
+
+    def runner(phase, coefficients, nodes):
+        phases.append(phase)
+        worker = bsgi.SolveSteps(scene, s, bsgi.Progress())
+        part, rays = worker.gather(phase, 0, len(nodes), coefficients, bsgi.Progress())
+        return part, rays
+
+    assert_same_coefficients(local, bsgi.SolveSteps(scene, s, bsgi.Progress()).solve(bsgi.Progress(), runner))
+    assert phases == ["direct", "bounce", "bounce", "bounce", "final", "regather", "estimate checks", "estimate input"]
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+def test_ray_solve_with_finals_planned_from_the_light_equals_the_local_solve(ray_cluster):
+    scene, s = room_with_a_box(), settings(final_spatial_factor=2, **PLANNED_FROM_LIGHT)
+    assert_same_coefficients(bsgi.solve(scene, s), bsgi.solve(scene, s, executor=bsgi.RayExecutor(workers=2)))
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)

@@ -28,8 +28,11 @@ struct SolverSettings {
     // With coeffs_from_size, a surface whose direct light has detail gets more again: the light
     // is probed on a (2 spatial_coeffs_min + 1)^2 grid and the knot spacing is chosen so that a
     // quadratic's interpolation error, h^2 |f''| / 8, stays under detail_tolerance times the
-    // surface's brightest probe (a shadow edge asks for spatial_coeffs). Glossy surfaces, whose
-    // reflections' detail the probe does not see, then keep spatial_coeffs. 0: size alone.
+    // surface's brightest probe (a shadow edge asks for spatial_coeffs). The final gather's
+    // receivers are planned again once the bounces are done, from the converged coarse spline on
+    // the same grid: the light a face turned from the lamps gets from its neighbours, which the
+    // direct light's probe cannot see. Glossy surfaces, whose reflections' detail neither sees,
+    // then keep spatial_coeffs. 0: size alone.
     double detail_tolerance = 0;
     // Knots clustered where the direct light has detail (shadow edges, contact lines) instead
     // of uniform: costs a probe of the direct light on a (2n+1)^2 grid per surface.
