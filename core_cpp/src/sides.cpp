@@ -119,11 +119,10 @@ std::string light_name(const Scene& scene, int light) {
     return "world light";
 }
 
-// What lights point p of surface i on a side directly (`emitters`, then distant lights; the
-// world only if `world`, which the caller may find with its own rays): a light as above, or
-// kNoLight.
+// What lights point p of surface i on a side directly (`emitters`, then distant lights; not the
+// world, which the caller finds with the rays it casts anyway): a light as above, or kNoLight.
 int direct_light(const Scene& scene, const std::vector<int>& emitters, const RayCaster& caster, int i,
-                 const SurfacePoint& p, int side, bool world) {
+                 const SurfacePoint& p, int side) {
     const Vec3 n = side ? -p.frame.z : p.frame.z;
     for (const int e : emitters)
         if (e != i && sees_emitter(caster, p, n, scene[e])) return e;
@@ -132,11 +131,6 @@ int direct_light(const Scene& scene, const std::vector<int>& emitters, const Ray
         if (dot(distant[l].direction, n) > 0 &&
             caster.transmittance(caster.spawn(p.p, p.frame.z, distant[l].direction), distant[l].direction) > 0)
             return int(scene.size() + l);
-    if (world && scene.has_world())
-        for (int k = 0; k < kRays; ++k) {
-            const Vec3 dir = probe_direction(p, side, k, 0.5);
-            if (opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir).surface < 0) return world_light(scene);
-        }
     return kNoLight;
 }
 
@@ -148,7 +142,7 @@ std::vector<CellView> probe_side(const Scene& scene, const std::vector<int>& emi
         CellView& view = cells[c];
         if (!surface.in_domain((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints)) continue;
         const SurfacePoint p = cell_centre(surface, c);
-        view.light = direct_light(scene, emitters, caster, i, p, side, false);
+        view.light = direct_light(scene, emitters, caster, i, p, side);
         const double turn = cell_turn(i, c, side);
         for (int k = 0; k < kRays; ++k) {
             const Vec3 dir = probe_direction(p, side, k, turn);
@@ -259,17 +253,19 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         }
         return false;
     };
-    // What the end h of a ray, in cell `end`, sees: true if light directly; else appends to
-    // `out` the count of distinct cells its own rays reach, then (cell, rays) pairs.
+    // What the end h of a ray, in cell `end`, sees: true if light directly (the world's through
+    // any of its rays); else appends to `out` the count of distinct cells its rays reach, then
+    // (cell, rays) pairs.
     auto check_end = [&](uint32_t end, const SurfaceHit& h, std::vector<uint32_t>& out) {
         const int surface = int(end / (2 * kCells)), end_side = (end / kCells) % 2;
         const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
-        if (direct_light(scene, emitters, caster, surface, p, end_side, true) != kNoLight) return true;
+        if (direct_light(scene, emitters, caster, surface, p, end_side) != kNoLight) return true;
         std::array<uint32_t, kRays> reached;
         size_t m = 0;
         for (int r = 0; r < kRays; ++r) {
             const Vec3 dir = probe_direction(p, end_side, r, 0.5);
             const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+            if (hit.surface < 0 && scene.has_world()) return true;
             if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, dir);
         }
         std::sort(reached.begin(), reached.begin() + m);
