@@ -63,6 +63,9 @@ def main(argv=None) -> int:
                         help="refine surfaces whose estimated relative error is above ERROR (e.g. 0.02) and solve "
                              "again (default: the scene's setting; 0: off)")
     parser.add_argument("--refine-passes", type=int, metavar="N", help="at most N solves after the first when refining")
+    parser.add_argument("--adaptive-coefficients", type=float, metavar="TOLERANCE",
+                        help="spatial coefficients from each surface's size and its light's detail, within TOLERANCE "
+                        "of its brightest light (e.g. 0.005; 0: the preset's everywhere)")
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="solve on a Ray cluster: 'auto' (the cluster this machine joined with `ray start`), "
                              "'ray://host:10001' or host:port (needs `pip install ray`, and bsgi on every node)")
@@ -96,6 +99,8 @@ def main(argv=None) -> int:
         context.scene.bsgi.refine_to_error = args.refine_to_error
     if args.refine_passes is not None:
         context.scene.bsgi.refine_passes = args.refine_passes
+    if args.adaptive_coefficients is not None:
+        context.scene.bsgi.detail_tolerance = args.adaptive_coefficients
 
     def on_progress(fraction, stage):
         print(f"bsgi: {fraction * 100:5.1f}% {stage}", flush=True)

@@ -67,6 +67,13 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     refine_passes: IntProperty(
         name="Refine Passes", default=2, min=0, max=8,
         description="At most this many solves after the first while surfaces are over Refine to Error")
+    detail_tolerance: FloatProperty(
+        name="Adaptive Coefficients", default=0.0, min=0.0, max=0.1, precision=3,
+        description="Give each surface spatial coefficients from its size and the detail of its light, planned "
+        "for the final gather from the light after the bounces (small, evenly lit faces get few), so that a "
+        "quadratic spline's error stays under this fraction of the surface's brightest light; glossy surfaces keep "
+        "the quality's. 0.005 on a furnished interior: 0.6x the time of Preview, its median error per surface "
+        "5.2% against 4.1% (the README's figures). 0: the quality's coefficients everywhere")
     chart_min_faces: IntProperty(
         name="Chart Above Faces", default=64, min=0, max=10**7,
         description="A mesh with at least this many faces (of one material) is solved as one UV chart: one "
@@ -92,6 +99,8 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     def solver_settings(self) -> bsgi.SolverSettings:
         """The preset's settings, or with CUSTOM the core's defaults with the individual settings."""
         s = self.preset_settings()
+        if self.detail_tolerance > 0:
+            s.coeffs_from_size, s.detail_tolerance = True, self.detail_tolerance
         s.refine_to_error = self.refine_to_error
         s.refine_passes = self.refine_passes
         return s

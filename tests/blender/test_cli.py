@@ -6,6 +6,7 @@ import sys
 import tempfile
 
 import bpy
+import pytest
 
 import scenes
 
@@ -44,6 +45,16 @@ def test_python_m_entry_refines_to_an_error_target(context, tmp_path):
                      "--refine-passes", "1")
     assert run.returncode == 0, run.stdout + run.stderr
     assert "surfaces refined in 1 more solves" in run.stdout, run.stdout
+
+
+def test_python_m_entry_solves_with_adaptive_coefficients(context, tmp_path):
+    scenes.floor_under_lamp()
+    source, out = tmp_path / "scene.blend", tmp_path / "solved.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(source))
+    run = run_module(source, "--out", out, "--preset", "draft", "--adaptive-coefficients", "0.005")
+    assert run.returncode == 0, run.stdout + run.stderr
+    bpy.ops.wm.open_mainfile(filepath=str(out))
+    assert bpy.context.scene.bsgi.detail_tolerance == pytest.approx(0.005)  # what the solve ran with, saved
 
 
 def test_python_m_entry_refuses_workers_of_no_threads():
