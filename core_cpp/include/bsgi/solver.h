@@ -227,7 +227,10 @@ public:
     // or the coarse ones' without a final gather), then with a final gather the coarse Le; the
     // input pass then also each scene surface's input scale and the checks pass's result for all
     // receivers; they give per receiver its checks' record (the checks pass) or each check's
-    // input error (the input pass), and count their rays as the estimate's.
+    // input error (the input pass), and count their rays as the estimate's. With
+    // coeffs_from_size and a detail tolerance the finals are planned from the coarse Le that the
+    // first of these phases reads (and nodes() of a final phase or an estimate pass, on the
+    // steps that run the solve, needs its bounces done).
     std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                Progress& progress, size_t& rays, const std::vector<size_t>& settled = {});
     // The whole solve, each phase's gather run by `run` (here, on all threads, if empty), the
