@@ -72,7 +72,7 @@ def diffuse_samples(solution, points: int = 16) -> dict:
     rng = np.random.default_rng(7)
     out = {}
     for i, (surface, report) in enumerate(zip(solution.surfaces, solution.reports)):
-        uv = rng.uniform(0.02, 0.98, (points, 2))
+        uv = rng.uniform(0.02, 0.98, (points, 2))  # for every surface: the same points in every solve
         if surface is None or not report["representation"].startswith("diffuse"):
             continue
         for side, part in enumerate((surface.upper, surface.lower)):

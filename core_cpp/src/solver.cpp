@@ -1283,11 +1283,20 @@ struct SolveSteps::State {
         return rows_possible && r.kind == Representation::Diffuse && !r.bsdf->transmits();
     }
 
-    // The receivers' converged coarse light Le, packed (what the final gather reads): the finals
-    // are planned from it.
-    void take_coarse_light(const double* coarse, size_t size) {
-        unpack(coarse, size, receivers, 0, receivers.size(), &Receiver::Le);
-        coarse_light = true;
+    // The finals, built by the first phase that needs them on these steps (`what` names it):
+    // planned from the coarse light with a detail tolerance, which the phase's input holds
+    // packed, ending `after` values before the input's end.
+    void finals_from_input(const std::vector<double>& input, size_t after, const std::string& what, Progress& progress) {
+        if (settings.final_gather && !finals_built && plans_from_detail()) {
+            const size_t size = packed_size(receivers, 0, receivers.size(), &Receiver::Le);
+            if (input.size() < size + after)
+                throw std::invalid_argument("solve step: " + what + " reads the coarse Le (" + std::to_string(size) +
+                                            " coefficients) and " + std::to_string(after) + " values after it, given " +
+                                            std::to_string(input.size()));
+            unpack(input.data() + input.size() - after - size, size, receivers, 0, receivers.size(), &Receiver::Le);
+            coarse_light = true;
+        }
+        build_finals(progress);
     }
 
     // The final gather's finer receivers, with their own knots. With detail_tolerance a diffuse
@@ -1609,13 +1618,7 @@ struct SolveSteps::State {
         const size_t coarse_size = settings.final_gather ? packed_size(receivers, 0, receivers.size(), &Receiver::Le) : 0;
         // The finals count as many receivers as the coarse ones (each surface's parts alike).
         const size_t extra = phase == SolveSteps::Phase::EstimateInput ? scene.size() + receivers.size() * record_size() : 0;
-        if (settings.final_gather && !finals_built && plans_from_detail()) {
-            if (input.size() < coarse_size + extra)
-                throw std::invalid_argument("solve step: the error estimate's pass reads the coarse Le (" + std::to_string(coarse_size) +
-                                            " coefficients) and more, given " + std::to_string(input.size()));
-            take_coarse_light(input.data() + input.size() - extra - coarse_size, coarse_size);
-        }
-        build_finals(progress);
+        finals_from_input(input, extra, "the error estimate's pass", progress);
         std::vector<Receiver>& result = estimated();
         if (begin > end || end > result.size())
             throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
@@ -1701,16 +1704,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
     if (phase == Phase::Regather && s.settings.final_passes < 2)
         throw std::invalid_argument("solve step: the settings have one final pass, no regather");
-    if (fine && !s.finals_built && s.plans_from_detail()) {
-        // The finals are planned from the coarse light, which both read last.
-        const size_t coarse_size = packed_size(s.receivers, 0, s.receivers.size(), &Receiver::Le);
-        if (input.size() < coarse_size)
-            throw std::invalid_argument(std::string("solve step: ") + (phase == Phase::Final ? "a final gather" : "a regather") +
-                                        " reads the coarse Le (" + std::to_string(coarse_size) + " coefficients) last, given " +
-                                        std::to_string(input.size()));
-        s.take_coarse_light(input.data() + input.size() - coarse_size, coarse_size);
-    }
-    if (fine) s.build_finals(progress);
+    if (fine) s.finals_from_input(input, 0, phase == Phase::Final ? "a final gather" : "a regather", progress);  // both read the coarse Le last
     std::vector<Receiver>& targets = fine ? s.finals : s.receivers;
     if (begin > end || end > targets.size())
         throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
