@@ -5,6 +5,7 @@ and a JSON line of the figures at the end.
 
     python bench/study/compare_preview.py '{"coeffs_from_size": true, "detail_tolerance": 0.02}' [scene ...]
     python bench/study/compare_preview.py --preset final '{}' [scene ...]   (another preset as the base)
+    python bench/study/compare_preview.py --validation '{...}' [scene ...]   (bench/validation's scenes)
 """
 from __future__ import annotations
 
@@ -23,12 +24,12 @@ import run_study  # noqa: E402
 from references import describe, load_cached  # noqa: E402
 
 
-def compare(blend, overrides: dict, work: pathlib.Path, preset: str = "preview") -> dict:
-    data = load_cached(blend, False, HERE / "references")
+def compare(blend, overrides: dict, work: pathlib.Path, preset: str = "preview", references: pathlib.Path = HERE / "references") -> dict:
+    data = load_cached(blend, False, references)
     if data is None:
         # Stale (a source file or the .blend changed since): both solves still meet the same
         # pairs and reference, which is what this comparison needs.
-        data = dict(np.load(HERE / "references" / f"{blend.stem}.npz", allow_pickle=False))
+        data = dict(np.load(references / f"{blend.stem}.npz", allow_pickle=False))
     work.mkdir(parents=True, exist_ok=True)
     pairs = work / "pairs.npz"
     np.savez(pairs, **{k: data[k] for k in ("object", "polygon", "point", "eye")})
@@ -57,8 +58,13 @@ if __name__ == "__main__":
     preset = "preview"
     if args[:1] == ["--preset"]:
         preset, args = args[1], args[2:]
+    references, blends = HERE / "references", None
+    if args[:1] == ["--validation"]:
+        validation = HERE.parent / "validation"
+        references, args = validation / "references", args[1:]
+        blends = [b for b in sorted((validation / "scenes").glob("*.blend")) if not args[1:] or b.stem in args[1:]]
     overrides = json.loads(args[0])
-    figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / f"study_compare_{os.getpid()}", preset)  # runs side by side
-               for blend in run_study.scenes(args[1:] or None)
-               if (HERE / "references" / f"{blend.stem}.npz").exists()}  # the study's scenes
+    figures = {blend.stem: compare(blend, overrides, run_study.ROOT / "build" / f"study_compare_{os.getpid()}", preset, references)  # runs side by side
+               for blend in (blends if blends is not None else run_study.scenes(args[1:] or None))
+               if (references / f"{blend.stem}.npz").exists()}  # the scenes with a reference
     print(json.dumps(figures))

@@ -167,10 +167,11 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         why << "; front side: " << (p.live[0] ? "" : "no spline, ") << lit.why[0] << "; back side: "
             << (p.live[1] ? "" : "no spline, ") << lit.why[1];
     }
-    // Spatial coefficients per direction.
-    // The probe of the light's detail sees irradiance, not the view-dependent detail of a glossy
-    // surface's reflections: those keep spatial_coeffs when the probe is on.
-    const bool from_size = s.coeffs_from_size && extent > 0 && !(s.detail_tolerance > 0 && p.kind != Representation::Diffuse);
+    // Spatial coefficients per direction. A decomposed surface's glossy part S shares its
+    // diffuse part's knots, planned from the irradiance D holds: it keeps spatial_coeffs when the
+    // probe is on. A glossy surface's are planned from its size and irradiance like a diffuse
+    // one's and its finals from its converged coarse light along every angular node.
+    const bool from_size = s.coeffs_from_size && extent > 0 && !(s.detail_tolerance > 0 && p.kind == Representation::Decomposed);
     const Shape shape = from_size ? shape_of(*ss.surface) : Shape{};
     auto spatial = [&](int along, int from_detail) {
         if (ss.options.spatial_coeffs) return std::max(ss.options.spatial_coeffs, s.spatial_degree + 1) * spatial_scale;
@@ -358,8 +359,9 @@ std::pair<KnotVector, KnotVector> knots_at_discontinuities(const DiscontinuityFi
 // difference along u (v), w = h_p^2 |f''|, sets the knot spacing h at which a quadratic's
 // interpolation error h^2 |f''| / 8 is detail_tolerance times the brightest sample. A shadow
 // edge or a light close by asks for many, a face evenly lit by a distant light for few.
-std::array<int, 2> coeffs_for_samples(const std::vector<double>& f, int m, const SolverSettings& s) {
-    const double fmax = *std::max_element(f.begin(), f.end());
+// `brightest`: the sample the tolerance is relative to where f is one of several (0: f's own).
+std::array<int, 2> coeffs_for_samples(const std::vector<double>& f, int m, const SolverSettings& s, double brightest = 0) {
+    const double fmax = brightest > 0 ? brightest : *std::max_element(f.begin(), f.end());
     if (!(fmax > 0)) return {0, 0};  // no light: its size decides
     std::array<int, 2> n{0, 0};
     for (int along = 0; along < 2; ++along) {
@@ -397,23 +399,30 @@ std::array<int, 2> coeffs_for_detail(const Gatherer& gather, const Scene& scene,
     return coeffs_for_samples(f, m, s);
 }
 
-// The spatial coefficients per direction the converged coarse light of a diffuse receiver asks
-// its final gather for: its spline Le on the detail grid, each side's on its own (they are
-// lit apart). This sees the light the direct probe cannot, free of rays: a face turned from
-// the lamp, lit by its neighbours, brightening toward the floor it stands on.
+// The spatial coefficients per direction the converged coarse light of a receiver asks its final
+// gather for: its spline Le on the detail grid, each side's on its own (they are lit apart), and
+// a glossy receiver's along each of its angular nodes, against the brightest sample of all its
+// directions (a dim grazing direction asks for no more than its share of the light). This sees
+// the light the direct probe cannot, free of rays: a face turned from the lamp, lit by its
+// neighbours, brightening toward the floor it stands on; the room reflected in a metal ball.
 std::array<int, 2> coeffs_for_coarse_light(const Receiver& r, const SolverSettings& s) {
     const int m = detail_grid(s);
+    const size_t directions = r.kind == Representation::Diffuse ? 1 : r.directions.size();
     std::array<int, 2> n{0, 0};
-    std::vector<double> f(size_t(m) * m);
+    std::vector<std::vector<double>> f(directions, std::vector<double>(size_t(m) * m));
     for (int side = 0; side < r.sides; ++side) {
         if (!r.solves(side)) continue;
-        for (int i = 0; i < m; ++i)
-            for (int j = 0; j < m; ++j) {
-                const Vec3 L = r.own_radiance(&Receiver::Le, detail_grid_at(s, i), detail_grid_at(s, j), r.outgoing(side, 0));
-                f[size_t(i) * m + j] = L.x + L.y + L.z;
-            }
-        const std::array<int, 2> d = coeffs_for_samples(f, m, s);
-        n = {std::max(n[0], d[0]), std::max(n[1], d[1])};
+        double brightest = 0;
+        for (size_t a = 0; a < directions; ++a)
+            for (int i = 0; i < m; ++i)
+                for (int j = 0; j < m; ++j) {
+                    const Vec3 L = r.own_radiance(&Receiver::Le, detail_grid_at(s, i), detail_grid_at(s, j), r.outgoing(side, a));
+                    brightest = std::max(brightest, f[a][size_t(i) * m + j] = L.x + L.y + L.z);
+                }
+        for (size_t a = 0; a < directions; ++a) {
+            const std::array<int, 2> d = coeffs_for_samples(f[a], m, s, brightest);
+            n = {std::max(n[0], d[0]), std::max(n[1], d[1])};
+        }
     }
     return n;
 }
@@ -1300,7 +1309,7 @@ struct SolveSteps::State {
     }
 
     // The final gather's finer receivers, with their own knots. With detail_tolerance a diffuse
-    // surface's finals get the coefficients its converged coarse light asks for where its direct
+    // or glossy surface's finals get the coefficients its converged coarse light asks for where its direct
     // light asked for fewer (coeffs_for_coarse_light): their count is known only once the
     // bounces are done, on every worker from the coarse light its phase reads.
     void build_finals(Progress& progress) {
@@ -1311,7 +1320,7 @@ struct SolveSteps::State {
             parallel_for(receivers.size(), 16, settings.threads, [&](size_t begin, size_t end) {
                 for (size_t k = begin; k < end; ++k) {
                     const Receiver& r = receivers[k];
-                    if (r.is_partner || r.kind != Representation::Diffuse || scene[r.surface].options.spatial_coeffs) continue;
+                    if (r.is_partner || r.kind == Representation::Decomposed || scene[r.surface].options.spatial_coeffs) continue;
                     const std::array<int, 2> d = coeffs_for_coarse_light(r, settings);
                     detail[r.surface] = {std::max(detail[r.surface][0], d[0]), std::max(detail[r.surface][1], d[1])};
                 }

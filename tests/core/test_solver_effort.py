@@ -22,8 +22,9 @@ def box_quads(x, y, size, height):
                                                    for i in range(4)]
 
 
-def scene_of(boxes):
-    """A floor, the light, and boxes given as (x, y, size, height)."""
+def scene_of(boxes, material=None):
+    """A floor, the light, and boxes given as (x, y, size, height); `material`: box index ->
+    its material's keyword arguments (default: white)."""
     scene = bsgi.Scene()
     h = FLOOR / 2
     scene.add_bilinear_patch("floor", np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]], float),
@@ -31,7 +32,8 @@ def scene_of(boxes):
     scene.add_bilinear_patch("light", LIGHT, albedo=[0, 0, 0], emission=[10, 10, 10], receiver=False)
     for k, box in enumerate(boxes):
         for f, quad in enumerate(box_quads(*box)):
-            scene.add_bilinear_patch(f"box {k}.{f}", quad, albedo=[ALBEDO] * 3, emission=[0, 0, 0])
+            scene.add_bilinear_patch(f"box {k}.{f}", quad, emission=[0, 0, 0],
+                                     **(material or {}).get(k, {"albedo": [ALBEDO] * 3}))
     return scene
 
 
@@ -156,3 +158,32 @@ def test_a_small_sphere_keeps_its_coefficients_for_the_turning_of_its_normal():
           f"adaptive {errors['adaptive']:.2e} ({counts['adaptive']})")
     assert counts["adaptive"] == counts["uniform"]
     assert errors["adaptive"] <= 2 * errors["uniform"]
+
+
+def test_a_small_metal_box_plans_its_reflections_from_its_light():
+    # A GGX metal box (alpha 0.09, as the interior's balls) among the boxes: its 4D splines,
+    # the solve's largest, are planned from its size (4 x 4 coarse where the preset gives all
+    # 12 x 12) and its finals from its converged coarse light along every angular node. Against
+    # the preset's uniform coefficients at random points and view directions of its lit faces.
+    boxes = [(x, y, BOX, BOX) for x, y in CENTRES] + [(0.6, -0.4, BOX, BOX)]
+    metal = 2 + 5 * len(CENTRES)
+    scene = scene_of(boxes, {len(CENTRES): {"albedo": [0] * 3, "bsdf": bsgi.GgxReflection(0.09, 0.09, [0.9, 0.85, 0.75])}})
+    solved = {name: solve(scene, **overrides) for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE))}
+    rng = np.random.default_rng(7)
+    uv = rng.uniform(0.01, 0.99, (400, 2))
+    wo = rng.normal(size=(400, 3))
+    wo[:, 2] = np.abs(wo[:, 2]) + 0.2
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    worst, coarse = 0.0, {}
+    for f in range(5):
+        want, got = (solved[name].surfaces[metal + f].evaluate(uv, wo)[:, 0] for name in ("uniform", "adaptive"))
+        worst = max(worst, np.sqrt(np.mean((got - want) ** 2)) / want.mean())
+    glossy = {name: sum(s.upper.coefficients.size for s in sol.surfaces[metal:metal + 5]) for name, sol in solved.items()}
+    print(f"\nmetal box faces against uniform coefficients, worst RMS error / mean {worst:.2e}; "
+          f"their final coefficients {glossy['adaptive']} (uniform {glossy['uniform']}), rays "
+          f"{solved['adaptive'].stats['rays']:.3g} (uniform {solved['uniform'].stats['rays']:.3g})")
+    # Measured: 0.44% of the uniform plan's radiance, 2.3x fewer final coefficients on the metal
+    # box, 3.2x fewer rays in the whole solve.
+    assert worst <= 8e-3
+    assert glossy["adaptive"] <= glossy["uniform"] / 2
+    assert solved["adaptive"].stats["rays"] <= solved["uniform"].stats["rays"] / 2

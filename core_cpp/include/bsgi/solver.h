@@ -31,8 +31,9 @@ struct SolverSettings {
     // surface's brightest probe (a shadow edge asks for spatial_coeffs). The final gather's
     // receivers are planned again once the bounces are done, from the converged coarse spline on
     // the same grid: the light a face turned from the lamps gets from its neighbours, which the
-    // direct light's probe cannot see. Glossy surfaces, whose reflections' detail neither sees,
-    // then keep spatial_coeffs. 0: size alone.
+    // direct light's probe cannot see; a glossy surface's from its coarse spline along each
+    // angular node (the reflections' detail, which the irradiance probe cannot see). A decomposed
+    // surface's parts then keep spatial_coeffs. 0: size alone.
     double detail_tolerance = 0;
     // Knots clustered where the direct light has detail (shadow edges, contact lines) instead
     // of uniform: costs a probe of the direct light on a (2n+1)^2 grid per surface.
