@@ -939,10 +939,10 @@ double final_density(const Scene& scene, const SolverSettings& s, int i) {
     return double(s.final_integration_factor) * scene[i].options.integration_factor;
 }
 
-// The bytes a solve of these plans (and final plans) allocates after the sides probe, at its
-// peak: the ray caster, the receivers (three spline sets and the nodes), the form-factor rows,
-// and then the larger of a bounce's two packed copies of a set (and the settling pairs) and the final gather's finer
-// receivers (one set and their nodes) with the coarse input and the fine output packed.
+// The bytes a local solve of these plans (and final plans) allocates after the sides probe, at
+// its peak: the ray caster, the receivers (three spline sets and the nodes), the form-factor
+// rows, and then the larger of a bounce's packed output (and the settling pairs) and the final
+// gather's finer receivers (one set and their nodes) with the fine output packed.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
     auto set_bytes = [](const Plan& p) { return p.coefficients() * 3 * sizeof(double); };
@@ -958,12 +958,13 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
                         (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
     for (const Plan& p : final_plans) fine += set_bytes(p), fine_nodes += node_bytes(p);
-    // A regather holds its input packed (the finals' set and the coarse one) and the finals' new
-    // set; from the third pass the first final gather's set as well.
-    const size_t regather = settings.final_passes > 1 ? (settings.final_passes > 2 ? 3 : 2) * fine + coarse : 0;
-    // A bounce holds two packed copies of the coarse set; with settle_factor, the pairs of
+    // The local solve gathers each phase from the splines that hold its input (a runner's packed
+    // copy of it is not counted). A regather holds the first final gather's set and the finals'
+    // new one; from the third pass the one before as well.
+    const size_t regather = settings.final_passes > 1 ? (settings.final_passes > 2 ? 2 : 1) * fine : 0;
+    // A bounce holds a packed copy of the coarse set; with settle_factor, the pairs of
     // increments of receivers that may settle as well (at most a set).
-    const size_t bounce = (settings.settle_factor > 0 ? 3 : 2) * coarse, final = final_plans.empty() ? 0 : std::max(coarse, regather) + 2 * fine + fine_nodes;
+    const size_t bounce = (settings.settle_factor > 0 ? 2 : 1) * coarse, final = final_plans.empty() ? 0 : regather + 2 * fine + fine_nodes;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
     // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
@@ -1707,13 +1708,19 @@ std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
 
 std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
                                        Progress& progress, size_t& rays, const std::vector<size_t>& settled) {
+    return gather_from(phase, begin, end, &input, progress, rays, settled);
+}
+
+std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t end, const std::vector<double>* input,
+                                            Progress& progress, size_t& rays, const std::vector<size_t>& settled) {
     State& s = *state_;
-    if (on_estimate(phase)) return s.estimate_step(phase, begin, end, input, settled, progress, rays);
+    if (on_estimate(phase)) return s.estimate_step(phase, begin, end, *input, settled, progress, rays);
     const bool fine = on_finals(phase);
     if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
     if (phase == Phase::Regather && s.settings.final_passes < 2)
         throw std::invalid_argument("solve step: the settings have one final pass, no regather");
-    if (fine) s.finals_from_input(input, 0, phase == Phase::Final ? "a final gather" : "a regather", progress);  // both read the coarse Le last
+    if (fine && input) s.finals_from_input(*input, 0, phase == Phase::Final ? "a final gather" : "a regather", progress);  // both read the coarse Le last
+    if (fine) s.build_finals(progress);
     std::vector<Receiver>& targets = fine ? s.finals : s.receivers;
     if (begin > end || end > targets.size())
         throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
@@ -1744,7 +1751,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     if (bounce) {
         // Gather the incremental radiance L of all surfaces into Ltmp (but settled receivers').
         const double density = phase == Phase::LateBounce ? kLateBounceDensity : 1.0;
-        unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::L);
+        if (input) unpack(*input, s.receivers, 0, s.receivers.size(), &Receiver::L);
         s.build_rows(begin, end, progress, rays);
         rays += gather_all(targets, begin, end, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             const size_t k = size_t(r.index);
@@ -1768,7 +1775,7 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     // from the cumulative radiance Le of the others (emitters count as non-emissive there) with
     // the world's light along the same rays: the coarse receivers' Le.
     if (phase == Phase::Final) {
-        unpack(input, s.receivers, 0, s.receivers.size(), &Receiver::Le);
+        if (input) unpack(*input, s.receivers, 0, s.receivers.size(), &Receiver::Le);
         rays += gather_all(targets, begin, end, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             std::vector<Vec3> direct(r.sides * r.per_node);
             gather.direct(r, j, direct.data(), n);
@@ -1784,14 +1791,16 @@ std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, co
     // full density at a node whose rays meet a surface glossier than GGX alpha 0.3 (the lobe
     // kSharpLobe): its reflections' change is sharp (at half density the diffuse walls before
     // a near-mirror wall lost 0.5 points of accuracy).
-    const size_t fine_size = packed_size(s.finals, 0, s.finals.size(), &Receiver::Le);
-    const size_t coarse_size = packed_size(s.receivers, 0, s.receivers.size(), &Receiver::Le);
-    if (input.size() != fine_size + coarse_size)
-        throw std::invalid_argument("solve step: a regather reads the finals' Le (" + std::to_string(fine_size) +
-                                    " coefficients) and the coarse Le (" + std::to_string(coarse_size) + "), given " +
-                                    std::to_string(input.size()));
-    unpack(input.data(), fine_size, s.finals, 0, s.finals.size(), &Receiver::Le);
-    unpack(input.data() + fine_size, coarse_size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
+    if (input) {
+        const size_t fine_size = packed_size(s.finals, 0, s.finals.size(), &Receiver::Le);
+        const size_t coarse_size = packed_size(s.receivers, 0, s.receivers.size(), &Receiver::Le);
+        if (input->size() != fine_size + coarse_size)
+            throw std::invalid_argument("solve step: a regather reads the finals' Le (" + std::to_string(fine_size) +
+                                        " coefficients) and the coarse Le (" + std::to_string(coarse_size) + "), given " +
+                                        std::to_string(input->size()));
+        unpack(input->data(), fine_size, s.finals, 0, s.finals.size(), &Receiver::Le);
+        unpack(input->data() + fine_size, coarse_size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
+    }
     for (size_t k = begin; k < end; ++k) targets[k].L = targets[k].Le;
     rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
         const double full = final_density(scene, settings, r.surface);
@@ -1820,13 +1829,14 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     Solution solution;
     solution.stats.bytes = st.bytes;
     size_t rays = 0;
-    // One phase's gather for all receivers: here, or wherever `run` sends its groups.
-    // `settled`: a bounce's receivers that do not gather (0 nodes for `run`).
-    auto phase = [&](Phase p, const std::vector<double>& input, const std::vector<size_t>& settled = {}) {
+    // One phase's gather for all receivers: here, from the splines that hold its input, or
+    // wherever `run` sends its groups, with `input()` packed. `settled`: a bounce's receivers that
+    // do not gather (0 nodes for `run`).
+    auto phase = [&](Phase p, const auto& input, const std::vector<size_t>& settled = {}) {
         std::vector<size_t> n = nodes(p, progress);
-        if (!run) return gather(p, 0, n.size(), input, progress, rays, settled);
+        if (!run) return gather_from(p, 0, n.size(), nullptr, progress, rays, settled);
         for (size_t k : settled) n[k] = 0;
-        std::vector<double> out = run(p, input, n, rays);
+        std::vector<double> out = run(p, input(), n, rays);
         progress.throw_if_cancelled();
         return out;
     };
@@ -1834,7 +1844,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     // Direct lighting phase: gather from every emitter (and the world) into S.L; S.Le <- S.L.
     const auto t0 = std::chrono::steady_clock::now();
     progress.begin_stage("direct light", 1, stages, node_count(receivers));
-    unpack(phase(Phase::Direct, {}), receivers, 0, all, &Receiver::L);
+    unpack(phase(Phase::Direct, [] { return std::vector<double>(); }), receivers, 0, all, &Receiver::L);
     for (auto& r : receivers)
         for (int side = 0; side < r.sides; ++side) r.Le[side].coeffs() = r.L[side].coeffs();
     solution.stats.seconds_direct = seconds_since(t0);
@@ -1864,8 +1874,8 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         }
         progress.begin_stage("indirect bounce " + std::to_string(bounce + 1), 2 + st.ff_stage + bounce, stages, gathering);
         const bool late = settings.late_bounces_after > 0 && bounce >= settings.late_bounces_after;
-        unpack(phase(late ? Phase::LateBounce : Phase::Bounce, pack(receivers, 0, all, &Receiver::L), settled), receivers, 0, all,
-               &Receiver::Ltmp, skip);
+        unpack(phase(late ? Phase::LateBounce : Phase::Bounce, [&] { return pack(receivers, 0, all, &Receiver::L); }, settled),
+               receivers, 0, all, &Receiver::Ltmp, skip);
         for (size_t k : settled) {
             const std::array<double, 3> rho2 = convergence.decay(int(k));
             for (int side = 0; side < receivers[k].sides; ++side) {
@@ -1908,7 +1918,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         solution.stats.bytes = st.bytes;  // with the finals as planned from it
         const int first_final = stages - settings.final_passes - (settings.estimate_error ? 1 : 0);
         progress.begin_stage("final gather", first_final, stages, node_count(st.finals));
-        const std::vector<double> first = phase(Phase::Final, pack(receivers, 0, all, &Receiver::Le));
+        const std::vector<double> first = phase(Phase::Final, [&] { return pack(receivers, 0, all, &Receiver::Le); });
         unpack(first, st.finals, 0, st.finals.size(), &Receiver::Le);
         // Each regather: the first final gather's light plus the change that reading the
         // latest finals instead of the coarse splines makes, F_k+1 = F_1 + G(F_k - C): a fixed
@@ -1917,11 +1927,13 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         for (int pass = 2; pass <= settings.final_passes; ++pass) {
             progress.begin_stage("final gather " + std::to_string(pass), first_final - 1 + pass, stages,
                                  node_count(st.finals));
-            std::vector<double> input;
-            input.reserve(first.size() + packed_size(receivers, 0, all, &Receiver::Le));
-            pack_onto(input, st.finals, 0, st.finals.size(), &Receiver::Le);
-            pack_onto(input, receivers, 0, all, &Receiver::Le);
-            std::vector<double> next = phase(Phase::Regather, input);
+            std::vector<double> next = phase(Phase::Regather, [&] {
+                std::vector<double> input;
+                input.reserve(first.size() + packed_size(receivers, 0, all, &Receiver::Le));
+                pack_onto(input, st.finals, 0, st.finals.size(), &Receiver::Le);
+                pack_onto(input, receivers, 0, all, &Receiver::Le);
+                return input;
+            });
             for (size_t i = 0; i < next.size(); ++i) next[i] += first[i];
             unpack(next, st.finals, 0, st.finals.size(), &Receiver::Le);
         }

@@ -240,6 +240,10 @@ public:
     Solution solve(Progress& progress, const Runner& run = {});
 
 private:
+    // gather() with `input` null where the splines it would unpack already hold it (the local
+    // solve): no packed copy of the input beside them.
+    std::vector<double> gather_from(Phase phase, size_t begin, size_t end, const std::vector<double>* input,
+                                    Progress& progress, size_t& rays, const std::vector<size_t>& settled);
     struct State;
     std::unique_ptr<State> state_;
 };
