@@ -940,31 +940,32 @@ double final_density(const Scene& scene, const SolverSettings& s, int i) {
 }
 
 // The bytes a local solve of these plans (and final plans) allocates after the sides probe, at
-// its peak: the ray caster, the receivers (three spline sets and the nodes), the form-factor
-// rows, and then the larger of a bounce's packed output (and the settling pairs) and the final
-// gather's finer receivers (one set and their nodes) with the fine output packed.
+// its peak: the ray caster, the receivers (three spline sets and the nodes), and then the larger
+// of a bounce's packed output with the form-factor rows and the final gather's finer receivers
+// (their sets and nodes), which follow the bounces' increments.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
     auto set_bytes = [](const Plan& p) { return p.coefficients() * 3 * sizeof(double); };
     // A receiver's nodes, and a gather's list of them all (gather_all: receiver and node, 8 bytes).
     auto node_bytes = [](const Plan& p) { return size_t(p.nu) * p.nv * (sizeof(SpatialNode) + 2 * sizeof(int)); };
-    size_t coarse = 0, resident = 0, fine = 0, fine_nodes = 0, triangles = 0, occluders = 0;
+    size_t coarse = 0, resident = 0, rows = 0, fine = 0, fine_nodes = 0, triangles = 0, occluders = 0;
     for (const Plan& p : plans) {
         coarse += set_bytes(p);
         resident += plan_bytes(p);
         // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
         if (settings.form_factors && p.kind == Representation::Diffuse)
-            resident += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
-                        (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
+            rows += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
+                    (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
     for (const Plan& p : final_plans) fine += set_bytes(p), fine_nodes += node_bytes(p);
     // The local solve gathers each phase from the splines that hold its input (a runner's packed
-    // copy of it is not counted). A regather holds the first final gather's set and the finals'
-    // new one; from the third pass the one before as well.
-    const size_t regather = settings.final_passes > 1 ? (settings.final_passes > 2 ? 2 : 1) * fine : 0;
-    // A bounce holds a packed copy of the coarse set; with settle_factor, the pairs of
-    // increments of receivers that may settle as well (at most a set).
-    const size_t bounce = (settings.settle_factor > 0 ? 2 : 1) * coarse, final = final_plans.empty() ? 0 : regather + 2 * fine + fine_nodes;
+    // copy of it is not counted). A bounce holds its packed output; with settle_factor, the pairs
+    // of increments of receivers that may settle as well (at most a set).
+    const size_t bounce = rows + (settings.settle_factor > 0 ? 2 : 1) * coarse;
+    // The final gather holds the finals' set and the first pass's packed, a regather the
+    // correction as well; the bounces' increments (two coarse sets) and rows are freed by then.
+    const size_t final = final_plans.empty() ? 0 : (settings.final_passes > 1 ? 3 : 2) * fine + fine_nodes;
+    const size_t freed = final_plans.empty() ? 0 : 2 * coarse;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
     // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
@@ -990,7 +991,8 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     // a surface (about 1 kB: 410 MB for the 350,000 quads of the interior of 50,000 objects). The
     // gather's copy of the scene, the plans and the sides: about 8 kB a receiver (measured on the
     // furnished interior).
-    return triangles * 128 + occluders * 1024 + plans.size() * 8192 + resident + std::max({bounce, final, estimate});
+    return triangles * 128 + occluders * 1024 + plans.size() * 8192 + resident +
+           std::max(bounce, std::max(final, estimate) - std::min(freed, std::max(final, estimate)));
 }
 
 }  // namespace
@@ -1807,7 +1809,9 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
         if (gather.indirect_change(r, j, s.final_of, s.receiver_of, kRegatherDensity * full, kSharpLobe, out, n))
             gather.indirect_change(r, j, s.final_of, s.receiver_of, full, kSharpLobe, out, n);
     });
-    // The correction alone: the solve adds it to the first final gather's Le.
+    // The correction alone: the solve adds it to the first final gather's Le (the local solve
+    // from L, where it is: no packed copy of the finals beside the three sets it holds).
+    if (!input) return {};
     std::vector<double> out = pack(targets, begin, end, &Receiver::L);
     for (size_t k = begin; k < end; ++k) std::vector<TensorSpline>().swap(targets[k].L);
     return out;
@@ -1908,6 +1912,11 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         }
         solution.stats.extrapolated = true;
     }
+    if (settings.final_gather) {
+        // The final gather reads the coarse Le alone: the increments and the rows are done with.
+        for (Receiver& r : receivers) std::vector<TensorSpline>().swap(r.L), std::vector<TensorSpline>().swap(r.Ltmp);
+        std::vector<std::vector<std::vector<TransportTerm>>>().swap(st.rows);
+    }
     solution.stats.seconds_indirect = seconds_since(t1);
 
     // Final gather (Algorithm 1's last phase), from the cumulative radiance Le.
@@ -1934,8 +1943,14 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
                 pack_onto(input, receivers, 0, all, &Receiver::Le);
                 return input;
             });
-            for (size_t i = 0; i < next.size(); ++i) next[i] += first[i];
-            unpack(next, st.finals, 0, st.finals.size(), &Receiver::Le);
+            if (run) {
+                for (size_t i = 0; i < next.size(); ++i) next[i] += first[i];
+                unpack(next, st.finals, 0, st.finals.size(), &Receiver::Le);
+                continue;
+            }
+            unpack(first, st.finals, 0, st.finals.size(), &Receiver::Le);
+            add_onto(st.finals, 0, st.finals.size(), &Receiver::Le, &Receiver::L);
+            for (Receiver& r : st.finals) std::vector<TensorSpline>().swap(r.L);
         }
         solution.stats.seconds_final = seconds_since(t2);
     }
