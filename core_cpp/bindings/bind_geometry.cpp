@@ -295,6 +295,39 @@ void bind_geometry(py::module_& m) {
             "x, y, normal. `out`: a dict of preallocated arrays to fill instead (keys left out are not computed). "
             "Releases the GIL; threads=0 uses all.")
         .def(
+            "closest_hits_from",
+            [](const PyRayCaster& r, const Array& origin, const Array& directions) {
+                if (rows(origin, {3}, "origin") != 1) throw std::invalid_argument("origin must be one point, shape (1, 3)");
+                const size_t n = rows(directions, {3}, "directions");
+                std::vector<Vec3> dirs(n);
+                for (size_t i = 0; i < n; ++i) {
+                    const double* d = directions.data() + 3 * i;
+                    dirs[i] = {d[0], d[1], d[2]};
+                    if (!std::isfinite(d[0]) || !std::isfinite(d[1]) || !std::isfinite(d[2]) || dot(dirs[i], dirs[i]) == 0)
+                        throw std::invalid_argument("directions: row " + std::to_string(i) + " is not a finite non-zero vector");
+                }
+                std::vector<SurfaceHit> hits(n);
+                {
+                    py::gil_scoped_release release;
+                    const double* o = origin.data();
+                    r.caster->closest_hits_from({o[0], o[1], o[2]}, dirs.data(), n, hits.data());
+                }
+                py::array_t<int32_t> surface{py::ssize_t(n)};
+                py::array_t<double> t{py::ssize_t(n)};
+                auto uv = empty({py::ssize_t(n), 2});
+                for (size_t i = 0; i < n; ++i) {
+                    surface.mutable_data()[i] = hits[i].surface;
+                    t.mutable_data()[i] = hits[i].surface >= 0 ? hits[i].t : std::numeric_limits<double>::infinity();
+                    uv.mutable_data()[2 * i] = hits[i].u, uv.mutable_data()[2 * i + 1] = hits[i].v;
+                }
+                py::dict d;
+                d["surface"] = surface, d["t"] = t, d["uv"] = uv;
+                return d;
+            },
+            py::arg("origin"), py::arg("directions"),
+            "Closest hits of rays leaving one origin, traced together in packets (as a gather traces a hemisphere's): "
+            "surface (-1: none), t (inf: none), uv.")
+        .def(
             "occluded",
             [](const PyRayCaster& r, const Array& origins, const Array& directions, std::optional<Array> tnear,
                std::optional<Array> tfar, int threads) {

@@ -36,21 +36,19 @@ void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
 
 }  // namespace
 
-CosineRule::CosineRule(int nt, int np) : np_(np) {
+CosineRule::CosineRule(int nt, int np) : nt_(nt), np_(np) {
     if (nt < 1 || np < 1) throw std::invalid_argument("cosine rule: needs at least one node per axis");
     std::vector<double> x, w;
     gauss_legendre(nt, x, w);
-    for (int i = 0; i < nt; ++i) {
-        const double s = 0.5 * (x[i] + 1), share = 0.5 * w[i] * 2 * s;  // on [0, 1], times 2 s
-        cos_theta_.push_back(s);
-        sin_theta_.push_back(std::sqrt(std::max(0.0, 1 - s * s)));
-        weight_.push_back(share * nt);
-    }
-    for (int i = 0; i < nt; ++i)
-        for (int k = 0; k < np; ++k) {
-            const double phi = 2 * kPi * (k + 0.5 * (1 + (i & 1))) / np_;
-            directions_.push_back({sin_theta_[i] * std::cos(phi), sin_theta_[i] * std::sin(phi), cos_theta_[i]});
-        }
+    for (int i0 = 0; i0 < nt; i0 += kTile)
+        for (int k0 = 0; k0 < np; k0 += kTile)
+            for (int i = i0; i < std::min(nt, i0 + kTile); ++i)
+                for (int k = k0; k < std::min(np, k0 + kTile); ++k) {
+                    const double s = 0.5 * (x[i] + 1), sin_t = std::sqrt(std::max(0.0, 1 - s * s));
+                    const double phi = 2 * kPi * (k + 0.5 * (1 + (i & 1))) / np;
+                    directions_.push_back({sin_t * std::cos(phi), sin_t * std::sin(phi), s});
+                    weights_.push_back(0.5 * w[i] * 2 * s * nt);  // on [0, 1], times 2 s
+                }
 }
 
 const CosineRule& cosine_rule(int nt, int np) {

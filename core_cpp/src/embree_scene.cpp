@@ -101,13 +101,16 @@ TriangleRecord make_record(const Tessellation& tess, size_t t) {
 // checked by an assertion in Debian's build) or a NaN distance.
 constexpr double kLargestRayComponent = 1.8e18;
 
+bool representable(const Vec3& o, const Vec3& d, double tnear, double tfar) {
+    return std::abs(o.x) <= kLargestRayComponent && std::abs(o.y) <= kLargestRayComponent &&
+           std::abs(o.z) <= kLargestRayComponent && std::abs(d.x) <= kLargestRayComponent &&
+           std::abs(d.y) <= kLargestRayComponent && std::abs(d.z) <= kLargestRayComponent && !std::isnan(tnear) &&
+           !std::isnan(tfar);
+}
+
 void init_ray(RTCRay& ray, const Vec3& world_origin, const Vec3& centre, const Vec3& d, double tnear, double tfar) {
     const Vec3 o = world_origin - centre;
-    const bool representable = std::abs(o.x) <= kLargestRayComponent && std::abs(o.y) <= kLargestRayComponent &&
-                               std::abs(o.z) <= kLargestRayComponent && std::abs(d.x) <= kLargestRayComponent &&
-                               std::abs(d.y) <= kLargestRayComponent && std::abs(d.z) <= kLargestRayComponent &&
-                               !std::isnan(tnear) && !std::isnan(tfar);
-    if (!representable) {  // misses: an empty interval along a harmless ray
+    if (!representable(o, d, tnear, tfar)) {  // misses: an empty interval along a harmless ray
         ray.org_x = ray.org_y = ray.org_z = 0.0f;
         ray.dir_x = ray.dir_y = 0.0f, ray.dir_z = 1.0f;
         ray.tnear = 1.0f, ray.tfar = 0.0f;
@@ -271,6 +274,36 @@ void RayScene::closest_hit_block(const RayBatch& rays, size_t begin, size_t end,
             RayHit& h = hits[start - begin + k];
             h = RayHit{};
             if (found[k].geom != RTC_INVALID_GEOMETRY_ID) impl_->fill(h, found[k].geom, found[k].prim, found[k].t, found[k].b1, found[k].b2);
+        }
+    }
+}
+
+void RayScene::closest_hits_from(const Vec3& origin, const Vec3* dirs, size_t n, double tnear, RayHit* hits) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    const Vec3 o = origin - impl_->centre;
+    constexpr size_t kPacket = 16;
+    for (size_t start = 0; start < n; start += kPacket) {
+        const size_t m = std::min(kPacket, n - start);
+        alignas(64) int valid[kPacket];
+        alignas(64) RTCRayHit16 rh;
+        for (size_t k = 0; k < kPacket; ++k) {
+            const Vec3 d = k < m ? dirs[start + k] : Vec3{0, 0, 1};
+            valid[k] = k < m && representable(o, d, tnear, 0.0) ? -1 : 0;  // others miss
+            rh.ray.org_x[k] = float(o.x), rh.ray.org_y[k] = float(o.y), rh.ray.org_z[k] = float(o.z);
+            rh.ray.dir_x[k] = float(d.x), rh.ray.dir_y[k] = float(d.y), rh.ray.dir_z[k] = float(d.z);
+            rh.ray.tnear[k] = float(std::max(0.0, tnear)), rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
+            rh.ray.time[k] = 0, rh.ray.mask[k] = 0xFFFFFFFFu, rh.ray.id[k] = 0, rh.ray.flags[k] = 0;
+            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect16(valid, impl_->scene, &context, &rh);
+        for (size_t k = 0; k < m; ++k) {
+            RayHit& h = hits[start + k];
+            h = RayHit{};
+            if (valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID)
+                impl_->fill(h, rh.hit.geomID[k], rh.hit.primID[k], rh.ray.tfar[k], rh.hit.u[k], rh.hit.v[k]);
         }
     }
 }

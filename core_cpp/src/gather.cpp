@@ -33,8 +33,7 @@ QuadratureRule emitter_quadrature(int n, int degree) {
 Vec3 directional_albedo(const Bsdf& b) {
     const CosineRule& rule = cosine_rule(16, 32);
     Vec3 sum{0, 0, 0};
-    for (int i = 0; i < rule.theta_nodes(); ++i)
-        for (int k = 0; k < rule.phi_nodes(); ++k) sum += b.eval({0, 0, 1}, rule.direction(i, k)) * rule.weight(i);
+    for (int m = 0; m < rule.size(); ++m) sum += b.eval({0, 0, 1}, rule.direction(m)) * rule.weight(m);
     return sum * (kPi / rule.size());  // pi times the mean of rho over the cosine-weighted rule
 }
 
@@ -310,7 +309,11 @@ void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const
 template <typename Visit>
 void Gatherer::through_panes(const Vec3& o, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const {
     ++rays;
-    const SurfaceHit hit = caster_.closest_hit(o, dir);
+    past_panes(caster_.closest_hit(o, dir), dir, weight, depth, visit, rays);
+}
+
+template <typename Visit>
+void Gatherer::past_panes(const SurfaceHit& hit, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const {
     const ThinGlass* glass = caster_.pane(hit.surface);
     if (!glass) {
         visit(hit, dir, weight);
@@ -329,6 +332,22 @@ void Gatherer::through_panes(const Vec3& o, const Vec3& dir, double weight, int 
     }
 }
 
+template <typename Visit>
+void Gatherer::trace_from(const SurfacePoint& p, const Vec3* dirs, size_t n, Visit&& visit, size_t& rays) const {
+    thread_local std::vector<SurfaceHit> hits;
+    hits.resize(n);
+    for (size_t begin = 0; begin < n;) {  // runs of directions on one side share their origin
+        const bool front = dot(dirs[begin], p.frame.z) >= 0;
+        size_t end = begin + 1;
+        while (end < n && (dot(dirs[end], p.frame.z) >= 0) == front) ++end;
+        caster_.closest_hits_from(caster_.spawn(p.p, p.frame.z, dirs[begin]), dirs + begin, end - begin, hits.data() + begin);
+        begin = end;
+    }
+    rays += n;
+    for (size_t m = 0; m < n; ++m)
+        past_panes(hits[m], dirs[m], 1.0, 0, [&](const SurfaceHit& hit, const Vec3& d, double w) { visit(m, hit, d, w); }, rays);
+}
+
 template <typename Incoming>
 void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&& radiance_along, Vec3* out,
                           size_t& rays) const {
@@ -336,13 +355,18 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     const int nt = nodes_along(settings_.hemisphere_nodes_theta, density), np = nodes_along(settings_.hemisphere_nodes_phi, density);
-    // Incoming radiance along a local direction (pointing away from the surface).
-    auto incoming = [&](const Vec3& wi) -> Vec3 {
-        const Vec3 dir = p.frame.to_world(wi);
-        Vec3 L{0, 0, 0};
-        through_panes(caster_.spawn(p.p, p.frame.z, dir), dir, 1.0, 0,
-                      [&](const SurfaceHit& hit, const Vec3& d, double w) { L += radiance_along(hit, d) * w; }, rays);
-        return L;
+    // Incoming radiance L[m] along each local direction local[m] (pointing away from the
+    // surface; mirrored below it for an opaque back side's gather, see Receiver::scatter).
+    thread_local std::vector<Vec3> dirs;
+    auto incoming = [&](const Vec3* local, size_t count, bool mirror, Vec3* L) {
+        dirs.resize(count);
+        for (size_t m = 0; m < count; ++m) {
+            dirs[m] = p.frame.to_world(mirror ? Vec3{local[m].x, local[m].y, -local[m].z} : local[m]);
+            L[m] = {0, 0, 0};
+        }
+        trace_from(p, dirs.data(), count, [&](size_t m, const SurfaceHit& hit, const Vec3& d, double w) {
+            L[m] += radiance_along(hit, d) * w;
+        }, rays);
     };
     // Transmitting surfaces gather from both sides into both; an opaque one gathers each side it
     // solves from that side alone, with its directions mirrored for the back (Receiver::scatter).
@@ -352,20 +376,18 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
     }
     for (int side = 0; side < r.sides; ++side) {
         if (!r.solves(side)) continue;
-        auto incoming_side = [&](Vec3 wi) {
-            if (side == 1) wi.z = -wi.z;
-            return incoming(wi);
-        };
         if (r.kind == Representation::Diffuse) {
             // Lambertian: the cosine-weighted rule is exact for the BSDF; rho/pi * pi * mean.
             const CosineRule& rule = cosine_rule(nt, np);
+            thread_local std::vector<Vec3> L;
+            L.resize(size_t(rule.size()));
+            incoming(rule.directions(), L.size(), side == 1, L.data());
             Vec3 sum{0, 0, 0};
-            for (int i = 0; i < nt; ++i)
-                for (int k = 0; k < np; ++k) sum += incoming_side(rule.direction(i, k)) * rule.weight(i);
+            for (int m = 0; m < rule.size(); ++m) sum += L[m] * rule.weight(m);
             out[side * r.per_node] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * kPi * sum / double(rule.size());
             continue;
         }
-        gather_sides(r, side, side + 1, side == 1, nt, np, density, incoming_side, out);
+        gather_sides(r, side, side + 1, side == 1, nt, np, density, incoming, out);
     }
 }
 
@@ -374,7 +396,7 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
 // BSDF-sampled directions (balance heuristic), the BSDF's factors read from the receiver's
 // ScatterTable. Incoming light from both sides where the surface transmits; for the mirrored
 // back side of an opaque surface, everything is computed as on the front and `incoming`
-// mirrors the directions.
+// mirrors the directions. All directions are traced first, together.
 template <typename Incoming>
 void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                             Incoming&& incoming, Vec3* out) const {
@@ -382,21 +404,29 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
     ScatterTable& table = scatter_table(r, first, last, mirror, nt, np, nb);
     const size_t values = size_t(last - first) * r.per_node;
     Vec3* sides_out = out + size_t(first) * r.per_node;
-    for (size_t t = 0; t < table.incoming_count(); ++t) {
-        const Vec3 L = incoming(table.incoming(t));
-        if (L.x == 0 && L.y == 0 && L.z == 0) continue;  // (a regather's change is signed)
+    const std::vector<ScatterTable::Sample>& samples = table.samples();
+    thread_local std::vector<Vec3> wi, L;
+    const size_t nodes = table.incoming_count();
+    wi.resize(nodes);
+    for (size_t t = 0; t < nodes; ++t) wi[t] = table.incoming(t);
+    for (size_t k = 0; k < values * size_t(nb); ++k)
+        if (samples[k].kind != ScatterTable::Sample::Kind::None) wi.push_back(samples[k].wi);
+    L.resize(wi.size());
+    incoming(wi.data(), wi.size(), mirror, L.data());
+    for (size_t t = 0; t < nodes; ++t) {
+        if (L[t].x == 0 && L[t].y == 0 && L[t].z == 0) continue;  // (a regather's change is signed)
         const ScatterTable::Term* terms = table.terms(t);
         for (size_t v = 0; v < values; ++v)
-            if (terms[v].scale != 0) sides_out[v] += L * terms[v].f * terms[v].scale;
+            if (terms[v].scale != 0) sides_out[v] += L[t] * terms[v].f * terms[v].scale;
     }
-    const std::vector<ScatterTable::Sample>& samples = table.samples();
+    size_t next = nodes;
     for (size_t v = 0; v < values; ++v)
         for (int m = 0; m < nb; ++m) {
             const ScatterTable::Sample& s = samples[v * nb + m];
             if (s.kind == ScatterTable::Sample::Kind::None) continue;
-            const Vec3 L = incoming(s.wi);
-            if (L.x == 0 && L.y == 0 && L.z == 0) continue;
-            sides_out[v] += s.kind == ScatterTable::Sample::Kind::Delta ? L * s.f / double(nb) : L * s.f * s.scale;
+            const Vec3& Ls = L[next++];
+            if (Ls.x == 0 && Ls.y == 0 && Ls.z == 0) continue;
+            sides_out[v] += s.kind == ScatterTable::Sample::Kind::Delta ? Ls * s.f / double(nb) : Ls * s.f * s.scale;
         }
 }
 
@@ -459,27 +489,28 @@ void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const st
     const CosineRule& rule = cosine_rule(nt, np);
     std::vector<std::pair<size_t, double>> terms;
     std::vector<TransportTerm> raw;
-    for (int i = 0; i < nt; ++i)
-        for (int k = 0; k < np; ++k) {
-            Vec3 wi = rule.direction(i, k);
-            const double scale = kPi * rule.weight(i) / rule.size();  // rho/pi * pi * mean; albedo applied later
-            if (side_out == 1) wi.z = -wi.z;  // the back side gathers from below
-            const Vec3 dir = p.frame.to_world(wi);
-            // Through window panes too: the terms of each surface seen, weighted by what the panes pass.
-            through_panes(caster_.spawn(p.p, p.frame.z, dir), dir, 1.0, 0, [&](const SurfaceHit& hit, const Vec3& d, double pass) {
-                if (hit.surface < 0 || !receiver_of[hit.surface]) return;
-                const Vec3 local = hit.frame.to_local(-d);
-                const int side = local.z >= 0 ? 0 : 1;
-                for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
-                    if (!h->solves(side)) continue;
-                    double x[4] = {hit.u, hit.v, 0, 0};
-                    if (h->kind != Representation::Diffuse) h->map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
-                    basis_terms(h->L[side], x, terms);
-                    for (const auto& [index, w] : terms)
-                        raw.push_back({uint32_t(h->index), uint32_t(index), uint8_t(side), float(w * pass * scale)});
-                }
-            }, rays);
+    thread_local std::vector<Vec3> dirs;
+    dirs.resize(size_t(rule.size()));
+    for (int m = 0; m < rule.size(); ++m) {
+        Vec3 wi = rule.direction(m);
+        if (side_out == 1) wi.z = -wi.z;  // the back side gathers from below
+        dirs[m] = p.frame.to_world(wi);
+    }
+    // Through window panes too: the terms of each surface seen, weighted by what the panes pass.
+    trace_from(p, dirs.data(), dirs.size(), [&](size_t m, const SurfaceHit& hit, const Vec3& d, double pass) {
+        if (hit.surface < 0 || !receiver_of[hit.surface]) return;
+        const double scale = kPi * rule.weight(int(m)) / rule.size();  // rho/pi * pi * mean; albedo applied later
+        const Vec3 local = hit.frame.to_local(-d);
+        const int side = local.z >= 0 ? 0 : 1;
+        for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
+            if (!h->solves(side)) continue;
+            double x[4] = {hit.u, hit.v, 0, 0};
+            if (h->kind != Representation::Diffuse) h->map.to_disc(local.x, local.y, std::abs(local.z), x + 2);
+            basis_terms(h->L[side], x, terms);
+            for (const auto& [index, w] : terms)
+                raw.push_back({uint32_t(h->index), uint32_t(index), uint8_t(side), float(w * pass * scale)});
         }
+    }, rays);
     // Merge the terms of rays that land on the same coefficients.
     std::sort(raw.begin(), raw.end(), [](const TransportTerm& a, const TransportTerm& b) {
         return std::tie(a.receiver, a.side, a.index) < std::tie(b.receiver, b.side, b.index);

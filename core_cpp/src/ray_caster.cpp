@@ -101,6 +101,16 @@ SurfaceHit RayCaster::closest_hit(const Vec3& o, const Vec3& d, double tnear, do
     return resolve(rays_.closest_hit(o, d, tnear, tfar), o, d, tnear, tfar);
 }
 
+void RayCaster::closest_hits_from(const Vec3& o, const Vec3* dirs, size_t n, SurfaceHit* hits) const {
+    constexpr size_t kChunk = 64;
+    RayHit raw[kChunk];
+    for (size_t start = 0; start < n; start += kChunk) {
+        const size_t m = std::min(kChunk, n - start);
+        rays_.closest_hits_from(o, dirs + start, m, 0.0, raw);
+        for (size_t k = 0; k < m; ++k) hits[start + k] = resolve(raw[k], o, dirs[start + k], 0.0, std::numeric_limits<double>::infinity());
+    }
+}
+
 bool RayCaster::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
     if (!rays_.occluded(o, d, tnear, tfar)) return false;
     if (all_exact_) return true;

@@ -36,13 +36,12 @@ ScatterTable::ScatterTable(const Receiver& r, int first, int last, bool mirror, 
     n_strategy_ = in_sides_ * (double(nt) * np);
     const CosineRule& rule = cosine_rule(nt, np);
     for (int side_in = 0; side_in < in_sides_; ++side_in)
-        for (int i = 0; i < nt; ++i)
-            for (int k = 0; k < np; ++k) {
-                Vec3 wi = rule.direction(i, k);
-                if (side_in) wi.z = -wi.z;
-                incoming_.push_back(wi);
-                node_weight_.push_back(rule.weight(i));
-            }
+        for (int m = 0; m < rule.size(); ++m) {
+            Vec3 wi = rule.direction(m);
+            if (side_in) wi.z = -wi.z;
+            incoming_.push_back(wi);
+            node_weight_.push_back(rule.weight(m));
+        }
     const size_t row = outgoing_.size();
     const bool keep = kept(row, incoming_.size());
     terms_.resize(keep ? incoming_.size() * row : row);

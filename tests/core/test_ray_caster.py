@@ -226,6 +226,61 @@ def test_batches_agree_across_threads_and_with_single_rays():
     assert np.array_equal(occ1, one["surface"] >= 0)
 
 
+def cosine_directions(frame, n, rng):
+    """n cosine-distributed unit directions about frame's third row."""
+    u = rng.random((n, 2))
+    r, phi = np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[:, 0])], 1) @ frame
+
+
+def cube_faces(half=1.0):
+    """The six faces of a cube as parallelograms meeting along shared edges, normals inward."""
+    c = np.array([[x, y, z] for z in (-half, half) for y in (-half, half) for x in (-half, half)])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return [bsgi.BilinearPatch(f"face{k}", c[list(q)]) for k, q in enumerate(quads)]
+
+
+@pytest.mark.parametrize("case", ["sphere over a plane", "inside a cube"])
+def test_packets_from_one_origin_agree_with_single_rays(case):
+    # A gather traces each node's hemisphere in packets (closest_hits_from): the same hits as
+    # one ray at a time, but where two surfaces meet at the same distance (a shared edge) and
+    # either is the first; nothing leaks through the cube's edges, and NURBS hits stay exact.
+    surfaces = [sphere(1.0), plane_chart(3.0, -1.2)] if case == "sphere over a plane" else cube_faces()
+    caster = bsgi.RayCaster(surfaces)
+    rng = np.random.default_rng(5)
+    ties = total = 0
+    for k in range(300):
+        s = surfaces[1] if case == "sphere over a plane" else surfaces[k % 6]
+        e = s.evaluate(rng.uniform(0.05, 0.95, (1, 2)))
+        frame = np.stack([e["x"][0], e["y"][0], e["normal"][0]])
+        dirs = cosine_directions(frame, 288, rng)
+        origin = caster.spawn(e["position"], e["normal"], dirs[:1])
+        packets = caster.closest_hits_from(origin, dirs)
+        single = caster.closest_hit(np.repeat(origin, len(dirs), 0), dirs)
+        differ = packets["surface"] != single["surface"]
+        total += len(dirs)
+        ties += differ.sum()
+        if case == "inside a cube":
+            assert np.all(packets["surface"] >= 0)
+        assert np.all((packets["surface"] >= 0) == (single["surface"] >= 0))
+        np.testing.assert_allclose(packets["t"], single["t"], rtol=1e-6)
+        same = ~differ & (single["surface"] >= 0)
+        np.testing.assert_allclose(packets["uv"][same], single["uv"][same], atol=1e-6)
+        if case == "sphere over a plane":
+            on_sphere = packets["surface"] == 0
+            exact = ray_sphere(np.repeat(origin, on_sphere.sum(), 0), dirs[on_sphere], np.zeros(3), 1.0)
+            np.testing.assert_allclose(packets["t"][on_sphere], exact, rtol=1e-9)
+    assert ties <= 1e-3 * total
+
+
+def test_packets_refuse_bad_directions():
+    caster = bsgi.RayCaster([sphere(1.0)])
+    with pytest.raises(ValueError, match="row 1 is not a finite non-zero vector"):
+        caster.closest_hits_from(np.array([[0, 0, 3.0]]), np.array([[0, 0, -1.0], [0, 0, 0]]))
+    with pytest.raises(ValueError, match="one point"):
+        caster.closest_hits_from(np.zeros((2, 3)), np.array([[0, 0, -1.0]]))
+
+
 def test_batches_release_the_gil():
     caster = bsgi.RayCaster([sphere(1.0)])
     rng = np.random.default_rng(1)

@@ -223,12 +223,13 @@ def test_worker_killed_mid_solve_is_retried(ray_cluster):
     def on_progress(fraction, stage):
         # Kill a worker while the first bounce's groups are being gathered: Ray restarts it (the
         # scene rebuilt from the object store) and gathers its group again.
-        if stage == "direct light" and not pids and executor.actors:
+        # (Stages are polled: a short one may pass unseen, so any stage before and after will do.)
+        if not pids and not killed and executor.actors:
             pids.append(pid_of_worker_0())
-        if stage == "indirect bounce 1" and not killed and executor.actors:
+        if stage.startswith("indirect bounce") and not killed and pids:
             ray.kill(executor.actors[0], no_restart=False)
             killed.append(stage)
-        if stage == "final gather" and len(pids) == 1:
+        elif killed and stage != killed[0] and len(pids) == 1:
             pids.append(pid_of_worker_0())
 
     solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)

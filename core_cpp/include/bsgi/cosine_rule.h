@@ -19,19 +19,23 @@ class CosineRule {
 public:
     // nt x np nodes, nt and np >= 1.
     CosineRule(int nt, int np);
-    int theta_nodes() const { return int(cos_theta_.size()); }
+    int theta_nodes() const { return nt_; }
     int phi_nodes() const { return np_; }
-    int size() const { return theta_nodes() * np_; }
-    // Local direction of node (i, k), z up (computed once: a gather asks for each at every node).
-    const Vec3& direction(int i, int k) const { return directions_[size_t(i) * np_ + k]; }
-    // Weight of the nodes of row i: the share of the cosine-weighted hemisphere they stand for,
-    // times size() (mean 1 over the nodes).
-    double weight(int i) const { return weight_[i]; }
+    int size() const { return nt_ * np_; }
+    // Local direction of node m (z up; computed once: a gather asks for each at every node).
+    // The nodes go in tiles of kTile x kTile neighbours in theta and phi, so that a packet of
+    // rays traced together (RayCaster::closest_hits_from) spans a small solid angle.
+    const Vec3& direction(int m) const { return directions_[size_t(m)]; }
+    const Vec3* directions() const { return directions_.data(); }
+    // Weight of node m: the share of the cosine-weighted hemisphere it stands for, times
+    // size() (mean 1 over the nodes).
+    double weight(int m) const { return weights_[size_t(m)]; }
+    static constexpr int kTile = 4;
 
 private:
-    std::vector<double> cos_theta_, sin_theta_, weight_;
     std::vector<Vec3> directions_;
-    int np_;
+    std::vector<double> weights_;
+    int nt_, np_;
 };
 
 // The rule of nt x np nodes, built once per thread.

@@ -157,6 +157,14 @@ private:
     // for each end of the ray tree, the ray straight on and the reflected one at each pane hit.
     template <typename Visit>
     void through_panes(const Vec3& o, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const;
+    // The same from the ray's first hit, already cast.
+    template <typename Visit>
+    void past_panes(const SurfaceHit& hit, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const;
+    // Traces n rays leaving p along world directions dirs (each lifted to its side of p's
+    // surface) in packets of neighbours (RayCaster::closest_hits_from), each followed through
+    // window panes: visit(m, hit, direction, weight) for each end of ray m's tree.
+    template <typename Visit>
+    void trace_from(const SurfacePoint& p, const Vec3* dirs, size_t n, Visit&& visit, size_t& rays) const;
     static constexpr double kMinPaneReflection = 0.01;
     // The world's radiance along an unblocked direction, as the hemispherical integrals see it:
     // the constant, or the world map without its bright part.

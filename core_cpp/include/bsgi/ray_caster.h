@@ -59,6 +59,9 @@ public:
     // Thread-safe. Hits lie in (tnear, tfar).
     SurfaceHit closest_hit(const Vec3& o, const Vec3& d, double tnear = 0,
                            double tfar = std::numeric_limits<double>::infinity()) const;
+    // Closest hits of n rays from origin o (RayScene::closest_hits_from: traced in packets;
+    // give neighbouring directions one after another), resolved like closest_hit's.
+    void closest_hits_from(const Vec3& o, const Vec3* dirs, size_t n, SurfaceHit* hits) const;
     bool occluded(const Vec3& o, const Vec3& d, double tnear = 0, double tfar = std::numeric_limits<double>::infinity()) const;
     // The fraction of light passing along the segment (tnear, tfar): the product of the panes'
     // shadow transmittance over the panes crossed, 0 if anything opaque (or more than kMaxPanes

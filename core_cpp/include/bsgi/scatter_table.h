@@ -45,7 +45,7 @@ public:
     // Bytes of the table for `values` outgoing values, `incoming` cosine nodes and nb samples.
     static size_t bytes(size_t values, size_t incoming, int nb);
 
-    // Cosine nodes over the incoming sides: incoming side slowest, then theta, then phi.
+    // Cosine nodes over the incoming sides: incoming side slowest, then the rule's order.
     size_t incoming_count() const { return incoming_.size(); }
     const Vec3& incoming(size_t t) const { return incoming_[t]; }
     // The terms of node t, (last - first) * per_node of them, side-major.
