@@ -61,22 +61,38 @@ int cell_of(double u, double v) {
 // Direction k of the probe's cosine-weighted set on the side of normal n = +-frame.z, turned
 // about the normal by `turn` (a fraction of the azimuth step): each cell turns its set by its
 // own amount, so that the cells' rays do not line up with the edges of boxes made of patches,
-// where a ray may slip between two patches that meet.
+// where a ray may slip between two patches that meet. The directions go in tiles of 4 x 4
+// neighbours in theta and phi (a packet of rays traced together spans a small solid angle).
+static_assert(kPhi % 4 == 0, "the probe's tiles span whole rows of phi");
 Vec3 probe_direction(const SurfacePoint& p, int side, int k, double turn) {
-    const double w = (k / kPhi + 0.5) / kTheta, phi = 2 * kPi * (k % kPhi + turn) / kPhi;
+    const int band = k / (4 * kPhi), rows = std::min(4, kTheta - 4 * band), in_band = k - band * 4 * kPhi;
+    const int row = 4 * band + (in_band % (4 * rows)) / 4, column = 4 * (in_band / (4 * rows)) + in_band % 4;
+    const double w = (row + 0.5) / kTheta, phi = 2 * kPi * (column + turn) / kPhi;
     const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
     return p.frame.to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), side ? -cos_t : cos_t});
 }
 
-// The first surface a probe ray meets that is not a window pane: light passes panes, so the
-// probe looks through them (escaped past kMaxPanes panes, as the gathering gives up there).
-SurfaceHit opaque_hit(const RayCaster& caster, Vec3 origin, const Vec3& dir) {
-    for (int k = 0; k <= RayCaster::kMaxPanes; ++k) {
-        const SurfaceHit hit = caster.closest_hit(origin, dir);
+// The first surface a probe ray meets that is not a window pane, from the ray's first hit:
+// light passes panes, so the probe looks through them (escaped past kMaxPanes panes, as the
+// gathering gives up there).
+SurfaceHit past_panes(const RayCaster& caster, SurfaceHit hit, const Vec3& dir) {
+    for (int k = 0; k < RayCaster::kMaxPanes; ++k) {
         if (hit.surface < 0 || !caster.pane(hit.surface)) return hit;
-        origin = caster.spawn(hit.p, hit.frame.z, dir);
+        hit = caster.closest_hit(caster.spawn(hit.p, hit.frame.z, dir), dir);
     }
-    return {};
+    return hit.surface < 0 || !caster.pane(hit.surface) ? hit : SurfaceHit{};
+}
+
+// The probe's rays from point p on `side`, cast together: their directions and the first
+// surfaces they meet that are not panes.
+struct ProbeRays {
+    std::array<Vec3, kRays> dirs;
+    std::array<SurfaceHit, kRays> hits;
+};
+void cast_probe_rays(const RayCaster& caster, const SurfacePoint& p, int side, double turn, ProbeRays& out) {
+    for (int k = 0; k < kRays; ++k) out.dirs[k] = probe_direction(p, side, k, turn);
+    caster.closest_hits_from(caster.spawn(p.p, p.frame.z, out.dirs[0]), out.dirs.data(), kRays, out.hits.data());
+    for (int k = 0; k < kRays; ++k) out.hits[k] = past_panes(caster, out.hits[k], out.dirs[k]);
 }
 
 uint32_t end_cell(const SurfaceHit& hit, const Vec3& dir) {
@@ -143,10 +159,11 @@ std::vector<CellView> probe_side(const Scene& scene, const std::vector<int>& emi
         if (!surface.in_domain((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints)) continue;
         const SurfacePoint p = cell_centre(surface, c);
         view.light = direct_light(scene, emitters, caster, i, p, side);
-        const double turn = cell_turn(i, c, side);
+        ProbeRays rays;
+        cast_probe_rays(caster, p, side, cell_turn(i, c, side), rays);
         for (int k = 0; k < kRays; ++k) {
-            const Vec3 dir = probe_direction(p, side, k, turn);
-            const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+            const Vec3& dir = rays.dirs[k];
+            const SurfaceHit& hit = rays.hits[k];
             if (hit.surface < 0) {
                 view.escaped = true;
                 if (scene.has_world() && view.light == kNoLight) view.light = world_light(scene);
@@ -262,11 +279,12 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         if (direct_light(scene, emitters, caster, surface, p, end_side) != kNoLight) return true;
         std::array<uint32_t, kRays> reached;
         size_t m = 0;
+        ProbeRays rays;
+        cast_probe_rays(caster, p, end_side, 0.5, rays);
         for (int r = 0; r < kRays; ++r) {
-            const Vec3 dir = probe_direction(p, end_side, r, 0.5);
-            const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+            const SurfaceHit& hit = rays.hits[r];
             if (hit.surface < 0 && scene.has_world()) return true;
-            if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, dir);
+            if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, rays.dirs[r]);
         }
         std::sort(reached.begin(), reached.begin() + m);
         const size_t count = out.size();
@@ -300,13 +318,12 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     // The rays of cell c of a side of surface i, in order: visit(k, hit, end cell) for those
     // that end on a receiver, until it returns true.
     auto cell_rays = [&](int i, int side, int c, auto&& visit) {
-        const SurfacePoint p = cell_centre(*scene[i].surface, c);
-        const double turn = cell_turn(i, c, side);
+        ProbeRays rays;
+        cast_probe_rays(caster, cell_centre(*scene[i].surface, c), side, cell_turn(i, c, side), rays);
         for (int k = 0; k < kRays; ++k) {
-            const Vec3 dir = probe_direction(p, side, k, turn);
-            const SurfaceHit hit = opaque_hit(caster, caster.spawn(p.p, p.frame.z, dir), dir);
+            const SurfaceHit& hit = rays.hits[k];
             if (hit.surface < 0 || !scene[hit.surface].receiver) continue;
-            if (visit(k, hit, end_cell(hit, dir))) return;
+            if (visit(k, hit, end_cell(hit, rays.dirs[k]))) return;
         }
     };
     // Each pass asks, in order, every dark cell whose answer may have changed (Gauss-Seidel: a
