@@ -3,11 +3,18 @@ Embree closest hits on the same rays, same scene, same run.
 
 Scene: a bumpy sphere as one mesh chart of about 1M triangles (UV = latitude/longitude), hit by
 1M incoherent rays from inside (every ray hits, in random order over the mesh). NURBS: 64 of
-Blender's NURBS spheres (each hit refined on the exact surface by Newton's method)."""
+Blender's NURBS spheres (each hit refined on the exact surface by Newton's method).
+Hemispheres: 12 x 24 cosine-weighted directions (in 4 x 4 tiles, as a gather orders them) from
+2,000 points on the furnished interior at 300 objects (bench/interior_core.py), traced as a
+gather does, in packets from one origin (closest_hits_from, one call a point), against the same
+rays one at a time in one batch."""
 from __future__ import annotations
 
 import os
 import time
+
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -69,6 +76,35 @@ def outputs(n: int) -> dict:
             "frame": np.empty((n, 3, 3))}
 
 
+def tiled_hemisphere(nt: int = 12, n_phi: int = 24) -> np.ndarray:
+    """Local cosine-weighted directions, z up, in tiles of 4 x 4 neighbours."""
+    order = [(i, k) for i0 in range(0, nt, 4) for k0 in range(0, n_phi, 4)
+             for i in range(i0, min(nt, i0 + 4)) for k in range(k0, min(n_phi, k0 + 4))]
+    i, k = np.array(order).T
+    sin2 = (i + 0.5) / nt
+    phi = 2 * np.pi * (k + 0.5) / n_phi
+    return np.stack([np.sqrt(sin2) * np.cos(phi), np.sqrt(sin2) * np.sin(phi), np.sqrt(1 - sin2)], 1)
+
+
+def hemisphere_rays(points: int = 2000, seed: int = 5):
+    """Origins and world directions of `points` hemispheres on the interior at 300 objects."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import interior_core
+
+    scene, _ = interior_core.build_scene(300)
+    surfaces = [scene.surface(i) for i in range(len(scene))]
+    caster = bsgi.RayCaster(surfaces)
+    rng = np.random.default_rng(seed)
+    local = tiled_hemisphere()
+    origins, directions = [], []
+    for i in rng.integers(len(surfaces), size=points):
+        e = surfaces[i].evaluate(rng.uniform(0.05, 0.95, (1, 2)))
+        d = np.ascontiguousarray(local @ np.stack([e["x"][0], e["y"][0], e["normal"][0]]))
+        origins.append(caster.spawn(e["position"], e["normal"], d[:1]))
+        directions.append(d)
+    return caster, origins, directions
+
+
 def run() -> dict:
     threads = os.cpu_count() or 1
     t0 = time.perf_counter()
@@ -97,7 +133,18 @@ def run() -> dict:
     nurbs.closest_hit(no, nd, out=nout)
     nurbs_1t, nurbs_raw_1t = best_times(lambda: nurbs.closest_hit(no, nd, threads=1, out=nout),
                                         lambda: nurbs.raw_closest_hit(no, nd, threads=1))
+
+    interior, origins, directions = hemisphere_rays()
+    all_o = np.concatenate([np.repeat(o, len(d), 0) for o, d in zip(origins, directions)])
+    all_d = np.concatenate(directions)
+    hout = outputs(len(all_d))
+    packets, single = best_times(lambda: [interior.closest_hits_from(o, d) for o, d in zip(origins, directions)],
+                                 lambda: interior.closest_hit(all_o, all_d, threads=1, out=hout))
     return {
+        "hit_hemisphere_rays": len(all_d),
+        "hit_hemisphere_packets_per_s_1t": round(len(all_d) / packets),
+        "hit_hemisphere_single_per_s_1t": round(len(all_d) / single),
+        "hit_hemisphere_packet_speedup": round(single / packets, 3),
         "hit_scene_triangles": int(caster.triangle_count),
         "hit_scene_build_s": round(build, 3),
         "hit_threads_all": threads,
