@@ -943,12 +943,23 @@ double final_density(const Scene& scene, const SolverSettings& s, int i) {
 // its peak: the ray caster, the receivers (three spline sets and the nodes), and then the larger
 // of a bounce's packed output with the form-factor rows and the final gather's finer receivers
 // (their sets and nodes), which follow the bounces' increments.
+// What a solve holds from its start to its end: the ray caster (a 64-byte record and about as
+// much BVH a triangle, and an Embree geometry a surface, about 1 kB: 410 MB for the 350,000
+// quads of the interior of 50,000 objects), the gather's copy of the scene, the plans and the
+// sides (about 8 kB a receiver, measured on the furnished interior).
+size_t fixed_bytes(const Scene& scene, const std::vector<Plan>& plans) {
+    size_t triangles = 0, occluders = 0;
+    for (const auto& s : scene.surfaces())
+        if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
+    return triangles * 128 + occluders * 1024 + plans.size() * 8192;
+}
+
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
     auto set_bytes = [](const Plan& p) { return p.coefficients() * 3 * sizeof(double); };
     // A receiver's nodes, and a gather's list of them all (gather_all: receiver and node, 8 bytes).
     auto node_bytes = [](const Plan& p) { return size_t(p.nu) * p.nv * (sizeof(SpatialNode) + 2 * sizeof(int)); };
-    size_t coarse = 0, resident = 0, rows = 0, fine = 0, fine_nodes = 0, triangles = 0, occluders = 0;
+    size_t coarse = 0, resident = 0, rows = 0, fine = 0, fine_nodes = 0;
     for (const Plan& p : plans) {
         coarse += set_bytes(p);
         resident += plan_bytes(p);
@@ -962,12 +973,11 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     // copy of it is not counted). A bounce holds its packed output; with settle_factor, the pairs
     // of increments of receivers that may settle as well (at most a set).
     const size_t bounce = rows + (settings.settle_factor > 0 ? 2 : 1) * coarse;
-    // The final gather holds the finals' set and the first pass's packed, a regather the
-    // correction as well; the bounces' increments (two coarse sets) and rows are freed by then.
-    const size_t final = final_plans.empty() ? 0 : (settings.final_passes > 1 ? 3 : 2) * fine + fine_nodes;
+    // The final gather holds the finals' set, a regather the correction as well, and the first
+    // pass's light packed where a third pass needs it; the bounces' increments (two coarse
+    // sets) and rows are freed by then.
+    const size_t final = final_plans.empty() ? 0 : size_t(std::min(settings.final_passes, 3)) * fine + fine_nodes;
     const size_t freed = final_plans.empty() ? 0 : 2 * coarse;
-    for (const auto& s : scene.surfaces())
-        if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
     // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
     // the final gather's density; the error estimate's second gatherer keeps its own at twice
     // that, but only after the final gather's packed copies are freed (measured: on the interior
@@ -987,11 +997,7 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     };
     resident += tables_at(1);
     const size_t estimate = settings.estimate_error ? tables_at(2) : 0;
-    // The ray caster: a 64-byte record and about as much BVH a triangle, and an Embree geometry
-    // a surface (about 1 kB: 410 MB for the 350,000 quads of the interior of 50,000 objects). The
-    // gather's copy of the scene, the plans and the sides: about 8 kB a receiver (measured on the
-    // furnished interior).
-    return triangles * 128 + occluders * 1024 + plans.size() * 8192 + resident +
+    return fixed_bytes(scene, plans) + resident +
            std::max(bounce, std::max(final, estimate) - std::min(freed, std::max(final, estimate)));
 }
 
@@ -1011,10 +1017,13 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings, 
     if (settings.detail_tolerance > 0) bound.coeffs_from_size = false;
     size_t probe = 0;
     const std::vector<SurfaceSides> sides = probed ? *probed : probe_sides(scene, bound, &probe);
-    const size_t solve = estimate_bytes(scene, bound, plan_scene(scene, bound, 1, sides),
+    const std::vector<Plan> plans = plan_scene(scene, bound, 1, sides);
+    const size_t solve = estimate_bytes(scene, bound, plans,
                                         bound.final_gather ? plan_scene(scene, bound, bound.final_spatial_factor, sides)
                                                            : std::vector<Plan>{});
-    return std::max(probe, solve);  // the probe's memory is freed before the receivers are made
+    // The probe runs beside what the whole solve holds; its memory is freed before the receivers
+    // are made.
+    return std::max(probe ? probe + fixed_bytes(scene, plans) : 0, solve);
 }
 
 namespace {
@@ -1784,7 +1793,8 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
             gather.indirect(r, j, s.receiver_of, &Receiver::Le, final_density(scene, settings, r.surface), true, out, n);
             for (size_t k = 0; k < direct.size(); ++k) out[k] += direct[k];
         });
-        return pack(targets, begin, end, &Receiver::Le);
+        // The local solve reads the light where it is (no packed copy of the finals beside it).
+        return input ? pack(targets, begin, end, &Receiver::Le) : std::vector<double>();
     }
     // The regather: the final gather read the coarse splines; what reading the finer ones adds
     // is the gathered change between them (fine less coarse: a narrow shadow the coarse grid
@@ -1927,8 +1937,12 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
         solution.stats.bytes = st.bytes;  // with the finals as planned from it
         const int first_final = stages - settings.final_passes - (settings.estimate_error ? 1 : 0);
         progress.begin_stage("final gather", first_final, stages, node_count(st.finals));
-        const std::vector<double> first = phase(Phase::Final, [&] { return pack(receivers, 0, all, &Receiver::Le); });
-        unpack(first, st.finals, 0, st.finals.size(), &Receiver::Le);
+        // The first final gather's light F_1: in the finals' Le here, packed from a runner. Each
+        // regather adds its correction to F_1, which is kept packed only where a later one
+        // needs it (more than two passes, or a runner); with two passes Le holds it meanwhile.
+        std::vector<double> first = phase(Phase::Final, [&] { return pack(receivers, 0, all, &Receiver::Le); });
+        if (run) unpack(first, st.finals, 0, st.finals.size(), &Receiver::Le);
+        else if (settings.final_passes > 2) first = pack(st.finals, 0, st.finals.size(), &Receiver::Le);
         // Each regather: the first final gather's light plus the change that reading the
         // latest finals instead of the coarse splines makes, F_k+1 = F_1 + G(F_k - C): a fixed
         // point iteration whose later passes carry the finer light a bounce further (into a
@@ -1938,7 +1952,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
                                  node_count(st.finals));
             std::vector<double> next = phase(Phase::Regather, [&] {
                 std::vector<double> input;
-                input.reserve(first.size() + packed_size(receivers, 0, all, &Receiver::Le));
+                input.reserve(packed_size(st.finals, 0, st.finals.size(), &Receiver::Le) + packed_size(receivers, 0, all, &Receiver::Le));
                 pack_onto(input, st.finals, 0, st.finals.size(), &Receiver::Le);
                 pack_onto(input, receivers, 0, all, &Receiver::Le);
                 return input;
@@ -1948,7 +1962,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
                 unpack(next, st.finals, 0, st.finals.size(), &Receiver::Le);
                 continue;
             }
-            unpack(first, st.finals, 0, st.finals.size(), &Receiver::Le);
+            if (!first.empty()) unpack(first, st.finals, 0, st.finals.size(), &Receiver::Le);
             add_onto(st.finals, 0, st.finals.size(), &Receiver::Le, &Receiver::L);
             for (Receiver& r : st.finals) std::vector<TensorSpline>().swap(r.L);
         }

@@ -324,10 +324,11 @@ def test_sides_probed_once_serve_the_estimate_and_the_solve():
         if a is not None:
             np.testing.assert_array_equal(b.coefficients, a.coefficients)
     assert [r["reason"] for r in given.reports] == [r["reason"] for r in own.reports]
-    # Without sides the estimate also holds the probe's peak (freed before the solve allocates).
+    # Without sides the estimate also holds the probe's peak beside what the whole solve holds
+    # (its ray caster and copy of the scene; the probe is freed before the solve allocates more).
     solve_bytes = bsgi.estimate_solve_bytes(scene, s, sides)
     assert solve_bytes == own.stats["bytes"]
-    assert bsgi.estimate_solve_bytes(scene, s) == max(held, solve_bytes)
+    assert max(held, solve_bytes) <= bsgi.estimate_solve_bytes(scene, s) < held + solve_bytes
     # Other sides than the probe's are the caller's answer: both sides of every wall cost more.
     both = [(True, True, "given", "given", False)] * len(scene)
     assert bsgi.estimate_solve_bytes(scene, s, both) > solve_bytes
