@@ -40,15 +40,23 @@ CosineRule::CosineRule(int nt, int np) : nt_(nt), np_(np) {
     if (nt < 1 || np < 1) throw std::invalid_argument("cosine rule: needs at least one node per axis");
     std::vector<double> x, w;
     gauss_legendre(nt, x, w);
+    for (const auto& [i, k] : tile_order(nt, np)) {
+        const double s = 0.5 * (x[i] + 1), sin_t = std::sqrt(std::max(0.0, 1 - s * s));
+        const double phi = 2 * kPi * (k + 0.5 * (1 + (i & 1))) / np;
+        directions_.push_back({sin_t * std::cos(phi), sin_t * std::sin(phi), s});
+        weights_.push_back(0.5 * w[i] * 2 * s * nt);  // on [0, 1], times 2 s
+    }
+}
+
+std::vector<std::pair<int, int>> tile_order(int nt, int np) {
+    constexpr int kTile = CosineRule::kTile;
+    std::vector<std::pair<int, int>> order;
+    order.reserve(size_t(nt) * np);
     for (int i0 = 0; i0 < nt; i0 += kTile)
         for (int k0 = 0; k0 < np; k0 += kTile)
             for (int i = i0; i < std::min(nt, i0 + kTile); ++i)
-                for (int k = k0; k < std::min(np, k0 + kTile); ++k) {
-                    const double s = 0.5 * (x[i] + 1), sin_t = std::sqrt(std::max(0.0, 1 - s * s));
-                    const double phi = 2 * kPi * (k + 0.5 * (1 + (i & 1))) / np;
-                    directions_.push_back({sin_t * std::cos(phi), sin_t * std::sin(phi), s});
-                    weights_.push_back(0.5 * w[i] * 2 * s * nt);  // on [0, 1], times 2 s
-                }
+                for (int k = k0; k < std::min(np, k0 + kTile); ++k) order.emplace_back(i, k);
+    return order;
 }
 
 const CosineRule& cosine_rule(int nt, int np) {

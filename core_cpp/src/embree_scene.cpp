@@ -278,7 +278,7 @@ void RayScene::closest_hit_block(const RayBatch& rays, size_t begin, size_t end,
     }
 }
 
-void RayScene::closest_hits_from(const Vec3& origin, const Vec3* dirs, size_t n, double tnear, RayHit* hits) const {
+void RayScene::closest_hits_from(const Vec3& origin, const Vec3* dirs, size_t n, RayHit* hits) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -290,10 +290,10 @@ void RayScene::closest_hits_from(const Vec3& origin, const Vec3* dirs, size_t n,
         alignas(64) RTCRayHit16 rh;
         for (size_t k = 0; k < kPacket; ++k) {
             const Vec3 d = k < m ? dirs[start + k] : Vec3{0, 0, 1};
-            valid[k] = k < m && representable(o, d, tnear, 0.0) ? -1 : 0;  // others miss
+            valid[k] = k < m && representable(o, d, 0.0, 0.0) ? -1 : 0;  // others miss
             rh.ray.org_x[k] = float(o.x), rh.ray.org_y[k] = float(o.y), rh.ray.org_z[k] = float(o.z);
             rh.ray.dir_x[k] = float(d.x), rh.ray.dir_y[k] = float(d.y), rh.ray.dir_z[k] = float(d.z);
-            rh.ray.tnear[k] = float(std::max(0.0, tnear)), rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
+            rh.ray.tnear[k] = 0.0f, rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
             rh.ray.time[k] = 0, rh.ray.mask[k] = 0xFFFFFFFFu, rh.ray.id[k] = 0, rh.ray.flags[k] = 0;
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
             rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;

@@ -106,7 +106,7 @@ void RayCaster::closest_hits_from(const Vec3& o, const Vec3* dirs, size_t n, Sur
     RayHit raw[kChunk];
     for (size_t start = 0; start < n; start += kChunk) {
         const size_t m = std::min(kChunk, n - start);
-        rays_.closest_hits_from(o, dirs + start, m, 0.0, raw);
+        rays_.closest_hits_from(o, dirs + start, m, raw);
         for (size_t k = 0; k < m; ++k) hits[start + k] = resolve(raw[k], o, dirs[start + k], 0.0, std::numeric_limits<double>::infinity());
     }
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "bsgi/cosine_rule.h"
 #include "bsgi/parallel.h"
 
 namespace bsgi {
@@ -61,12 +62,11 @@ int cell_of(double u, double v) {
 // Direction k of the probe's cosine-weighted set on the side of normal n = +-frame.z, turned
 // about the normal by `turn` (a fraction of the azimuth step): each cell turns its set by its
 // own amount, so that the cells' rays do not line up with the edges of boxes made of patches,
-// where a ray may slip between two patches that meet. The directions go in tiles of 4 x 4
-// neighbours in theta and phi (a packet of rays traced together spans a small solid angle).
-static_assert(kPhi % 4 == 0, "the probe's tiles span whole rows of phi");
+// where a ray may slip between two patches that meet. The directions go in the cosine rule's
+// tiles of neighbours (tile_order), traced together in packets.
 Vec3 probe_direction(const SurfacePoint& p, int side, int k, double turn) {
-    const int band = k / (4 * kPhi), rows = std::min(4, kTheta - 4 * band), in_band = k - band * 4 * kPhi;
-    const int row = 4 * band + (in_band % (4 * rows)) / 4, column = 4 * (in_band / (4 * rows)) + in_band % 4;
+    static const std::vector<std::pair<int, int>> order = tile_order(kTheta, kPhi);
+    const auto [row, column] = order[size_t(k)];
     const double w = (row + 0.5) / kTheta, phi = 2 * kPi * (column + turn) / kPhi;
     const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
     return p.frame.to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), side ? -cos_t : cos_t});

@@ -939,10 +939,6 @@ double final_density(const Scene& scene, const SolverSettings& s, int i) {
     return double(s.final_integration_factor) * scene[i].options.integration_factor;
 }
 
-// The bytes a local solve of these plans (and final plans) allocates after the sides probe, at
-// its peak: the ray caster, the receivers (three spline sets and the nodes), and then the larger
-// of a bounce's packed output with the form-factor rows and the final gather's finer receivers
-// (their sets and nodes), which follow the bounces' increments.
 // What a solve holds from its start to its end: the ray caster (a 64-byte record and about as
 // much BVH a triangle, and an Embree geometry a surface, about 1 kB: 410 MB for the 350,000
 // quads of the interior of 50,000 objects), the gather's copy of the scene, the plans and the
@@ -954,6 +950,10 @@ size_t fixed_bytes(const Scene& scene, const std::vector<Plan>& plans) {
     return triangles * 128 + occluders * 1024 + plans.size() * 8192;
 }
 
+// The bytes a local solve of these plans (and final plans) allocates after the sides probe, at
+// its peak: fixed_bytes, the receivers (three spline sets and the nodes), and then the larger of
+// a bounce's packed output with the form-factor rows and the final gather's finer receivers
+// (their sets and nodes), which follow the bounces' increments.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
     auto set_bytes = [](const Plan& p) { return p.coefficients() * 3 * sizeof(double); };

@@ -9,6 +9,7 @@
 // seen from its ceiling) that overestimates the integral by 0.3-0.5%, which the fit's bias
 // hid; in cos(theta), radiance is smooth up to the horizon.
 #pragma once
+#include <utility>
 #include <vector>
 
 #include "bsgi/vec3.h"
@@ -23,8 +24,8 @@ public:
     int phi_nodes() const { return np_; }
     int size() const { return nt_ * np_; }
     // Local direction of node m (z up; computed once: a gather asks for each at every node).
-    // The nodes go in tiles of kTile x kTile neighbours in theta and phi, so that a packet of
-    // rays traced together (RayCaster::closest_hits_from) spans a small solid angle.
+    // The nodes go in tile_order (tiles of kTile x kTile neighbours in theta and phi), so that
+    // a packet of rays traced together (RayCaster::closest_hits_from) spans a small solid angle.
     const Vec3& direction(int m) const { return directions_[size_t(m)]; }
     const Vec3* directions() const { return directions_.data(); }
     // Weight of node m: the share of the cosine-weighted hemisphere it stands for, times
@@ -37,6 +38,11 @@ private:
     std::vector<double> weights_;
     int nt_, np_;
 };
+
+// The (theta row, phi column) of each of nt x np directions in tiles of CosineRule::kTile x kTile
+// neighbours (row-major tiles, row-major within a tile): rays in this order, traced in packets,
+// share their traversal of the BVH.
+std::vector<std::pair<int, int>> tile_order(int nt, int np);
 
 // The rule of nt x np nodes, built once per thread.
 const CosineRule& cosine_rule(int nt, int np);

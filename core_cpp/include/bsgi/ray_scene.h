@@ -54,7 +54,7 @@ public:
     // packets of 16: neighbouring directions share their traversal of the BVH (a gather's
     // hemispheres twice as fast as one ray at a time). The hits are those of closest_hit but
     // where two triangles lie at the same distance (a shared edge): either may be reported.
-    void closest_hits_from(const Vec3& origin, const Vec3* dirs, size_t n, double tnear, RayHit* hits) const;
+    void closest_hits_from(const Vec3& origin, const Vec3* dirs, size_t n, RayHit* hits) const;
 
     // Plain Embree closest-hit queries on the same rays, writing only t (infinity: no hit) and
     // the surface: the baseline the benchmark compares closest_hit_block against.
