@@ -37,17 +37,6 @@ Vec3 directional_albedo(const Bsdf& b) {
     return sum * (kPi / rule.size());  // pi times the mean of rho over the cosine-weighted rule
 }
 
-Vec3 Receiver::own_radiance(Splines which, double u, double v, const Vec3& local) const {
-    const int side = local.z >= 0 ? 0 : 1;
-    return side < sides ? evaluate_side(kind, map, (this->*which)[side], u, v, local) : Vec3{0, 0, 0};
-}
-
-Vec3 Receiver::radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel,
-                        const Vec3& partner_texel) const {
-    const Vec3 L = own_radiance(which, u, v, local) * texel;
-    return partner ? L + partner->own_radiance(which, u, v, local) * partner_texel : L;
-}
-
 Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster)
     : scene_(scene), settings_(settings), caster_(caster), emitters_(scene.emitters()) {
     for (const int i : emitters_) {

@@ -46,15 +46,32 @@ void write(const HitArrays& out, size_t i, const SurfaceHit& h) {
     }
 }
 
+// A hit on a surface its tessellation is (a mesh): the record as it is, its frame
+// re-orthonormalised in double (it was stored in float), with one division per vector, not three
+// (every gathered ray comes through here).
+inline SurfaceHit on_tessellation(const RayHit& h, const Vec3& o, const Vec3& d) {
+    SurfaceHit out;
+    out.surface = h.surface;
+    out.t = h.t, out.u = h.u, out.v = h.v;
+    out.p = o + d * h.t;
+    out.frame.z = h.normal * (1 / length(h.normal));
+    const Vec3 x = h.tangent - out.frame.z * dot(h.tangent, out.frame.z);
+    out.frame.x = x * (1 / length(x));
+    out.frame.y = cross(out.frame.z, out.frame.x);
+    return out;
+}
+
 }  // namespace
 
 RayCaster::RayCaster(std::vector<const Surface*> surfaces, std::vector<std::optional<ThinGlass>> panes)
     : surfaces_(std::move(surfaces)), panes_(std::move(panes)) {
     for (size_t i = 0; i < panes_.size() && i < surfaces_.size(); ++i) has_panes_ = has_panes_ || (panes_[i] && surfaces_[i]);
+    exact_.assign(surfaces_.size(), 0);
     for (size_t i = 0; i < surfaces_.size(); ++i) {
         if (!surfaces_[i]) continue;
         rays_.add(int(i), surfaces_[i]->tessellate_for_rays());
-        all_exact_ = all_exact_ && surfaces_[i]->tessellation_is_exact();
+        exact_[i] = surfaces_[i]->tessellation_is_exact();
+        all_exact_ = all_exact_ && exact_[i];
     }
     rays_.commit();
     Vec3 lo, hi;
@@ -67,20 +84,10 @@ RayCaster::RayCaster(std::vector<const Surface*> surfaces, std::vector<std::opti
 SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tnear, double tfar) const {
     double t_self = -1;
     for (int attempt = 0; attempt < 16 && h.surface >= 0; ++attempt) {
+        if (exact_[h.surface]) return on_tessellation(h, o, d);
         const Surface& s = *surfaces_[h.surface];
         SurfaceHit out;
         out.surface = h.surface;
-        if (s.tessellation_is_exact()) {
-            out.t = h.t;
-            out.u = h.u;
-            out.v = h.v;
-            out.p = o + d * h.t;
-            // The record's frame, re-orthonormalised in double (it was stored in float).
-            out.frame.z = normalize(h.normal);
-            out.frame.x = normalize(h.tangent - out.frame.z * dot(h.tangent, out.frame.z));
-            out.frame.y = cross(out.frame.z, out.frame.x);
-            return out;
-        }
         // Exact intersections this close to the start are the surface the ray starts on.
         if (t_self < 0) t_self = tnear + 1e-3 * offset_ / length(d);
         double u = h.u, v = h.v, t = h.t;
@@ -107,7 +114,12 @@ void RayCaster::closest_hits_from(const Vec3& o, const Vec3* dirs, size_t n, Sur
     for (size_t start = 0; start < n; start += kChunk) {
         const size_t m = std::min(kChunk, n - start);
         rays_.closest_hits_from(o, dirs + start, m, raw);
-        for (size_t k = 0; k < m; ++k) hits[start + k] = resolve(raw[k], o, dirs[start + k], 0.0, std::numeric_limits<double>::infinity());
+        for (size_t k = 0; k < m; ++k) {
+            const RayHit& h = raw[k];
+            hits[start + k] = h.surface >= 0 && exact_[h.surface]
+                                  ? on_tessellation(h, o, dirs[start + k])
+                                  : resolve(h, o, dirs[start + k], 0.0, std::numeric_limits<double>::infinity());
+        }
     }
 }
 

@@ -49,16 +49,16 @@ constexpr int ipow(int b, int e) { return e == 0 ? 1 : b * ipow(b, e - 1); }
 // s = (x - t_I) / (t_{I+1} - t_I) of x, already in the domain. (Uniform spans take the vector
 // path of prepare_uniform instead.)
 template <int P>
-BSGI_INLINE int find_span(const AxisData& ax, double x, double& s) {
+BSGI_INLINE int find_span(const SplineLanes& l, int k, double x, double& s) {
     constexpr int d = P - 1;
-    const double* t = ax.knots;
-    int lo = d, hi = ax.last_span;
+    const double* t = l.knots[k];
+    int lo = d, hi = l.last[k] + d;
     while (lo < hi) {
         const int mid = (lo + hi + 1) >> 1;
         if (t[mid] <= x) lo = mid;
         else hi = mid - 1;
     }
-    s = (x - t[lo]) * ax.inv_width[lo - d];
+    s = (x - t[lo]) * l.inv_width[k][lo - d];
     return lo;
 }
 
@@ -110,23 +110,23 @@ BSGI_INLINE V load_vec(const T* p) {
     return v;
 }
 
-// Basis values (lanes 0..P-1) of one parameter on one axis; returns the offset of the first
+// Basis values (lanes 0..P-1) of one parameter on axis k; returns the offset of the first
 // non-zero coefficient along the axis, in values.
 template <int P>
-BSGI_INLINE size_t axis_basis(const AxisData& ax, double x, v4d& b, bool& finite) {
+BSGI_INLINE size_t axis_basis(const SplineLanes& l, int k, double x, v4d& b, bool& finite) {
     const bool ok = std::fabs(x) <= DBL_MAX;  // false for NaN and infinities
     finite &= ok;
-    x = ok ? x : ax.lo;
-    x = std::min(std::max(x, ax.lo), ax.hi);  // clamp to the domain
+    x = ok ? x : l.lo[k];
+    x = std::min(std::max(x, l.lo[k]), l.hi[k]);  // clamp to the domain
     double s;
-    const int span = find_span<P>(ax, x, s);
+    const int span = find_span<P>(l, k, x, s);
     // Horner on the power form: rows of the table are P apart, lanes >= P unused (the table is
     // padded so that the last load stays inside it).
-    const double* c = ax.poly + size_t(span - (P - 1)) * P * P;
+    const double* c = l.poly[k] + size_t(span - (P - 1)) * P * P;
     b = load_vec<v4d>(c + (P - 1) * P);
     BSGI_UNROLL
     for (int e = P - 2; e >= 0; --e) b = b * s + load_vec<v4d>(c + e * P);
-    return size_t(span - (P - 1)) * ax.stride;
+    return size_t(span - (P - 1)) * l.stride[k];
 }
 
 // What the contraction of one point needs: its basis values and first coefficient.
@@ -139,38 +139,22 @@ struct Prepared {
 
 typedef int v4si __attribute__((vector_size(16)));
 
-// The axes of a uniform-span kernel as lanes of one vector (D <= 4): span and local parameter
-// of all parameters of a point in a few vector instructions.
-struct UniformLanes {
-    v4d lo, hi, inv_h;
-    v4si last;  // last span index - degree
-    const double* poly[4];
-    size_t stride[4];
-};
-
-template <int D>
-UniformLanes uniform_lanes(const AxisData* ax) {
-    UniformLanes u{};
-    for (int k = 0; k < D; ++k) {
-        u.lo[k] = ax[k].lo, u.hi[k] = ax[k].hi, u.inv_h[k] = ax[k].inv_h;
-        u.last[k] = ax[k].last_span - ax[k].degree;
-        u.poly[k] = ax[k].poly, u.stride[k] = ax[k].stride;
-    }
-    return u;
-}
-
+// Uniform spans: span and local parameter of all parameters of a point (one lane per axis,
+// D <= 4) in a few vector instructions.
 template <int D, int P, typename T>
-BSGI_INLINE Prepared<D, T> prepare_uniform(v4d x, const UniformLanes& u, const T* coeffs) {
+BSGI_INLINE Prepared<D, T> prepare_uniform(v4d x, const SplineLanes& u, const T* coeffs) {
     static_assert(D <= 4, "one lane per axis");
     Prepared<D, T> p;
+    const v4d lo = load_vec<v4d>(u.lo), hi = load_vec<v4d>(u.hi);
     const auto ok = (x < 0 ? -x : x) <= DBL_MAX;  // false for NaN and infinities
     p.finite = (ok[0] & ok[1] & ok[2] & ok[3]) != 0;
-    x = ok ? x : u.lo;
-    x = x < u.lo ? u.lo : x;  // clamp to the domain
-    x = x > u.hi ? u.hi : x;
-    const v4d t = (x - u.lo) * u.inv_h;
+    x = ok ? x : lo;
+    x = x < lo ? lo : x;  // clamp to the domain
+    x = x > hi ? hi : x;
+    const v4d t = (x - lo) * load_vec<v4d>(u.inv_h);
     v4si j = __builtin_convertvector(t, v4si);
-    j = j > u.last ? u.last : j;
+    const v4si last = load_vec<v4si>(u.last);
+    j = j > last ? last : j;
     // On a knot t may land at s = 1 of the span on its left instead of s = 0 of the one on its
     // right: the same value up to rounding, the spline being continuous there.
     const v4d s = t - __builtin_convertvector(j, v4d);
@@ -188,12 +172,12 @@ BSGI_INLINE Prepared<D, T> prepare_uniform(v4d x, const UniformLanes& u, const T
 }
 
 template <int D, int P, typename T>
-BSGI_INLINE Prepared<D, T> prepare(v4d x, const AxisData* ax, const T* coeffs) {
+BSGI_INLINE Prepared<D, T> prepare(v4d x, const SplineLanes& l, const T* coeffs) {
     Prepared<D, T> p;
     p.finite = true;
     p.block = coeffs;
     BSGI_UNROLL
-    for (int k = 0; k < D; ++k) p.block += axis_basis<P>(ax[k], x[k], p.b[k], p.finite);
+    for (int k = 0; k < D; ++k) p.block += axis_basis<P>(l, k, x[k], p.b[k], p.finite);
     return p;
 }
 
@@ -236,7 +220,7 @@ BSGI_INLINE V splat(const v4d& b, int j) {
 // weighted by B_i; then B_k combines the P accumulators into one row, and B_l with the
 // channels gives the result.
 template <int D, int P, int C, typename T, int WF>
-BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o) {
+BSGI_INLINE void contract(const Prepared<D, T>& p, const size_t* stride, double* o) {
     static_assert(D == 2 || D == 4, "kernels exist for 2D and 4D");
     constexpr int L = P * C;  // values per row (last axis x channels, contiguous)
     using V = typename Lanes<T, WF>::V;
@@ -253,14 +237,14 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
     // The strides go through an empty asm per point: otherwise the compiler hoists the 27 x NV
     // row offsets out of the loop over points and, short of registers, reloads them from the
     // stack, a second load per row load (the contraction is bound by loads).
-    size_t rs = ax[D - 2].stride;
+    size_t rs = stride[D - 2];
     asm volatile("" : "+r"(rs));
     if constexpr (NV == 0) {
         // Short rows (fewer values than lanes, float64): scalars.
         T row[L] = {};
         for (int g = 0; g < (D == 4 ? P * P : 1); ++g) {
             const int i = g / P, j = g % P;
-            const T* q = p.block + (D == 4 ? i * ax[0].stride + j * ax[1].stride : 0);
+            const T* q = p.block + (D == 4 ? i * stride[0] + j * stride[1] : 0);
             const T wg = D == 4 ? T(p.b[0][i] * p.b[1][j]) : T(1);
             BSGI_UNROLL
             for (int r = 0; r < P; ++r) {
@@ -289,7 +273,7 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
                 for (int t = 0; t < NT; ++t) acct[r][t] = p.block[r * rs + NV * W + t];
             }
         } else {
-            size_t s0 = ax[0].stride, s1 = ax[1].stride;
+            size_t s0 = stride[0], s1 = stride[1];
             asm volatile("" : "+r"(s0), "+r"(s1));
             const T* pi = p.block;
             BSGI_UNROLL
@@ -374,8 +358,8 @@ BSGI_INLINE void contract(const Prepared<D, T>& p, const AxisData* ax, double* o
 }
 
 template <int D, int P, int C, typename T, int WF, bool Uniform, typename Source>
-BSGI_INLINE void evaluate_range(const Source& source, const AxisData* ax, const UniformLanes& lanes, const T* coeffs,
-                                size_t begin, size_t end, double* out) {
+BSGI_INLINE void evaluate_range(const Source& source, const SplineLanes& lanes, const T* coeffs, size_t begin, size_t end,
+                                double* out) {
     if (begin >= end) return;
     // The spans and basis of a few points first, then their contractions: the dependency chain
     // of a point's preparation (parameter -> span -> table -> basis, and the block's address) is
@@ -383,14 +367,14 @@ BSGI_INLINE void evaluate_range(const Source& source, const AxisData* ax, const 
     // it are independent of anything before.
     auto prep = [&](size_t i) BSGI_LAMBDA_INLINE {
         if constexpr (Uniform) return prepare_uniform<D, P, T>(source(i), lanes, coeffs);
-        else return prepare<D, P, T>(source(i), ax, coeffs);
+        else return prepare<D, P, T>(source(i), lanes, coeffs);
     };
     constexpr size_t S = 16;
     Prepared<D, T> prepared[S];
     for (size_t first = begin; first < end; first += S) {
         const size_t n = std::min(end - first, S);
         for (size_t i = 0; i < n; ++i) prepared[i] = prep(first + i);
-        for (size_t i = 0; i < n; ++i) contract<D, P, C, T, WF>(prepared[i], ax, out + (first + i) * C);
+        for (size_t i = 0; i < n; ++i) contract<D, P, C, T, WF>(prepared[i], lanes.stride, out + (first + i) * C);
     }
 }
 
@@ -413,10 +397,8 @@ template <int D, int P, int C, typename T, bool Dirs, bool Uniform, int WF>
 BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t end, double* out) {
     static_assert(D >= 2 && D <= 4, "the last two axes are the rows and their accumulators");
     static_assert(P <= 4, "one vector of basis values per axis");
-    // Local copies: the compiler then knows the output stores cannot change them.
-    AxisData ax[D];
-    for (int k = 0; k < D; ++k) ax[k] = args.axes[k];
-    const UniformLanes lanes = uniform_lanes<D>(ax);
+    // A local copy: the compiler then knows the output stores cannot change it.
+    const SplineLanes lanes = *args.lanes;
     const T* const coeffs = static_cast<const T*>(args.coeffs);
     if constexpr (Dirs) {
         // A block of directions mapped first.
@@ -425,12 +407,22 @@ BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t en
         for (size_t first = begin; first < end; first += kMapBlock) {
             const size_t n = std::min(end - first, kMapBlock);
             map_block(map, args.dirs + 3 * first, n, alpha, beta);
-            evaluate_range<D, P, C, T, WF, Uniform>(MappedSource{args.uv, alpha, beta, first}, ax, lanes, coeffs, first,
+            evaluate_range<D, P, C, T, WF, Uniform>(MappedSource{args.uv, alpha, beta, first}, lanes, coeffs, first,
                                                 first + n, out);
         }
     } else {
-        evaluate_range<D, P, C, T, WF, Uniform>(ParamSource<D>{args.params}, ax, lanes, coeffs, begin, end, out);
+        evaluate_range<D, P, C, T, WF, Uniform>(ParamSource<D>{args.params}, lanes, coeffs, begin, end, out);
     }
+}
+
+// One point: what evaluate_range does for each of its points, read straight from the spline's
+// lanes (no copies to reload).
+template <int D, int P, int C, typename T, bool Uniform, int WF>
+BSGI_INLINE void evaluate_point(const SplineLanes& lanes, const void* coeffs, const double* x, double* out) {
+    const v4d xv = ParamSource<D>{x}(0);
+    const T* c = static_cast<const T*>(coeffs);
+    if constexpr (Uniform) contract<D, P, C, T, WF>(prepare_uniform<D, P, T>(xv, lanes, c), lanes.stride, out);
+    else contract<D, P, C, T, WF>(prepare<D, P, T>(xv, lanes, c), lanes.stride, out);
 }
 
 // Each kernel is compiled three times, for x86-64-v4 (AVX-512: 16 float lanes), x86-64-v3 (AVX2
@@ -447,10 +439,11 @@ BSGI_INLINE void evaluate_points(const KernelArgs& args, size_t begin, size_t en
 #define BSGI_TARGET_V3
 #endif
 
+template <typename K>
 struct Entry {
     int dims, order, channels;
     bool float32, directions, uniform;
-    Kernel v4, v3, base;
+    K v4, v3, base;
 };
 
 #define BSGI_NAME(L, D, P, C, T, DIRS, U) kernel_##L##_##D##_##P##_##C##_##T##_##DIRS##_##U
@@ -467,6 +460,23 @@ struct Entry {
 #define BSGI_ENTRY(D, P, C, T, DIRS, U)                                                                    \
     {D, P, C, sizeof(T) == 4, DIRS, U, &BSGI_NAME(v4, D, P, C, T, DIRS, U), &BSGI_NAME(v3, D, P, C, T, DIRS, U), \
      &BSGI_NAME(base, D, P, C, T, DIRS, U)},
+// One point (parameter input only).
+#define BSGI_POINT_NAME(L, D, P, C, T, U) point_##L##_##D##_##P##_##C##_##T##_##U
+#define BSGI_POINT_KERNEL(D, P, C, T, DIRS, U)                                                                      \
+    BSGI_TARGET_V4 void BSGI_POINT_NAME(v4, D, P, C, T, U)(const SplineLanes& l, const void* c, const double* x,    \
+                                                            double* o) {                                             \
+        evaluate_point<D, P, C, T, U, 16>(l, c, x, o);                                                             \
+    }                                                                                                               \
+    BSGI_TARGET_V3 void BSGI_POINT_NAME(v3, D, P, C, T, U)(const SplineLanes& l, const void* c, const double* x,    \
+                                                            double* o) {                                             \
+        evaluate_point<D, P, C, T, U, 8>(l, c, x, o);                                                              \
+    }                                                                                                               \
+    void BSGI_POINT_NAME(base, D, P, C, T, U)(const SplineLanes& l, const void* c, const double* x, double* o) {    \
+        evaluate_point<D, P, C, T, U, 4>(l, c, x, o);                                                              \
+    }
+#define BSGI_POINT_ENTRY(D, P, C, T, DIRS, U)                                                                     \
+    {D, P, C, sizeof(T) == 4, false, U, &BSGI_POINT_NAME(v4, D, P, C, T, U), &BSGI_POINT_NAME(v3, D, P, C, T, U), \
+     &BSGI_POINT_NAME(base, D, P, C, T, U)},
 
 // The shapes with kernels: 2D and 4D, degrees 0..3, 1 or 3 channels, both storages, uniform or
 // not, and for 4D also the (u, v, direction) input of radiance.
@@ -475,10 +485,13 @@ struct Entry {
 #define BSGI_FOR_C(X, D, P, DIRS) BSGI_FOR_TU(X, D, P, 1, DIRS) BSGI_FOR_TU(X, D, P, 3, DIRS)
 #define BSGI_FOR_P(X, D, DIRS) BSGI_FOR_C(X, D, 1, DIRS) BSGI_FOR_C(X, D, 2, DIRS) BSGI_FOR_C(X, D, 3, DIRS) BSGI_FOR_C(X, D, 4, DIRS)
 #define BSGI_FOR_ALL(X) BSGI_FOR_P(X, 2, false) BSGI_FOR_P(X, 4, false) BSGI_FOR_P(X, 4, true)
+#define BSGI_FOR_PARAMS(X) BSGI_FOR_P(X, 2, false) BSGI_FOR_P(X, 4, false)
 
 BSGI_FOR_ALL(BSGI_KERNEL)
+BSGI_FOR_PARAMS(BSGI_POINT_KERNEL)
 
-const Entry kKernels[] = {BSGI_FOR_ALL(BSGI_ENTRY)};
+const Entry<Kernel> kKernels[] = {BSGI_FOR_ALL(BSGI_ENTRY)};
+const Entry<PointKernel> kPointKernels[] = {BSGI_FOR_PARAMS(BSGI_POINT_ENTRY)};
 
 // 2: x86-64-v4, 1: x86-64-v3, 0: baseline. BSGI_ISA in the environment may lower it (tests and
 // benchmarks of the other versions).
@@ -550,12 +563,25 @@ double measure_fma_rate() {
     return 12.0 * n / best;
 }
 
-Kernel find_kernel(int dims, int order, int channels, bool float32, bool directions, bool uniform) {
-    for (const Entry& e : kKernels)
+namespace {
+
+template <typename K, size_t N>
+K find_in(const Entry<K> (&table)[N], int dims, int order, int channels, bool float32, bool directions, bool uniform) {
+    for (const Entry<K>& e : table)
         if (e.dims == dims && e.order == order && e.channels == channels && e.float32 == float32 &&
             e.directions == directions && e.uniform == uniform)
             return isa_level() == 2 ? e.v4 : (isa_level() == 1 ? e.v3 : e.base);
     return nullptr;
+}
+
+}  // namespace
+
+Kernel find_kernel(int dims, int order, int channels, bool float32, bool directions, bool uniform) {
+    return find_in(kKernels, dims, order, channels, float32, directions, uniform);
+}
+
+PointKernel find_point_kernel(int dims, int order, int channels, bool float32, bool uniform) {
+    return find_in(kPointKernels, dims, order, channels, float32, false, uniform);
 }
 
 const char* kernel_isa() {

@@ -103,12 +103,40 @@ TensorSpline::TensorSpline(std::vector<KnotVector> axes, int channels, Precision
     const size_t n = strides_[0] * axes_[0].num_coeffs();
     if (precision_ == Precision::Float32) coeffs32_.assign(n + kFloat32Padding, 0.0f);
     else coeffs_.assign(n, 0.0);
-    if (has_fast_kernel()) {
-        bool uniform = true;
-        for (const auto& a : axes_) uniform = uniform && a.uniform_spans();
-        point_kernel_ = detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32,
-                                            false, uniform);
+    set_lanes();
+}
+
+TensorSpline::TensorSpline(const TensorSpline& other)
+    : axes_(other.axes_), channels_(other.channels_), precision_(other.precision_), strides_(other.strides_),
+      coeffs_(other.coeffs_), coeffs32_(other.coeffs32_) {
+    set_lanes();
+}
+
+TensorSpline& TensorSpline::operator=(const TensorSpline& other) {
+    if (this != &other) {
+        axes_ = other.axes_, channels_ = other.channels_, precision_ = other.precision_, strides_ = other.strides_;
+        coeffs_ = other.coeffs_, coeffs32_ = other.coeffs32_;
+        set_lanes();
     }
+    return *this;
+}
+
+void TensorSpline::set_lanes() {
+    lanes_ = {};
+    point_kernel_ = nullptr;
+    if (!has_fast_kernel()) return;
+    bool uniform = true;
+    for (int k = 0; k < dims(); ++k) {
+        const KnotVector& a = axes_[k];
+        uniform = uniform && a.uniform_spans();
+        lanes_.lo[k] = a.domain_begin(), lanes_.hi[k] = a.domain_end();
+        lanes_.inv_h[k] = a.uniform_spans() ? a.inverse_span_width() : 0.0;
+        lanes_.last[k] = a.last_span() - a.degree();
+        lanes_.poly[k] = a.span_polynomial(a.degree()), lanes_.knots[k] = a.knots().data();
+        lanes_.inv_width[k] = a.span_inverse_widths(), lanes_.stride[k] = strides_[k];
+    }
+    point_kernel_ = detail::find_point_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32,
+                                              uniform);
 }
 
 std::vector<size_t> TensorSpline::shape() const { return extents(axes_, channels_); }
@@ -147,16 +175,6 @@ bool TensorSpline::has_fast_kernel() const {
     for (const auto& a : axes_)
         if (a.is_periodic() || a.degree() != axes_[0].degree()) return false;
     return detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32, false, false) != nullptr;
-}
-
-// What the kernels need of each axis (pointers into axes_: rebuilt per call, so copies of the
-// spline stay valid).
-void TensorSpline::fill_axis_data(detail::AxisData* ax) const {
-    for (int k = 0; k < dims(); ++k) {
-        const KnotVector& a = axes_[k];
-        ax[k] = {a.knots().data(), a.span_polynomial(a.degree()), a.span_inverse_widths(), a.domain_begin(), a.domain_end(),
-                 a.uniform_spans() ? a.inverse_span_width() : 0.0, a.degree(), a.last_span(), strides_[k]};
-    }
 }
 
 // Points b .. e of a 4D batch in the order of their knot cell on the first three axes (a counting
@@ -227,24 +245,21 @@ template <typename Loader>
 void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out, int threads, bool directions,
                                  const HemisphereMap* map) const {
     detail::Kernel kernel = nullptr;
-    std::vector<detail::AxisData> ax;
     bool uniform = true;
     if (has_fast_kernel()) {
         for (const auto& a : axes_) uniform = uniform && a.uniform_spans();
         kernel = detail::find_kernel(dims(), axes_[0].degree() + 1, channels_, precision_ == Precision::Float32, directions,
                                      uniform);
-        ax.resize(dims());
-        fill_axis_data(ax.data());
     }
     if (kernel && dims() == 4 && bytes() > kCellOrderBytes && count >= kCellChunk) {
-        detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
+        detail::KernelArgs args{&lanes_, data(), nullptr, nullptr, nullptr, map};
         loader.bind(args);
         const detail::Kernel params_kernel = detail::find_kernel(4, axes_[0].degree() + 1, channels_,
                                                                  precision_ == Precision::Float32, false, uniform);
         parallel_for(count, kCellChunk, threads,
                      [&](size_t b, size_t e) { evaluate_in_cell_order(kernel, params_kernel, args, b, e, out); });
     } else if (kernel) {
-        detail::KernelArgs args{ax.data(), data(), nullptr, nullptr, nullptr, map};
+        detail::KernelArgs args{&lanes_, data(), nullptr, nullptr, nullptr, map};
         loader.bind(args);
         parallel_for(count, kChunk, threads, [&](size_t b, size_t e) { kernel(args, b, e, out); });
     } else if (precision_ == Precision::Float32) {
@@ -282,10 +297,7 @@ void TensorSpline::evaluate(const double* x, double* out) const {
     // One point (the solver's gathering calls this per ray): the kernel chosen at construction,
     // no threads, nothing allocated.
     if (point_kernel_) {
-        detail::AxisData ax[kMaxDims];
-        fill_axis_data(ax);
-        const detail::KernelArgs args{ax, data(), x, nullptr, nullptr, nullptr};
-        point_kernel_(args, 0, 1, out);
+        point_kernel_(lanes_, data(), x, out);
         return;
     }
     const ParamLoader load{x, dims()};

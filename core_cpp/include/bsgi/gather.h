@@ -15,6 +15,7 @@
 
 #include "bsgi/hemisphere_map.h"
 #include "bsgi/quadrature.h"
+#include "bsgi/radiance.h"
 #include "bsgi/ray_caster.h"
 #include "bsgi/scatter_table.h"
 #include "bsgi/scene.h"
@@ -80,9 +81,16 @@ struct Receiver {
     // Radiance leaving (u, v) along `local`, from one of the spline sets (with the partner's);
     // `texel` multiplies this receiver's own part, `partner_texel` its partner's (their detail
     // textures as seen there).
+    // (Inline: every gathered ray ends here, and a call returns its Vec3 through memory.)
     Vec3 radiance(Splines which, double u, double v, const Vec3& local, const Vec3& texel = {1, 1, 1},
-                  const Vec3& partner_texel = {1, 1, 1}) const;
-    Vec3 own_radiance(Splines which, double u, double v, const Vec3& local) const;
+                  const Vec3& partner_texel = {1, 1, 1}) const {
+        const Vec3 L = own_radiance(which, u, v, local) * texel;
+        return partner ? L + partner->own_radiance(which, u, v, local) * partner_texel : L;
+    }
+    Vec3 own_radiance(Splines which, double u, double v, const Vec3& local) const {
+        const int side = local.z >= 0 ? 0 : 1;
+        return side < sides ? evaluate_side(kind, map, (this->*which)[side], u, v, local) : Vec3{0, 0, 0};
+    }
 };
 
 // One term of a row of the transport operator (36)-(37): the weight of coefficient `index`

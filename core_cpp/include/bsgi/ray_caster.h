@@ -91,6 +91,7 @@ private:
     bool has_panes_ = false;
     RayScene rays_;
     bool all_exact_ = true;
+    std::vector<uint8_t> exact_;  // per surface: its tessellation is the surface (a byte, not a virtual call, per hit)
     double magnitude_ = 1, offset_ = 1e-5;
 };
 

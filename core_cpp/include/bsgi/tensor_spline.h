@@ -10,8 +10,22 @@ namespace bsgi {
 
 namespace detail {
 struct KernelArgs;
-struct AxisData;
 using Kernel = void (*)(const KernelArgs&, size_t begin, size_t end, double* out);  // spline_kernels.h
+
+// What the evaluation kernels read of a spline of at most four open axes besides its
+// coefficients, one lane per axis, kept with the spline: the solver evaluates one point per ray,
+// and gathering these from the knot vectors per call (pointer chases and stores the kernel then
+// reloads) cost about as much as the evaluation itself. Pointers into the spline's own axes.
+struct alignas(32) SplineLanes {
+    double lo[4], hi[4];  // domain
+    double inv_h[4];      // 1 / span width where the spans are uniform, else 0
+    int last[4];          // last span index - degree
+    const double* poly[4];       // KnotVector::span_polynomial(degree)
+    const double* knots[4];      // t_0 ...
+    const double* inv_width[4];  // KnotVector::span_inverse_widths()
+    size_t stride[4];            // in values
+};
+using PointKernel = void (*)(const SplineLanes&, const void* coeffs, const double* x, double* out);
 }  // namespace detail
 
 // Storage of the coefficients. Float32 halves the memory and the cache traffic of evaluation;
@@ -33,6 +47,11 @@ public:
     // the last axis fastest, so numpy sees them as an array of that shape. The size is checked
     // against the memory budget (memory_budget.h) before anything is allocated.
     TensorSpline(std::vector<KnotVector> axes, int channels, Precision precision = Precision::Float64);
+    // Copies point their lanes at their own axes; moves keep the axes' storage.
+    TensorSpline(const TensorSpline& other);
+    TensorSpline& operator=(const TensorSpline& other);
+    TensorSpline(TensorSpline&&) noexcept = default;
+    TensorSpline& operator=(TensorSpline&&) noexcept = default;
 
     int dims() const { return static_cast<int>(axes_.size()); }
     int channels() const { return channels_; }
@@ -89,7 +108,7 @@ public:
 
 private:
     const void* data() const;
-    void fill_axis_data(detail::AxisData* ax) const;
+    void set_lanes();
     void evaluate_in_cell_order(detail::Kernel kernel, detail::Kernel params_kernel, const detail::KernelArgs& args,
                                 size_t b, size_t e, double* out) const;
     template <typename Loader>
@@ -103,7 +122,8 @@ private:
     std::vector<size_t> strides_;
     std::vector<double> coeffs_;
     std::vector<float> coeffs32_;
-    detail::Kernel point_kernel_ = nullptr;  // the specialised kernel for parameter input, if any
+    detail::SplineLanes lanes_{};                // of the specialised kernels, if any
+    detail::PointKernel point_kernel_ = nullptr;  // the specialised kernel for one point, if any
 };
 
 }  // namespace bsgi
