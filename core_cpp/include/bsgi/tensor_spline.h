@@ -1,6 +1,7 @@
 // Tensor-product B-spline with vector-valued (e.g. RGB) coefficients, paper eqs. (13)-(18).
 #pragma once
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include "bsgi/hemisphere_map.h"
@@ -14,8 +15,9 @@ using Kernel = void (*)(const KernelArgs&, size_t begin, size_t end, double* out
 
 // What the evaluation kernels read of a spline of at most four open axes besides its
 // coefficients, one lane per axis, kept with the spline: the solver evaluates one point per ray,
-// and gathering these from the knot vectors per call (pointer chases and stores the kernel then
-// reloads) cost about as much as the evaluation itself. Pointers into the spline's own axes.
+// and gathering these from the knot vectors per call (pointer chases, and stores the kernel then
+// reloaded) took more than half of the evaluation's time. Pointers into the axes, which copies
+// of the spline share.
 struct alignas(32) SplineLanes {
     double lo[4], hi[4];  // domain
     double inv_h[4];      // 1 / span width where the spans are uniform, else 0
@@ -47,17 +49,16 @@ public:
     // the last axis fastest, so numpy sees them as an array of that shape. The size is checked
     // against the memory budget (memory_budget.h) before anything is allocated.
     TensorSpline(std::vector<KnotVector> axes, int channels, Precision precision = Precision::Float64);
-    // Copies point their lanes at their own axes; moves keep the axes' storage.
-    TensorSpline(const TensorSpline& other);
-    TensorSpline& operator=(const TensorSpline& other);
-    TensorSpline(TensorSpline&&) noexcept = default;
-    TensorSpline& operator=(TensorSpline&&) noexcept = default;
+    // Splines of the same axes (a receiver's spline sets, copies) share them: a small surface's
+    // knot vectors and their span tables take more memory than its coefficients.
+    TensorSpline(std::shared_ptr<const std::vector<KnotVector>> axes, int channels,
+                 Precision precision = Precision::Float64);
 
-    int dims() const { return static_cast<int>(axes_.size()); }
+    int dims() const { return static_cast<int>(axes_->size()); }
     int channels() const { return channels_; }
     Precision precision() const { return precision_; }
-    const std::vector<KnotVector>& axes() const { return axes_; }
-    const KnotVector& axis(int i) const { return axes_[i]; }
+    const std::vector<KnotVector>& axes() const { return *axes_; }
+    const KnotVector& axis(int i) const { return (*axes_)[i]; }
     std::vector<size_t> shape() const;  // (n_0, ..., n_{D-1}, channels)
     size_t num_values() const;          // product of shape()
     size_t bytes() const;               // of the coefficients
@@ -116,7 +117,7 @@ private:
                        const HemisphereMap* map) const;
     void contract(const std::vector<std::vector<double>>& weights, double* out) const;
 
-    std::vector<KnotVector> axes_;
+    std::shared_ptr<const std::vector<KnotVector>> axes_;  // immutable, shared by copies
     int channels_;
     Precision precision_;
     std::vector<size_t> strides_;
