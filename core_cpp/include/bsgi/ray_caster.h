@@ -71,7 +71,8 @@ public:
     static constexpr int kMaxPanes = 8;
     // The pane surface i is, or null if it is opaque (or takes no part).
     const ThinGlass* pane(int surface) const {
-        return surface >= 0 && size_t(surface) < panes_.size() && panes_[surface] ? &*panes_[surface] : nullptr;
+        // (has_panes_ first: every gathered ray asks, and most scenes have none.)
+        return has_panes_ && surface >= 0 && size_t(surface) < panes_.size() && panes_[surface] ? &*panes_[surface] : nullptr;
     }
     bool has_panes() const { return has_panes_; }
 
