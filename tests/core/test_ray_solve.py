@@ -245,7 +245,8 @@ def test_worker_lost_for_good_leaves_its_groups_to_the_others(ray_cluster):
     killed = []
 
     def on_progress(fraction, stage):
-        if stage == "indirect bounce 1" and not killed and executor.actors:
+        # Any bounce: stages are polled, and the first bounce may pass unseen (it failed once so).
+        if stage.startswith("indirect bounce") and not killed and executor.actors:
             ray.kill(executor.actors[0])
             killed.append(stage)
 
