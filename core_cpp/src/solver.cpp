@@ -213,9 +213,12 @@ size_t set_bytes(const Plan& p) {
     return p.coefficients() * 3 * sizeof(double) + size_t(p.sides) * (sizeof(TensorSpline) + 64);
 }
 
+// A receiver's nodes: their grid (SpatialNodes).
+size_t node_bytes(const Plan& p) { return size_t(p.nu + p.nv) * sizeof(double); }
+
 size_t plan_bytes(const Plan& p) {
-    // Three spline sets (Le, L, Ltmp), plus the nodes' grid.
-    return 3 * set_bytes(p) + size_t(p.nu + p.nv) * sizeof(double);
+    // Three spline sets (Le, L, Ltmp), plus the nodes.
+    return 3 * set_bytes(p) + node_bytes(p);
 }
 
 // `detail`: per scene surface, the coefficients its direct light asks for (empty: none probed).
@@ -967,8 +970,6 @@ size_t fixed_bytes(const Scene& scene, const std::vector<Plan>& plans) {
 // (their sets and nodes), which follow the bounces' increments.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
-    // A receiver's nodes' grid.
-    auto node_bytes = [](const Plan& p) { return size_t(p.nu + p.nv) * sizeof(double); };
     size_t coarse = 0, resident = 0, rows = 0, fine = 0, fine_nodes = 0;
     for (const Plan& p : plans) {
         coarse += set_bytes(p);

@@ -110,8 +110,6 @@ TensorSpline::TensorSpline(std::shared_ptr<const std::vector<KnotVector>> axes, 
 }
 
 void TensorSpline::set_lanes() {
-    lanes_ = {};
-    point_kernel_ = nullptr;
     if (!has_fast_kernel()) return;
     bool uniform = true;
     for (int k = 0; k < dims(); ++k) {
