@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 #include "bsgi/discontinuities.h"
@@ -209,8 +210,9 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
 // A spline set of a receiver: its RGB double coefficients, and per side a TensorSpline (with its
 // kernels' lanes) and the heap blocks of its coefficients and strides (a small surface's splines
 // are more object than coefficients).
-size_t set_bytes(const Plan& p) {
-    return p.coefficients() * 3 * sizeof(double) + size_t(p.sides) * (sizeof(TensorSpline) + 64);
+size_t set_bytes(const Plan& p, Precision precision = Precision::Float64) {
+    const size_t value = precision == Precision::Float32 ? sizeof(float) : sizeof(double);
+    return p.coefficients() * 3 * value + size_t(p.sides) * (sizeof(TensorSpline) + 64);
 }
 
 // A receiver's nodes: their grid (SpatialNodes).
@@ -599,11 +601,8 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
             values.assign(r.sides * r.per_node, Vec3{0, 0, 0});
             work(r, j, values.data(), local_rays);
             for (int side = 0; side < r.sides; ++side)
-                for (size_t a = 0; a < r.per_node && r.solves(side); ++a) {
-                    double* c = r.coefficient(target, side, j, a);
-                    const Vec3& v = values[side * r.per_node + a];
-                    c[0] = v.x, c[1] = v.y, c[2] = v.z;
-                }
+                for (size_t a = 0; a < r.per_node && r.solves(side); ++a)
+                    r.set_coefficient(target, side, j, a, values[side * r.per_node + a]);
         }
         rays += local_rays;
         progress.advance(e - b);
@@ -617,13 +616,22 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
                 const std::vector<double> nodes[2] = {nodes_beside_jumps(r.axes[0]), nodes_beside_jumps(r.axes[1])};
                 for (int side = 0; side < r.sides; ++side) {
                     if (!r.solves(side)) continue;
-                    TensorSpline& spline = (r.*target)[side];
+                    // A Float32 set (a regather's correction) is sharpened in float64, one
+                    // spline at a time.
+                    TensorSpline& stored = (r.*target)[side];
+                    std::optional<TensorSpline> wide;
+                    if (stored.precision() == Precision::Float32) wide = stored.with_precision(Precision::Float64);
+                    TensorSpline& spline = wide ? *wide : stored;
                     for (int axis = 0; axis < 2; ++axis) sharpen_samples(spline, axis, nodes[axis]);
                     // A glossy spline's angular samples are at its Schoenberg nodes too: of the
                     // radiance extended outward from the disc's rim (the map pulls the nodes
                     // beyond it in), a kink there that the limiter leaves alone.
                     if (spline.dims() == 4 && lobe_resolved(r, spline.axis(2)))
                         for (int axis = 2; axis < 4; ++axis) sharpen_samples(spline, axis);
+                    if (wide) {  // in place: a new float32 array a spline would leave the old ones as holes
+                        const std::vector<double>& sharp = wide->coeffs();
+                        std::transform(sharp.begin(), sharp.end(), stored.coeffs_f32(), [](double x) { return float(x); });
+                    }
                 }
             }
         });
@@ -970,7 +978,7 @@ size_t fixed_bytes(const Scene& scene, const std::vector<Plan>& plans) {
 // (their sets and nodes), which follow the bounces' increments.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
-    size_t coarse = 0, resident = 0, rows = 0, fine = 0, fine_nodes = 0;
+    size_t coarse = 0, resident = 0, rows = 0, fine = 0, correction = 0, fine_nodes = 0;
     for (const Plan& p : plans) {
         coarse += set_bytes(p);
         resident += plan_bytes(p);
@@ -979,18 +987,21 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
             rows += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
                     (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
-    for (const Plan& p : final_plans) fine += set_bytes(p), fine_nodes += node_bytes(p);
+    for (const Plan& p : final_plans)
+        fine += set_bytes(p), correction += set_bytes(p, Precision::Float32), fine_nodes += node_bytes(p);
     // The local solve gathers each phase from the splines that hold its input (a runner's packed
     // copy of it is not counted). A bounce holds its packed output; with settle_factor, the pairs
     // of increments of receivers that may settle as well (at most a set).
     const size_t bounce = rows + (settings.settle_factor > 0 ? 2 : 1) * coarse;
-    // The final gather holds the finals' set, a regather the correction as well, and the first
-    // pass's light packed where a third pass needs it; the bounces' increments (two coarse
+    // The final gather holds the finals' set, a regather the correction (float32) as well, and
+    // the first pass's light packed where a third pass needs it; the bounces' increments (two coarse
     // sets) and rows are freed by then, but the heap keeps what it cannot give back (a small
     // surface's splines are small blocks) and the finals, larger a surface, reuse only part of
     // it: counted as one set freed (measured on the interior at 10 to 100 objects: none freed
     // overestimates 10 objects by 25%, both underestimates 100 by 28%).
-    const size_t final = final_plans.empty() ? 0 : size_t(std::min(settings.final_passes, 3)) * fine + fine_nodes;
+    const size_t final = final_plans.empty() ? 0
+                                             : fine + (settings.final_passes > 1 ? correction : 0) +
+                                                   (settings.final_passes > 2 ? fine : 0) + fine_nodes;
     const size_t freed = final_plans.empty() ? 0 : coarse;
     // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
     // the final gather's density; the error estimate's second gatherer keeps its own at twice
@@ -1045,7 +1056,7 @@ namespace {
 size_t packed_size(const std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
     size_t size = 0;
     for (size_t k = begin; k < end; ++k)
-        for (const TensorSpline& side : receivers[k].*which) size += side.coeffs().size();
+        for (const TensorSpline& side : receivers[k].*which) size += side.num_values();
     return size;
 }
 
@@ -1055,7 +1066,9 @@ size_t packed_size(const std::vector<Receiver>& receivers, size_t begin, size_t 
 void pack_onto(std::vector<double>& flat, const std::vector<Receiver>& receivers, size_t begin, size_t end,
                Receiver::Splines which) {
     for (size_t k = begin; k < end; ++k)
-        for (const TensorSpline& side : receivers[k].*which) flat.insert(flat.end(), side.coeffs().begin(), side.coeffs().end());
+        for (const TensorSpline& side : receivers[k].*which)
+            if (side.precision() == Precision::Float32) flat.insert(flat.end(), side.coeffs_f32(), side.coeffs_f32() + side.num_values());
+            else flat.insert(flat.end(), side.coeffs().begin(), side.coeffs().end());
 }
 
 std::vector<double> pack(const std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines which) {
@@ -1070,8 +1083,11 @@ void add_onto(std::vector<Receiver>& receivers, size_t begin, size_t end, Receiv
     for (size_t k = begin; k < end; ++k)
         for (int side = 0; side < receivers[k].sides; ++side) {
             auto& sum = (receivers[k].*to)[side].coeffs();
-            const auto& term = (receivers[k].*from)[side].coeffs();
-            for (size_t c = 0; c < sum.size(); ++c) sum[c] += term[c];
+            const TensorSpline& term = (receivers[k].*from)[side];
+            if (term.precision() == Precision::Float32)
+                for (size_t c = 0; c < sum.size(); ++c) sum[c] += term.coeffs_f32()[c];
+            else
+                for (size_t c = 0; c < sum.size(); ++c) sum[c] += term.coeffs()[c];
         }
 }
 
@@ -1827,7 +1843,13 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
         unpack(input->data(), fine_size, s.finals, 0, s.finals.size(), &Receiver::Le);
         unpack(input->data() + fine_size, coarse_size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
     }
-    for (size_t k = begin; k < end; ++k) targets[k].L = targets[k].Le;
+    // The correction in float32: rounding it costs 6e-8 of a small part of the light, and it is
+    // the largest set while it is held (at 1,000 objects 115 MB in float64, beside the finals).
+    for (size_t k = begin; k < end; ++k) {
+        Receiver& r = targets[k];
+        r.L.clear();
+        for (const TensorSpline& le : r.Le) r.L.emplace_back(le.shared_axes(), 3, Precision::Float32);
+    }
     rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
         const double full = final_density(scene, settings, r.surface);
         if (gather.indirect_change(r, j, s.final_of, s.receiver_of, kRegatherDensity * full, kSharpLobe, out, n))

@@ -93,9 +93,18 @@ struct Receiver {
         const Vec3 wo = outgoing(side, a);
         return mirrored(side) ? bsdf->eval({wo.x, wo.y, -wo.z}, {wi.x, wi.y, -wi.z}) : bsdf->eval(wo, wi);
     }
-    // RGB coefficient of (side, spatial node, angular node) of one of the spline sets.
-    double* coefficient(Splines which, int side, size_t node, size_t a) {
-        return &(this->*which)[side].coeffs()[3 * (node * per_node + a)];
+    // Sets the RGB coefficient of (side, spatial node, angular node) of one of the spline sets
+    // (Float64, or Float32: a regather's correction).
+    void set_coefficient(Splines which, int side, size_t node, size_t a, const Vec3& value) {
+        TensorSpline& s = (this->*which)[side];
+        const size_t i = 3 * (node * per_node + a);
+        if (s.precision() == Precision::Float32) {
+            float* c = s.coeffs_f32() + i;
+            c[0] = float(value.x), c[1] = float(value.y), c[2] = float(value.z);
+        } else {
+            double* c = s.coeffs().data() + i;
+            c[0] = value.x, c[1] = value.y, c[2] = value.z;
+        }
     }
     // Radiance leaving (u, v) along `local`, from one of the spline sets (with the partner's);
     // `texel` multiplies this receiver's own part, `partner_texel` its partner's (their detail

@@ -58,6 +58,8 @@ public:
     int channels() const { return channels_; }
     Precision precision() const { return precision_; }
     const std::vector<KnotVector>& axes() const { return *axes_; }
+    // The axes as shared: a spline made from them shares them too.
+    const std::shared_ptr<const std::vector<KnotVector>>& shared_axes() const { return axes_; }
     const KnotVector& axis(int i) const { return (*axes_)[i]; }
     std::vector<size_t> shape() const;  // (n_0, ..., n_{D-1}, channels)
     size_t num_values() const;          // product of shape()
