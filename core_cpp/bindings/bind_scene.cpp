@@ -333,6 +333,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("coeffs_from_size", &SolverSettings::coeffs_from_size)
         .def_readwrite("spatial_coeffs_min", &SolverSettings::spatial_coeffs_min)
         .def_readwrite("detail_tolerance", &SolverSettings::detail_tolerance)
+        .def_readwrite("detail_density_max", &SolverSettings::detail_density_max)
         .def_readwrite("adaptive_knots", &SolverSettings::adaptive_knots)
         .def_readwrite("hidden_nodes_to_contact", &SolverSettings::hidden_nodes_to_contact)
         .def_readwrite("discontinuity_knots", &SolverSettings::discontinuity_knots)

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <numeric>
 #include <optional>
 #include <sstream>
 
@@ -30,6 +31,7 @@ void validate(const SolverSettings& s) {
     need(s.spatial_coeffs >= s.spatial_degree + 1, "spatial_coeffs must be at least spatial_degree + 1");
     need(s.spatial_coeffs_min >= s.spatial_degree + 1, "spatial_coeffs_min must be at least spatial_degree + 1");
     need(s.detail_tolerance >= 0, "detail_tolerance must be >= 0");
+    need(s.detail_density_max >= 1, "detail_density_max must be >= 1");
     need(s.epsilon >= 0 && s.epsilon < 0.5, "epsilon must be in [0, 0.5)");
     need(s.angular_degree >= 0 && s.angular_degree <= 5, "angular_degree must be in 0..5");
     need(s.angular_coeffs_min >= s.angular_degree + 1 && s.angular_coeffs_max >= s.angular_coeffs_min,
@@ -185,7 +187,13 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
                                            shape.turning[along] / kTurningPerSpan + s.spatial_degree);
             n = std::clamp(int(std::ceil(wanted)), std::min(s.spatial_coeffs_min, s.spatial_coeffs), s.spatial_coeffs);
         }
-        return std::max(n, std::min(from_detail, s.spatial_coeffs)) * spatial_scale;
+        // The light's detail asks for spans down to 1/detail_density_max of the longest
+        // receiver's, at most spatial_coeffs.
+        int most = s.spatial_coeffs;
+        if (from_size)
+            most = std::min<double>(most, std::ceil(s.detail_density_max * (s.spatial_coeffs - s.spatial_degree) *
+                                                    shape.length[along] / extent) + s.spatial_degree);
+        return std::max(n, std::min(from_detail, most)) * spatial_scale;
     };
     p.nu = spatial(0, detail[0]);
     p.nv = spatial(1, detail[1]);
@@ -1037,15 +1045,17 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings, 
     if (probed && probed->size() != scene.size())
         throw std::invalid_argument("estimate_solve_bytes: sides of " + std::to_string(probed->size()) +
                                     " surfaces given for a scene of " + std::to_string(scene.size()));
-    // The direct light's detail is only known after probing it: at most spatial_coeffs each.
-    SolverSettings bound = settings;
-    if (settings.detail_tolerance > 0) bound.coeffs_from_size = false;
+    // The light's detail is only known after probing it (the finals': after the bounces): every
+    // surface as if its light asked for all spatial_coeffs, which detail_density_max limits.
+    std::vector<std::array<int, 2>> detail;
+    if (settings.coeffs_from_size && settings.detail_tolerance > 0)
+        detail.assign(scene.size(), {settings.spatial_coeffs, settings.spatial_coeffs});
     size_t probe = 0;
-    const std::vector<SurfaceSides> sides = probed ? *probed : probe_sides(scene, bound, &probe);
-    const std::vector<Plan> plans = plan_scene(scene, bound, 1, sides);
-    const size_t solve = estimate_bytes(scene, bound, plans,
-                                        bound.final_gather ? plan_scene(scene, bound, bound.final_spatial_factor, sides)
-                                                           : std::vector<Plan>{});
+    const std::vector<SurfaceSides> sides = probed ? *probed : probe_sides(scene, settings, &probe);
+    const std::vector<Plan> plans = plan_scene(scene, settings, 1, sides, detail);
+    const size_t solve = estimate_bytes(scene, settings, plans,
+                                        settings.final_gather ? plan_scene(scene, settings, settings.final_spatial_factor, sides, detail)
+                                                              : std::vector<Plan>{});
     // The probe runs beside what the whole solve holds; its memory is freed before the receivers
     // are made.
     return std::max(probe ? probe + fixed_bytes(scene, plans) : 0, solve);
@@ -1406,6 +1416,20 @@ struct SolveSteps::State {
     // integration nodes (four times the rays): spread over the surface as all of them are.
     static bool input_check(size_t i) { return i % 2 == 0; }
     static bool fine_check(size_t i) { return i % 4 == 0; }
+    // A receiver's checks: error_checks, but no more than a quarter of its nodes, in fours (each
+    // four has an input check and a doubled-nodes one), and at least kFewestChecks: 48 checks on
+    // a book's face of 8 x 8 final nodes cost more than its final gather; 16 say its relative
+    // RMS error to about 1/sqrt(32), 18%, against a factor of two asked of the estimate.
+    static constexpr size_t kFewestChecks = 16;
+    size_t checks_of(const Receiver& r) const {
+        const size_t quarter = (r.nodes.size() / 4 + 3) / 4 * 4;
+        return std::min(size_t(settings.error_checks), std::max(kFewestChecks, quarter));
+    }
+    std::vector<size_t> checks_of_all() {
+        std::vector<size_t> n;
+        for (const Receiver& r : estimated()) n.push_back(checks_of(r));
+        return n;
+    }
     // The integration nodes per axis of the gather that made a receiver's result.
     double density_at(const Receiver& q) const { return settings.final_gather ? final_density(scene, settings, q.surface) : 1.0; }
 
@@ -1469,12 +1493,17 @@ struct SolveSteps::State {
     template <class Body>
     void for_each_check(size_t begin, size_t end, Progress& progress, size_t& rays, Body&& body) {
         const std::vector<Receiver>& result = estimated();
-        const size_t n = size_t(settings.error_checks);
+        // Work item w is check w - first[k] of receiver begin + k (checks_of each).
+        std::vector<size_t> first(end - begin + 1, 0);
+        for (size_t k = begin; k < end; ++k) first[k - begin + 1] = first[k - begin] + checks_of(result[k]);
         std::atomic<size_t> counted{0};
-        parallel_for((end - begin) * n, 1, settings.threads, [&](size_t b, size_t e) {
+        parallel_for(first.back(), 1, settings.threads, [&](size_t b, size_t e) {
             size_t local = 0;
-            for (size_t w = b; w < e; ++w)
-                if (!result[begin + w / n].is_partner) body(w / n, w % n, result[begin + w / n], local);
+            size_t k = size_t(std::upper_bound(first.begin(), first.end(), b) - first.begin()) - 1;
+            for (size_t w = b; w < e; ++w) {
+                while (w >= first[k + 1]) ++k;
+                if (!result[begin + k].is_partner) body(k, w - first[k], result[begin + k], local);
+            }
             counted += local;
             progress.advance(e - b);
         }, progress.cancel_flag());
@@ -1507,7 +1536,7 @@ struct SolveSteps::State {
                 if (r.is_partner) continue;
                 const Surface& surface = *scene[r.surface].surface;
                 const double side = r.solves(0) || !r.solves(1) ? 1.0 : -1.0;
-                points[k] = check_points(r, n, [&](double u, double v) {
+                points[k] = check_points(r, checks_of(r), [&](double u, double v) {
                     const SurfacePoint p = surface.evaluate(u, v);
                     return behind(p.p, p.frame.z, p.frame.z * side, local);
                 });
@@ -1740,7 +1769,7 @@ bool on_estimate(SolveSteps::Phase phase) {
 std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
     if (on_estimate(phase)) {
         state_->build_finals(progress);
-        return std::vector<size_t>(state_->estimated().size(), size_t(state_->settings.error_checks));
+        return state_->checks_of_all();
     }
     if (!on_finals(phase)) return nodes_of(state_->receivers);
     state_->build_finals(progress);
@@ -2010,8 +2039,9 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     std::vector<std::array<double, 4>> error_parts(result.size(), SurfaceReport().error_parts);
     if (settings.estimate_error) {
         const auto t3 = std::chrono::steady_clock::now();
-        const size_t checks = size_t(settings.error_checks);
-        progress.begin_stage("error estimate", stages - 1, stages, (settings.final_gather ? 2 : 1) * result.size() * checks);
+        const std::vector<size_t> checks = st.checks_of_all();
+        const size_t all_checks = std::accumulate(checks.begin(), checks.end(), size_t(0));
+        progress.begin_stage("error estimate", stages - 1, stages, (settings.final_gather ? 2 : 1) * all_checks);
         // Each pass here, or wherever `run` sends its groups, given the estimated splines (and the
         // coarse ones they were gathered from); the second pass also each surface's input scale
         // and the first pass's records.
@@ -2027,7 +2057,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
             if (settings.final_gather) pack_onto(input, receivers, 0, all, &Receiver::Le);
             input.insert(input.end(), scale.begin(), scale.end());
             input.insert(input.end(), records.begin(), records.end());
-            std::vector<double> out = run(p, input, std::vector<size_t>(result.size(), checks), counted);
+            std::vector<double> out = run(p, input, checks, counted);
             progress.throw_if_cancelled();
             return out;
         };
