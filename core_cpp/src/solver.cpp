@@ -192,7 +192,7 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         int most = s.spatial_coeffs;
         if (from_size)
             most = std::min<double>(most, std::ceil(s.detail_density_max * (s.spatial_coeffs - s.spatial_degree) *
-                                                    shape.length[along] / extent) + s.spatial_degree);
+                                                    shape.length[along] / extent - 1e-9) + s.spatial_degree);
         return std::max(n, std::min(from_detail, most)) * spatial_scale;
     };
     p.nu = spatial(0, detail[0]);

@@ -126,6 +126,24 @@ def test_a_shadow_across_a_small_face_asks_for_more_coefficients():
     assert max(coefficients(shaded, small_top)) >= 2 * max(coefficients(lit, small_top))
 
 
+def test_detail_density_max_bounds_what_a_small_face_asks_for():
+    # The same shadow edge across the small top (0.3 m, a twentieth of the 6 m floor): the light's
+    # detail asks for spans down to 1/detail_density_max of the floor's (10 spans of the preset's
+    # 12 quadratic coefficients), at most the preset's 12, then doubled by the final gather.
+    scene = scene_of([(0.0, 0.6, 0.3, 1.5), (0.0, 1.0, BOX, 0.2)])
+    small_top = 2 + 5
+    counts = {cap: coefficients(solve(scene, **ADAPTIVE, detail_density_max=cap), small_top)
+              for cap in (4.0, 8.0, 16.0, float("inf"))}
+    print(f"\nsmall top in a shadow edge by detail_density_max: {counts}")
+    for cap, count in counts.items():
+        most = min(int(np.ceil(cap * 10 * BOX / FLOOR)) + 2, 12) if np.isfinite(cap) else 12
+        assert count == [2 * most] * 2, cap  # 4: 2 spans -> 8; 8: 4 -> 12; 16: 8 -> 20; unlimited: 24
+    floor = {cap: coefficients(solve(scene, **ADAPTIVE, detail_density_max=cap), 0) for cap in (4.0, float("inf"))}
+    assert floor[4.0] == floor[float("inf")] == [24, 24]  # the longest surface is never held back
+    with pytest.raises(ValueError, match="detail_density_max"):
+        solve(scene, **ADAPTIVE, detail_density_max=0.5)
+
+
 def test_a_small_sphere_keeps_its_coefficients_for_the_turning_of_its_normal():
     # A 0.4 m sphere on a 6 m black floor (a receiver that reflects nothing) under a distant
     # light: its radiance is albedo / pi * I * max(0, n . l), whose terminator and cosine need
