@@ -36,12 +36,14 @@ struct SolverSettings {
     // surface's parts then keep spatial_coeffs. 0: size alone.
     double detail_tolerance = 0;
     // The most a surface's light's detail may ask for, as a density: spans no shorter than
-    // 1/detail_density_max of the longest receiver's (spatial_coeffs of them; the final gather
-    // halves both). A shadow edge asks every surface it crosses for spatial_coeffs, whatever its
-    // size: a book's 7 cm face then got the 12 spans a 12 m floor gets, and the faces of the
-    // 1,000-object interior under 0.4 m (8% of its area) 92% of its final gather's nodes. An
-    // edge's squared error over a surface grows with its length times the blur (the span), so
-    // spans as fine on a small face as on a large one buy it little of what is seen.
+    // 1/detail_density_max of the longest receiver's (its spatial_coeffs - spatial_degree spans;
+    // the final gather halves both), and never more than spatial_coeffs. A shadow edge asks every
+    // surface it crosses for spatial_coeffs, whatever its size: a book's 7 cm face then got the
+    // 12 coefficients a 12 m floor gets, and the faces of the 1,000-object interior under 0.4 m
+    // (23% of its area) 93% of its final gather's nodes. An edge's squared error over a surface
+    // grows with its length times the blur (the span), so spans as fine on a small face as on a
+    // large one buy it little of what is seen (bench/bench_detail_density.py: against Mitsuba 3,
+    // no loss the reference can tell at 16).
     double detail_density_max = 16;
     // Knots clustered where the direct light has detail (shadow edges, contact lines) instead
     // of uniform: costs a probe of the direct light on a (2n+1)^2 grid per surface.
