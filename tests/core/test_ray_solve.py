@@ -285,6 +285,20 @@ def test_receiver_groups_balance_the_measured_cost():
     assert [(b, e) for b, e, _ in groups] == [(0, 8), (8, 9), (9, 10)]
 
 
+def test_guided_groups_fall_in_cost_and_cover_every_receiver_once():
+    from bsgi.ray_executor import guided_groups
+
+    # 100 equal receivers, 2 workers: each group a quarter of what is left, down to 1/32 of the
+    # whole, so the phase ends on groups of 4 receivers (a worker waits at most that long).
+    groups = guided_groups([10] * 100, 2)
+    assert [e - b for b, e, _ in groups] == [25, 19, 14, 11, 8, 6, 5, 4, 4, 4]
+    assert [b for b, _, _ in groups] == [0] + [e for _, e, _ in groups[:-1]] and groups[-1][1] == 100
+    assert all(n == 10 * (e - b) for b, e, n in groups)
+    # Measured costs: the dear glossy receivers (ten times a diffuse node) get groups of their own.
+    assert [(b, e) for b, e, _ in guided_groups([4] * 10, 2, [1] * 8 + [10] * 2)] == [(0, 7), (7, 9), (9, 10)]
+    assert guided_groups([], 2) == [] and guided_groups([0, 0, 0], 2) == [(0, 3, 0)]  # all settled: one group
+
+
 def test_costs_learned_from_a_phase_rebalance_the_next():
     executor = bsgi.RayExecutor(workers=2)
     nodes = [4] * 10
