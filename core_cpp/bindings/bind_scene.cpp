@@ -619,25 +619,27 @@ void bind_scene(py::module_& m) {
         .def(
             "gather",
             [](SolveSteps& steps, const std::string& phase, size_t begin, size_t end, const Array& input, Progress& progress,
-               const std::vector<size_t>& settled) {
+               const std::vector<size_t>& settled, bool unpacked) {
                 const SolveSteps::Phase p = phase_of(phase);
-                std::vector<double> in(input.data(), input.data() + input.size());
                 size_t rays = 0;
                 std::vector<double> out;
                 {
+                    // `input` stays alive (its caller holds it) and is read in place.
                     py::gil_scoped_release release;
-                    out = steps.gather(p, begin, end, in, progress, rays, settled);
+                    out = steps.gather(p, begin, end, {input.data(), size_t(input.size())}, progress, rays, settled, unpacked);
                 }
                 return py::make_tuple(py::array_t<double>(out.size(), out.data()), rays);
             },
             py::arg("phase"), py::arg("begin"), py::arg("end"), py::arg("input"), py::arg("progress"),
-            py::arg("settled") = std::vector<size_t>{},
+            py::arg("settled") = std::vector<size_t>{}, py::arg("unpacked") = false,
             "The gather of a phase for receivers [begin, end) given all receivers' coefficients of the previous step "
             "(empty for 'direct', the increment L for 'bounce', the cumulative Le for 'final', the finals' Le of the "
             "final gather followed by the coarse Le it read for 'regather'; for the error estimate's passes, SolveSteps::gather "
             "in bsgi/solver.h says what): (their new "
             "coefficients, for 'regather' the correction the solve adds to the first final gather's, rays cast). `settled`: receivers of a bounce that do not gather (the runner's 0 nodes; their "
-            "coefficients come back as they were). Releases the GIL; raises SolveCancelled if progress is cancelled.");
+            "coefficients come back as they were). `unpacked`: these steps gathered a group of this phase from this very "
+            "input already (a worker's earlier group), so their splines hold it and it is not unpacked again. Releases the "
+            "GIL; raises SolveCancelled if progress is cancelled.");
 }
 
 }  // namespace bsgi::bindings

@@ -1347,14 +1347,14 @@ struct SolveSteps::State {
     // The finals, built by the first phase that needs them on these steps (`what` names it):
     // planned from the coarse light with a detail tolerance, which the phase's input holds
     // packed, ending `after` values before the input's end.
-    void finals_from_input(const std::vector<double>& input, size_t after, const std::string& what, Progress& progress) {
+    void finals_from_input(const SolveSteps::Input& input, size_t after, const std::string& what, Progress& progress) {
         if (settings.final_gather && !finals_built && plans_from_detail()) {
             const size_t size = packed_size(receivers, 0, receivers.size(), &Receiver::Le);
-            if (input.size() < size + after)
+            if (input.size < size + after)
                 throw std::invalid_argument("solve step: " + what + " reads the coarse Le (" + std::to_string(size) +
                                             " coefficients) and " + std::to_string(after) + " values after it, given " +
-                                            std::to_string(input.size()));
-            unpack(input.data() + input.size() - after - size, size, receivers, 0, receivers.size(), &Receiver::Le);
+                                            std::to_string(input.size));
+            unpack(input.data + input.size - after - size, size, receivers, 0, receivers.size(), &Receiver::Le);
             coarse_light = true;
         }
         build_finals(progress);
@@ -1689,8 +1689,8 @@ struct SolveSteps::State {
     // A pass of the estimate for receivers [begin, end) of estimated() on a worker: `input`
     // holds the estimated splines' Le, then with a final gather the coarse Le, then for the
     // second pass each scene surface's input scale and the first pass's records of all receivers.
-    std::vector<double> estimate_step(SolveSteps::Phase phase, size_t begin, size_t end, const std::vector<double>& input,
-                                      const std::vector<size_t>& settled, Progress& progress, size_t& rays) {
+    std::vector<double> estimate_step(SolveSteps::Phase phase, size_t begin, size_t end, const SolveSteps::Input& input,
+                                      const std::vector<size_t>& settled, Progress& progress, size_t& rays, bool unpacked) {
         if (!settings.estimate_error) throw std::invalid_argument("solve step: the settings estimate no error");
         if (phase == SolveSteps::Phase::EstimateInput && !settings.final_gather)
             throw std::invalid_argument("solve step: without a final gather the error estimate has no input pass");
@@ -1704,13 +1704,15 @@ struct SolveSteps::State {
             throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
                                         " out of " + std::to_string(result.size()));
         const size_t result_size = packed_size(result, 0, result.size(), &Receiver::Le);
-        if (input.size() != result_size + coarse_size + extra)
+        if (input.size != result_size + coarse_size + extra)
             throw std::invalid_argument("solve step: the error estimate's pass reads " + std::to_string(result_size + coarse_size + extra) +
-                                        " values, given " + std::to_string(input.size()));
-        unpack(input.data(), result_size, result, 0, result.size(), &Receiver::Le);
-        if (settings.final_gather) unpack(input.data() + result_size, coarse_size, receivers, 0, receivers.size(), &Receiver::Le);
+                                        " values, given " + std::to_string(input.size));
+        if (!unpacked) {
+            unpack(input.data, result_size, result, 0, result.size(), &Receiver::Le);
+            if (settings.final_gather) unpack(input.data + result_size, coarse_size, receivers, 0, receivers.size(), &Receiver::Le);
+        }
         if (phase == SolveSteps::Phase::EstimateChecks) return estimate_checks(begin, end, progress, rays);
-        const double* scale = input.data() + result_size + coarse_size;
+        const double* scale = input.data + result_size + coarse_size;
         return estimate_inputs(begin, end, scale, scale + scene.size(), progress, rays);
     }
 
@@ -1776,15 +1778,15 @@ std::vector<size_t> SolveSteps::nodes(Phase phase, Progress& progress) {
     return nodes_of(state_->finals);
 }
 
-std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
-                                       Progress& progress, size_t& rays, const std::vector<size_t>& settled) {
-    return gather_from(phase, begin, end, &input, progress, rays, settled);
+std::vector<double> SolveSteps::gather(Phase phase, size_t begin, size_t end, Input input, Progress& progress, size_t& rays,
+                                       const std::vector<size_t>& settled, bool unpacked) {
+    return gather_from(phase, begin, end, &input, progress, rays, settled, unpacked);
 }
 
-std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t end, const std::vector<double>* input,
-                                            Progress& progress, size_t& rays, const std::vector<size_t>& settled) {
+std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t end, const Input* input, Progress& progress,
+                                            size_t& rays, const std::vector<size_t>& settled, bool unpacked) {
     State& s = *state_;
-    if (on_estimate(phase)) return s.estimate_step(phase, begin, end, *input, settled, progress, rays);
+    if (on_estimate(phase)) return s.estimate_step(phase, begin, end, *input, settled, progress, rays, unpacked);
     const bool fine = on_finals(phase);
     if (fine && !s.settings.final_gather) throw std::invalid_argument("solve step: the settings have no final gather");
     if (phase == Phase::Regather && s.settings.final_passes < 2)
@@ -1821,7 +1823,7 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
     if (bounce) {
         // Gather the incremental radiance L of all surfaces into Ltmp (but settled receivers').
         const double density = phase == Phase::LateBounce ? kLateBounceDensity : 1.0;
-        if (input) unpack(*input, s.receivers, 0, s.receivers.size(), &Receiver::L);
+        if (input && !unpacked) unpack(input->data, input->size, s.receivers, 0, s.receivers.size(), &Receiver::L);
         s.build_rows(begin, end, progress, rays);
         rays += gather_all(targets, begin, end, &Receiver::Ltmp, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             const size_t k = size_t(r.index);
@@ -1845,7 +1847,7 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
     // from the cumulative radiance Le of the others (emitters count as non-emissive there) with
     // the world's light along the same rays: the coarse receivers' Le.
     if (phase == Phase::Final) {
-        if (input) unpack(*input, s.receivers, 0, s.receivers.size(), &Receiver::Le);
+        if (input && !unpacked) unpack(input->data, input->size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
         rays += gather_all(targets, begin, end, &Receiver::Le, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
             std::vector<Vec3> direct(r.sides * r.per_node);
             gather.direct(r, j, direct.data(), n);
@@ -1862,15 +1864,15 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
     // full density at a node whose rays meet a surface glossier than GGX alpha 0.3 (the lobe
     // kSharpLobe): its reflections' change is sharp (at half density the diffuse walls before
     // a near-mirror wall lost 0.5 points of accuracy).
-    if (input) {
+    if (input && !unpacked) {
         const size_t fine_size = packed_size(s.finals, 0, s.finals.size(), &Receiver::Le);
         const size_t coarse_size = packed_size(s.receivers, 0, s.receivers.size(), &Receiver::Le);
-        if (input->size() != fine_size + coarse_size)
+        if (input->size != fine_size + coarse_size)
             throw std::invalid_argument("solve step: a regather reads the finals' Le (" + std::to_string(fine_size) +
                                         " coefficients) and the coarse Le (" + std::to_string(coarse_size) + "), given " +
-                                        std::to_string(input->size()));
-        unpack(input->data(), fine_size, s.finals, 0, s.finals.size(), &Receiver::Le);
-        unpack(input->data() + fine_size, coarse_size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
+                                        std::to_string(input->size));
+        unpack(input->data, fine_size, s.finals, 0, s.finals.size(), &Receiver::Le);
+        unpack(input->data + fine_size, coarse_size, s.receivers, 0, s.receivers.size(), &Receiver::Le);
     }
     // The correction in float32: rounding it costs 6e-8 of a small part of the light, and it is
     // the largest set while it is held (at 1,000 objects 115 MB in float64, beside the finals).

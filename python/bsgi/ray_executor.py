@@ -37,14 +37,19 @@ class SolveWorker:
     def __init__(self, scene: _core.Scene, fields: dict, sides: list) -> None:
         self.steps = _core.SolveSteps(scene, settings_from(fields), _core.Progress(), sides)
         self.progress = _core.Progress()
+        self.unpacked = -1  # the phase (the driver's count) whose input the splines hold
 
-    def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int, settled: list) -> tuple:
-        """(the group's coefficients, its rays, the seconds it took here)."""
+    def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int, settled: list,
+               phase_index: int) -> tuple:
+        """(the group's coefficients, its rays, the seconds it took here). A phase's later groups
+        here read its input from the splines the first one unpacked it into."""
         progress = _core.Progress()
         progress.begin_stage(phase, 0, 1, nodes)
         self.progress = progress  # what cancel() sees, from Ray's second actor thread
         start = time.perf_counter()
-        part, rays = self.steps.gather(phase, begin, end, coefficients, progress, settled)
+        part, rays = self.steps.gather(phase, begin, end, coefficients, progress, settled,
+                                       unpacked=self.unpacked == phase_index)
+        self.unpacked = phase_index
         return part, rays, time.perf_counter() - start
 
     def cancel(self) -> None:
@@ -225,7 +230,7 @@ class RayExecutor:
                 if queue:
                     idle.remove(w)
                     group = queue.popleft()
-                    ref = self.actors[w].gather.remote(phase, *group[:2], coefficients_ref, *group[2:])
+                    ref = self.actors[w].gather.remote(phase, *group[:2], coefficients_ref, *group[2:], len(self.bytes_sent))
                     running[ref] = (w, group)
             ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_seconds)
             for ref in ready:

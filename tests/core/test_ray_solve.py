@@ -138,9 +138,11 @@ def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounce
     assert all(began < ended and len(seconds) >= 2 for _, began, ended, seconds in executor.phase_times)
 
 
-@pytest.mark.parametrize("late_bounces_after", [0, 2])
-def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_after):
+@pytest.mark.parametrize("late_bounces_after,unpacked", [(0, False), (2, False), (2, True)])
+def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_after, unpacked):
     # What a worker does, here: another SolveSteps of the scene gathers each phase in two groups.
+    # `unpacked`: the second group reads the input the first unpacked (given zeros in its place,
+    # which would be unpacked otherwise; the estimate's input pass reads its scales and records).
     scene, s = room(), settings(final_passes=2, final_spatial_factor=2, late_bounces_after=late_bounces_after)
     local = bsgi.solve(scene, s)
     worker = bsgi.SolveSteps(scene, s, bsgi.Progress())
@@ -149,7 +151,9 @@ def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_a
     def runner(phase, coefficients, nodes):
         phases.append(phase)
         half = len(nodes) // 2
-        parts = [worker.gather(phase, b, e, coefficients, bsgi.Progress()) for b, e in ((0, half), (half, len(nodes)))]
+        second = np.zeros_like(coefficients) if unpacked and phase != "estimate input" else coefficients
+        parts = [worker.gather(phase, 0, half, coefficients, bsgi.Progress()),
+                 worker.gather(phase, half, len(nodes), second, bsgi.Progress(), unpacked=unpacked)]
         return np.concatenate([p[0] for p in parts]), sum(p[1] for p in parts)
 
     steps = bsgi.SolveSteps(scene, s, bsgi.Progress())

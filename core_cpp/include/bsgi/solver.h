@@ -242,8 +242,16 @@ public:
     // coeffs_from_size and a detail tolerance the finals are planned from the coarse Le that the
     // first of these phases reads (and nodes() of a final phase or an estimate pass, on the
     // steps that run the solve, needs its bounces done).
-    std::vector<double> gather(Phase phase, size_t begin, size_t end, const std::vector<double>& input,
-                               Progress& progress, size_t& rays, const std::vector<size_t>& settled = {});
+    // `input` is read where it lies (a runner's buffer, not copied). `unpacked`: these steps were
+    // given this phase's very input by an earlier call (a worker's earlier group of the phase),
+    // so the splines already hold it and it is not unpacked again (the estimate's input pass still
+    // reads its scales and records from it).
+    struct Input {
+        const double* data = nullptr;
+        size_t size = 0;
+    };
+    std::vector<double> gather(Phase phase, size_t begin, size_t end, Input input, Progress& progress, size_t& rays,
+                               const std::vector<size_t>& settled = {}, bool unpacked = false);
     // The whole solve, each phase's gather run by `run` (here, on all threads, if empty), the
     // bounces' bookkeeping (the sums, when to stop, the extrapolated tail) here. Once: the
     // solution takes the splines.
@@ -252,8 +260,8 @@ public:
 private:
     // gather() with `input` null where the splines it would unpack already hold it (the local
     // solve): no packed copy of the input beside them.
-    std::vector<double> gather_from(Phase phase, size_t begin, size_t end, const std::vector<double>* input,
-                                    Progress& progress, size_t& rays, const std::vector<size_t>& settled);
+    std::vector<double> gather_from(Phase phase, size_t begin, size_t end, const Input* input, Progress& progress,
+                                    size_t& rays, const std::vector<size_t>& settled, bool unpacked = false);
     struct State;
     std::unique_ptr<State> state_;
 };
