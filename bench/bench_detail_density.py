@@ -8,8 +8,8 @@ solver's own error estimate pooled over those small surfaces against their measu
 reference's own noise is taken out of the errors. Mitsuba's sun is a directional light (the
 solver's has the sun's 0.53 degrees): the same for every cap.
 
-    python bench/run.py detail_density
-    BSGI_BENCH_DETAIL_OBJECTS=300 BSGI_BENCH_DETAIL_SPP=4096 python bench/run.py detail_density
+    python bench/run.py detail_density          (300 objects, 4,096 samples: about a minute)
+    BSGI_BENCH_DETAIL_OBJECTS=100 BSGI_BENCH_DETAIL_SPP=1024 BSGI_BENCH_DETAIL_CAPS=16,inf python bench/run.py detail_density
 """
 from __future__ import annotations
 
