@@ -2,7 +2,8 @@
 (BSGI_BENCH_MEMORY_OBJECTS sets another count), without solving it: the resident memory of the
 core scene built from Python, of the ray caster (Embree's BVH and the per-triangle records), and
 the solve's own estimate (bsgi.estimate_solve_bytes) at the preview preset, as is and with
-coeffs_from_size (small faces fewer coefficients), with and without the final gather. The
+coeffs_from_size (small faces fewer coefficients), with and without the final gather, and with
+coeffs_from_size and detail_tolerance 0.005 as the scale benchmark solves. The
 estimates are of front sides only (two_sided off): the sides probe of every surface's both sides
 would take about half an hour and hold about 12 GB at this size; its own memory is the
 `memory_probe_bytes_per_surface` figure, measured
@@ -46,7 +47,9 @@ def measure(objects: int) -> dict:
                f"memory_{objects}_triangles": caster.triangle_count}
     del caster
     for label, changes in [("preview", {}), ("preview_coeffs_from_size", {"coeffs_from_size": True}),
-                           ("preview_coeffs_from_size_no_final_gather", {"coeffs_from_size": True, "final_gather": False})]:
+                           ("preview_coeffs_from_size_no_final_gather", {"coeffs_from_size": True, "final_gather": False}),
+                           # as the scale benchmark solves (the estimate bounds the light's detail by detail_density_max)
+                           ("preview_detail", {"coeffs_from_size": True, "detail_tolerance": 0.005})]:
         settings = bsgi.SolverSettings.preset("preview")
         settings.two_sided = False
         for key, value in changes.items():
