@@ -524,7 +524,6 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
         r.Ltmp.emplace_back(a, 3);
     }
     r.axes = axes;
-    const Surface& surface = *scene[p.surface].surface;
     r.nodes = SpatialNodes(nodes_beside_jumps(ku), nodes_beside_jumps(kv));
     return r;
 }
@@ -826,7 +825,8 @@ public:
         }
         std::vector<double>().swap(shape_[k]);
         held_[k] = std::max({held_[k], errors_[k], error});
-        return settled_[k] = 1;
+        settled_[k] = 1;
+        return true;
     }
     // rho2 per channel of settled receiver k: each of its increments is this times its increment
     // two bounces before. Its error stays what it was when it settled (the extrapolated
@@ -1517,7 +1517,7 @@ struct SolveSteps::State {
     std::vector<double> estimate_checks(size_t begin, size_t end, Progress& progress, size_t& rays) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
         const std::vector<Receiver>& result = estimated();
-        const size_t n = size_t(settings.error_checks), size = record_size();
+        const size_t size = record_size();
         // The others' splines a gather read err (the contact shadows blurred over a coarse grid),
         // and that error enters each surface's light through its gather, where its own splines
         // cannot show it: it is measured from the others' coarse and final splines (estimate_inputs).
