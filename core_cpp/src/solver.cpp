@@ -576,6 +576,29 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
     rays += probe_rays;
 }
 
+// Work items counted receiver by receiver (a gather's nodes, the error estimate's checks): a
+// running count, one number a receiver rather than a (receiver, item) pair an item.
+class RunningCount {
+public:
+    template <class Count>
+    RunningCount(size_t receivers, Count&& count) : first_(receivers + 1, 0) {
+        for (size_t k = 0; k < receivers; ++k) first_[k + 1] = first_[k] + count(k);
+    }
+    size_t total() const { return first_.back(); }
+    // f(k, i) for items [b, e), item i of receiver k, in order (past receivers of no items).
+    template <class F>
+    void walk(size_t b, size_t e, F&& f) const {
+        size_t k = size_t(std::upper_bound(first_.begin(), first_.end(), b) - first_.begin()) - 1;
+        for (size_t w = b; w < e; ++w) {
+            while (w >= first_[k + 1]) ++k;
+            f(k, w - first_[k]);
+        }
+    }
+
+private:
+    std::vector<size_t> first_;
+};
+
 // Whether a glossy spline's angular knots resolve its BSDF's lobe: at least two spans across the
 // lobe's width in the disc (as the plan measures it). A narrower lobe (a glass sheet's, a
 // near-mirror's: their counts stop at angular_coeffs_max) is sampled too coarsely for a quadratic
@@ -591,26 +614,21 @@ template <typename Work>
 size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines target,
                   const SolverSettings& settings, Progress& progress, Work&& work,
                   const std::vector<uint8_t>& skip = {}) {
-    // Work item w is node w - first[k] of receiver begin + k (first: the running count of the
-    // nodes to gather, a number a receiver rather than a pair a node).
-    std::vector<size_t> first(end - begin + 1, 0);
-    for (size_t k = begin; k < end; ++k)
-        first[k - begin + 1] = first[k - begin] + (skip.empty() || !skip[k] ? receivers[k].nodes.size() : 0);
+    const RunningCount nodes(end - begin, [&](size_t k) {
+        return skip.empty() || !skip[begin + k] ? receivers[begin + k].nodes.size() : size_t(0);
+    });
     std::atomic<size_t> rays{0};
-    parallel_for(first.back(), 4, settings.threads, [&](size_t b, size_t e) {
+    parallel_for(nodes.total(), 4, settings.threads, [&](size_t b, size_t e) {
         size_t local_rays = 0;
         std::vector<Vec3> values;
-        size_t k = size_t(std::upper_bound(first.begin(), first.end(), b) - first.begin()) - 1;
-        for (size_t w = b; w < e; ++w) {
-            while (w >= first[k + 1]) ++k;  // past receivers with no nodes to gather
+        nodes.walk(b, e, [&](size_t k, size_t j) {
             Receiver& r = receivers[begin + k];
-            const size_t j = w - first[k];
             values.assign(r.sides * r.per_node, Vec3{0, 0, 0});
             work(r, j, values.data(), local_rays);
             for (int side = 0; side < r.sides; ++side)
                 for (size_t a = 0; a < r.per_node && r.solves(side); ++a)
                     r.set_coefficient(target, side, j, a, values[side * r.per_node + a]);
-        }
+        });
         rays += local_rays;
         progress.advance(e - b);
     }, progress.cancel_flag());
@@ -1493,17 +1511,13 @@ struct SolveSteps::State {
     template <class Body>
     void for_each_check(size_t begin, size_t end, Progress& progress, size_t& rays, Body&& body) {
         const std::vector<Receiver>& result = estimated();
-        // Work item w is check w - first[k] of receiver begin + k (checks_of each).
-        std::vector<size_t> first(end - begin + 1, 0);
-        for (size_t k = begin; k < end; ++k) first[k - begin + 1] = first[k - begin] + checks_of(result[k]);
+        const RunningCount checks(end - begin, [&](size_t k) { return checks_of(result[begin + k]); });
         std::atomic<size_t> counted{0};
-        parallel_for(first.back(), 1, settings.threads, [&](size_t b, size_t e) {
+        parallel_for(checks.total(), 1, settings.threads, [&](size_t b, size_t e) {
             size_t local = 0;
-            size_t k = size_t(std::upper_bound(first.begin(), first.end(), b) - first.begin()) - 1;
-            for (size_t w = b; w < e; ++w) {
-                while (w >= first[k + 1]) ++k;
-                if (!result[begin + k].is_partner) body(k, w - first[k], result[begin + k], local);
-            }
+            checks.walk(b, e, [&](size_t k, size_t i) {
+                if (!result[begin + k].is_partner) body(k, i, result[begin + k], local);
+            });
             counted += local;
             progress.advance(e - b);
         }, progress.cancel_flag());

@@ -189,9 +189,9 @@ class RayExecutor:
         began = time.perf_counter()
         coefficients_ref = ray.put(coefficients)  # once per phase, fetched once per machine
         self.bytes_sent.append(coefficients.nbytes)
-        # Group g goes to worker g mod n, the same every phase: a worker casts the form-factor rows of
-        # its groups once. A free worker takes another's group when its own are done, unless
-        # it would cast that group's rows again.
+        # With form-factor rows, group g goes to worker g mod n, the same every phase: a worker
+        # casts the rows of its groups once, and takes no other's. Otherwise each free worker
+        # takes the next group of one queue.
         alive = [w for w in range(len(self.actors)) if w not in self.lost]
         # A receiver of 0 nodes has settled (SolverSettings.settle_factor): it does not gather.
         if phase == "direct":
