@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
 
 #include "bsgi/cosine_rule.h"
 #include "bsgi/parallel.h"
@@ -22,7 +23,9 @@ constexpr int kPoints = 6, kCells = kPoints * kPoints, kTheta = 6, kPhi = 12, kE
 constexpr int kRaysToCarry = 2;
 
 constexpr int kRays = kTheta * kPhi;
-constexpr int32_t kNotChecked = -1, kLitDirectly = -2;
+// A checked ray end that carries light (sees light directly, or lit cells through enough rays):
+// lit cells stay lit, so it is never checked again.
+constexpr int32_t kNotChecked = -1, kCarries = -2;
 // What lights a point directly: scene surface e (an emitter), scene.size() + l (distant light
 // l), scene.size() + the number of distant lights (the world); kNoLight: nothing.
 constexpr int kNoLight = -1;
@@ -37,8 +40,8 @@ struct CellView {
     bool asks = false;     // in the surface's domain and not lit directly
     bool escaped = false;  // some rays reach no surface
     bool others = false;   // some rays reach another surface than the one probed
-    // Per ray, once its end is asked: whether the end sees light directly (kLitDirectly), else
-    // where in the probe's `seen` pool the cells its own probe rays reach are listed.
+    // Per ray, once its end is asked: whether the end carries light (kCarries), else which
+    // record of the probe's ReachedCells lists the cells its own probe rays reach.
     std::vector<int32_t> checked;
     // If it asks: the distinct receiving cells its rays end in, and when it was last asked (the
     // count of cells lit before; -1: never). Until one of these or of its checked ends' cells is
@@ -184,13 +187,104 @@ std::vector<CellView> probe_side(const Scene& scene, const std::vector<int>& emi
     return cells;
 }
 
+// What the checked ray ends see, each end's record the distinct receiving cells its probe rays
+// reach with their counts of rays. Most of the probe's memory at a thousand objects was these
+// records as (cell, rays) pairs of 4-byte words (21 kB a surface); a record here is a varint
+// count, then per cell the varint step from the previous cell id (sorted: an end's rays land on
+// a few surfaces, so steps are small) and its rays in a byte (at most kRays), padded to 4 bytes
+// so that an int32 indexes 8 GB. A record is dropped once its end carries light or its own cell
+// is lit (neither is asked again) and the pool compacted when half of it is dropped.
+class ReachedCells {
+public:
+    // Appends to `out` the record of the sorted cells[0, m), a cell repeated once per ray.
+    static void encode(const uint32_t* cells, size_t m, std::vector<uint8_t>& out) {
+        size_t distinct = 0;
+        for (size_t r = 0; r < m; ++r) distinct += r == 0 || cells[r] != cells[r - 1];
+        put(out, distinct);
+        uint32_t previous = 0;
+        for (size_t r = 0; r < m;) {
+            size_t next = r;
+            while (next < m && cells[next] == cells[r]) ++next;
+            put(out, cells[r] - previous);
+            out.push_back(uint8_t(next - r));
+            previous = cells[r];
+            r = next;
+        }
+    }
+    // f(cell, rays) for each cell of the record starting at `record` (an encoded one).
+    template <class F>
+    static void for_each(const uint8_t* record, F&& f) {
+        uint32_t count = uint32_t(get(record)), cell = 0;
+        for (uint32_t j = 0; j < count; ++j) {
+            cell += uint32_t(get(record));
+            f(cell, uint32_t(*record++));
+        }
+    }
+    // The bytes of the record starting at `record`.
+    static size_t size_of(const uint8_t* record) {
+        const uint8_t* at = record;
+        const size_t count = get(at);
+        for (size_t j = 0; j < count; ++j) get(at), ++at;
+        return size_t(at - record);
+    }
+
+    // Stores an encoded record; returns its index.
+    int32_t add(const uint8_t* record, size_t size) {
+        const size_t at = bytes_.size();
+        if (at / 4 > size_t(INT32_MAX)) throw std::length_error("the sides probe's record of what ray ends see passed 8 GB");
+        bytes_.insert(bytes_.end(), record, record + size);
+        bytes_.resize((bytes_.size() + 3) / 4 * 4);
+        return int32_t(at / 4);
+    }
+    const uint8_t* operator[](int32_t index) const { return bytes_.data() + 4 * size_t(index); }
+    void drop(int32_t index) { dropped_ += padded(size_of((*this)[index])); }
+    // Whether at least half of the pool (and a megabyte) is dropped records.
+    bool half_dropped() const { return dropped_ >= (1u << 20) && 2 * dropped_ >= bytes_.size(); }
+    // Moves the records still indexed into a new pool: for_each_index(g) calls g(index) on
+    // each index still held, by reference, which gets the record's new index. Returns the bytes
+    // the new pool holds (the old one's are held beside them until it is freed).
+    template <class ForEachIndex>
+    size_t compact(ForEachIndex&& for_each_index) {
+        std::vector<uint8_t> kept;
+        kept.reserve(bytes_.size() - dropped_);
+        for_each_index([&](int32_t& index) {
+            const uint8_t* record = (*this)[index];
+            const size_t size = padded(size_of(record));
+            const size_t at = kept.size();
+            kept.insert(kept.end(), record, record + size);
+            index = int32_t(at / 4);
+        });
+        bytes_.swap(kept);
+        dropped_ = 0;
+        return bytes_.capacity();
+    }
+    size_t capacity() const { return bytes_.capacity(); }
+
+private:
+    static size_t padded(size_t size) { return (size + 3) / 4 * 4; }
+    static void put(std::vector<uint8_t>& out, size_t value) {
+        for (; value >= 0x80; value >>= 7) out.push_back(uint8_t(value | 0x80));
+        out.push_back(uint8_t(value));
+    }
+    static size_t get(const uint8_t*& at) {
+        size_t value = 0;
+        for (int shift = 0;; shift += 7) {
+            const uint8_t byte = *at++;
+            value |= size_t(byte & 0x7f) << shift;
+            if (byte < 0x80) return value;
+        }
+    }
+    std::vector<uint8_t> bytes_;
+    size_t dropped_ = 0;
+};
+
 // What the probe holds at its end, its peak: the cells' views with what their rays' ends see,
 // and each cell's reason. A heap block costs its capacity and about 16 bytes.
 size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views, const std::vector<Reason>& why,
-                  const std::vector<int32_t>& lit_as, const std::vector<uint32_t>& seen) {
+                  const std::vector<int32_t>& lit_as, const ReachedCells& seen) {
     constexpr size_t kBlock = 16;
     auto block = [](const auto& v) { return v.capacity() * sizeof(v[0]) + (v.capacity() ? kBlock : 0); };
-    size_t bytes = block(views) + block(why) + block(lit_as) + block(seen);
+    size_t bytes = block(views) + block(why) + block(lit_as) + seen.capacity() + kBlock;
     for (const auto& surface : views)
         for (const std::vector<CellView>& cells : surface) {
             bytes += block(cells);
@@ -251,8 +345,8 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     // A ray's end carries light if its cell is lit and the point itself sees light directly or
     // sees a lit cell (a cell lit at its centre may be dark where the ray ends). What a checked
     // end sees is kept as the distinct cells its rays reach, each with its count of rays, in
-    // `seen`: a count, then (cell, rays) pairs.
-    std::vector<uint32_t> seen;
+    // `seen`.
+    ReachedCells seen;
     // The order in which the fixed point lit each cell (1, 2, ...; 0: lit from the start or dark).
     std::vector<int32_t> lit_as(why.size(), 0);
     int32_t lit_count = 0;
@@ -264,16 +358,15 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         if (std::any_of(view.ends.begin(), view.ends.end(), after)) return true;
         for (const int32_t checked : view.checked) {
             if (checked < 0) continue;
-            const uint32_t* cells = &seen[size_t(checked)];
-            for (uint32_t j = 0; j < cells[0]; ++j)
-                if (after(cells[1 + 2 * j])) return true;
+            bool changed = false;
+            ReachedCells::for_each(seen[checked], [&](uint32_t cell, uint32_t) { changed |= after(cell); });
+            if (changed) return true;
         }
         return false;
     };
     // What the end h of a ray, in cell `end`, sees: true if light directly (the world's through
-    // any of its rays); else appends to `out` the count of distinct cells its rays reach, then
-    // (cell, rays) pairs.
-    auto check_end = [&](uint32_t end, const SurfaceHit& h, std::vector<uint32_t>& out) {
+    // any of its rays); else appends to `out` the record of the cells its rays reach.
+    auto check_end = [&](uint32_t end, const SurfaceHit& h, std::vector<uint8_t>& out) {
         const int surface = int(end / (2 * kCells)), end_side = (end / kCells) % 2;
         const SurfacePoint p = scene[surface].surface->evaluate(h.u, h.v);
         if (direct_light(scene, emitters, caster, surface, p, end_side) != kNoLight) return true;
@@ -287,33 +380,27 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, rays.dirs[r]);
         }
         std::sort(reached.begin(), reached.begin() + m);
-        const size_t count = out.size();
-        out.push_back(0);
-        for (size_t r = 0; r < m;) {
-            size_t next = r;
-            while (next < m && reached[next] == reached[r]) ++next;
-            out.insert(out.end(), {reached[r], uint32_t(next - r)});
-            ++out[count];
-            r = next;
-        }
+        ReachedCells::encode(reached.data(), m, out);
         return false;
     };
-    // Rays of a checked end (its `seen` record) that reach lit cells.
-    auto rays_to_lit = [&](const uint32_t* cells) {
+    // Whether a checked end whose record is `record` carries light: enough of its rays reach lit cells.
+    auto reaches_lit = [&](const uint8_t* record) {
         uint32_t rays = 0;
-        for (uint32_t j = 0; j < cells[0]; ++j) rays += lit(cells[1 + 2 * j]) ? cells[2 + 2 * j] : 0;
-        return rays;
+        ReachedCells::for_each(record, [&](uint32_t cell, uint32_t count) { rays += lit(cell) ? count : 0; });
+        return rays >= kRaysToCarry;
     };
     // Whether the end h of ray k of a cell's view, in cell `end`, carries light.
+    std::vector<uint8_t> record;
     auto carries_light = [&](CellView& view, int k, uint32_t end, const SurfaceHit& h) {
         if (!lit(end)) return false;
         if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
         int32_t& checked = view.checked[k];
         if (checked == kNotChecked) {
-            const size_t at = seen.size();
-            checked = check_end(end, h, seen) ? kLitDirectly : int32_t(at);
+            record.clear();
+            checked = check_end(end, h, record) ? kCarries : seen.add(record.data(), record.size());
         }
-        return checked == kLitDirectly || rays_to_lit(&seen[size_t(checked)]) >= kRaysToCarry;
+        if (checked >= 0 && reaches_lit(seen[checked])) seen.drop(checked), checked = kCarries;
+        return checked == kCarries;
     };
     // The rays of cell c of a side of surface i, in order: visit(k, hit, end cell) for those
     // that end on a receiver, until it returns true.
@@ -353,51 +440,54 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     constexpr size_t kPrefetch = 64;  // cells (a smaller window sees more of the cells lit meanwhile)
     std::vector<Cell> window;
     std::vector<size_t> window_at;                         // their positions in the pass
-    std::vector<std::vector<uint32_t>> found(kPrefetch);  // per cell: (ray, kLitDirectly or count, pairs) records
+    // Per cell: what its ends checked ahead see, each as the ray, 1 if it sees light directly
+    // (else 0 and its record).
+    std::vector<std::vector<uint8_t>> found(kPrefetch);
     std::vector<std::vector<RayEnd>> ends(kPrefetch);     // per cell: its rays that reach receivers, in order
     auto prefetch = [&] {
         parallel_for(window.size(), 1, settings.threads, [&](size_t begin, size_t end) {
             for (size_t d = begin; d < end; ++d) {
                 const Cell& cell = window[d];
                 const CellView& view = views[cell.i][cell.side][cell.c];
-                std::vector<uint32_t>& out = found[d];
+                std::vector<uint8_t>& out = found[d];
                 out.clear();
                 ends[d].clear();
                 int carrying = 0;
                 cell_rays(cell.i, cell.side, cell.c, [&](int k, const SurfaceHit& hit, uint32_t end) {
                     ends[d].push_back({k, end, hit.surface, hit.u, hit.v});
                     if (!lit(end)) return false;
-                    int32_t checked = view.checked.empty() ? kNotChecked : view.checked[k];
-                    const uint32_t* reached = checked >= 0 ? &seen[size_t(checked)] : nullptr;
+                    const int32_t checked = view.checked.empty() ? kNotChecked : view.checked[k];
+                    bool carries = checked == kCarries || (checked >= 0 && reaches_lit(seen[checked]));
                     if (checked == kNotChecked) {
-                        out.push_back(uint32_t(k));
-                        const size_t at = out.size();
-                        if (check_end(end, hit, out)) out.push_back(uint32_t(kLitDirectly)), checked = kLitDirectly;
-                        else reached = &out[at];
+                        out.push_back(uint8_t(k));
+                        const size_t flag = out.size();
+                        out.push_back(0);
+                        if (check_end(end, hit, out)) out[flag] = 1, carries = true;
+                        else carries = reaches_lit(&out[flag + 1]);
                     }
-                    const bool carries = checked == kLitDirectly || rays_to_lit(reached) >= kRaysToCarry;
                     return carries && ++carrying == kRaysToCarry;
                 });
             }
         });
         for (size_t d = 0; d < window.size(); ++d) {
             CellView& view = views[window[d].i][window[d].side][window[d].c];
-            const std::vector<uint32_t>& records = found[d];
+            const std::vector<uint8_t>& records = found[d];
             for (size_t r = 0; r < records.size();) {
                 if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
-                const int k = int(records[r]);
-                if (int32_t(records[r + 1]) == kLitDirectly) {
-                    view.checked[k] = kLitDirectly;
+                const int k = records[r];
+                if (records[r + 1]) {
+                    view.checked[k] = kCarries;
                     r += 2;
                     continue;
                 }
-                const uint32_t count = records[r + 1];
-                view.checked[k] = int32_t(seen.size());
-                seen.insert(seen.end(), records.begin() + ptrdiff_t(r + 1), records.begin() + ptrdiff_t(r + 2 + 2 * count));
-                r += 2 + 2 * count;
+                const size_t size = ReachedCells::size_of(&records[r + 2]);
+                view.checked[k] = seen.add(&records[r + 2], size);
+                r += 2 + size;
             }
         }
     };
+    // The most the probe held before the end: at a compaction of `seen`, the old pool and the new.
+    size_t peak = 0;
     for (bool changed = true; changed;) {
         changed = false;
         window.clear(), window_at.clear();
@@ -434,7 +524,19 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             }
             if (lit(id)) {  // never asked again
                 std::vector<uint32_t>().swap(view.ends);
+                for (const int32_t checked : view.checked)
+                    if (checked >= 0) seen.drop(checked);
                 std::vector<int32_t>().swap(view.checked);
+                if (seen.half_dropped()) {
+                    const size_t before = held_bytes(views, why, lit_as, seen);
+                    peak = std::max(peak, before + seen.compact([&](auto&& move) {
+                        for (int j : probed)
+                            for (auto& cells_of_side : views[j])
+                                for (CellView& other : cells_of_side)
+                                    for (int32_t& checked : other.checked)
+                                        if (checked >= 0) move(checked);
+                    }));
+                }
             }
         }
     }
@@ -464,7 +566,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                                        ? "emits, but only into itself (the inside of a closed mesh)"
                                        : escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
         }
-    if (bytes) *bytes = held_bytes(views, why, lit_as, seen);
+    if (bytes) *bytes = std::max(peak, held_bytes(views, why, lit_as, seen));
     return out;
 }
 
