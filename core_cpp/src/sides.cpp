@@ -4,6 +4,9 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+#include <deque>
+#include <memory>
 #include <stdexcept>
 
 #include "bsgi/cosine_rule.h"
@@ -30,24 +33,136 @@ constexpr int32_t kNotChecked = -1, kCarries = -2;
 // l), scene.size() + the number of distant lights (the world); kNoLight: nothing.
 constexpr int kNoLight = -1;
 
+// Records of the cells a point's probe rays reach, with their counts of rays: what each checked
+// ray end sees, and where each dark cell's own rays end. Most of the probe's memory at a
+// thousand objects was these as 4-byte words (21 kB a surface of (cell, rays) pairs, 4 kB of
+// ends); a record here is a varint count, then per cell the varint step from the previous cell
+// id (sorted: a point's rays land on a few surfaces, so steps are small) and its rays in a byte
+// (at most kRays), padded to 4 bytes so that an int32 indexes 8 GB, in chunks of 64 kB
+// (a growing vector would hold up to twice its size). A record is dropped once its end carries
+// light or its cell is lit (neither is asked again), and the pool compacted in place when a
+// third of it is dropped.
+class ReachedCells {
+public:
+    // Appends to `out` the record of the sorted cells[0, m), a cell repeated once per ray.
+    static void encode(const uint32_t* cells, size_t m, std::vector<uint8_t>& out) {
+        size_t distinct = 0;
+        for (size_t r = 0; r < m; ++r) distinct += r == 0 || cells[r] != cells[r - 1];
+        put(out, distinct);
+        uint32_t previous = 0;
+        for (size_t r = 0; r < m;) {
+            size_t next = r;
+            while (next < m && cells[next] == cells[r]) ++next;
+            put(out, cells[r] - previous);
+            out.push_back(uint8_t(next - r));
+            previous = cells[r];
+            r = next;
+        }
+    }
+    // f(cell, rays) for each cell of the record starting at `record` (an encoded one).
+    template <class F>
+    static void for_each(const uint8_t* record, F&& f) {
+        uint32_t count = uint32_t(get(record)), cell = 0;
+        for (uint32_t j = 0; j < count; ++j) {
+            cell += uint32_t(get(record));
+            f(cell, uint32_t(*record++));
+        }
+    }
+    // The bytes of the record starting at `record`.
+    static size_t size_of(const uint8_t* record) {
+        const uint8_t* at = record;
+        const size_t count = get(at);
+        for (size_t j = 0; j < count; ++j) get(at), ++at;
+        return size_t(at - record);
+    }
+
+    // Stores an encoded record; returns its index.
+    int32_t add(const uint8_t* record, size_t size) {
+        if (chunks_.empty() || used_ + size > kChunkBytes) {
+            if (chunks_.size() >= size_t(INT32_MAX) / kChunkWords)
+                throw std::length_error("the sides probe's record of what ray ends see passed 8 GB");
+            chunks_.push_back(std::make_unique<uint8_t[]>(kChunkBytes));
+            used_ = 0;
+        }
+        const size_t at = (chunks_.size() - 1) * kChunkBytes + used_;
+        std::copy(record, record + size, chunks_.back().get() + used_);
+        used_ += padded(size);
+        return int32_t(at / 4);
+    }
+    const uint8_t* operator[](int32_t index) const {
+        return chunks_[size_t(index) / kChunkWords].get() + 4 * (size_t(index) % kChunkWords);
+    }
+    void drop(int32_t index) { dropped_ += padded(size_of((*this)[index])); }
+    // Whether at least a third of the pool (and a chunk) is dropped records.
+    bool mostly_dropped() const { return dropped_ >= kChunkBytes && 3 * dropped_ >= bytes(); }
+    // Moves the records still indexed down over the dropped ones, in place (the pool is most of
+    // the probe's memory: a copy would double it): for_each_index(g) calls g(index) on each
+    // index still held, by reference, which gets the record's new index. Returns the bytes it
+    // held beside the pool while it ran.
+    template <class ForEachIndex>
+    size_t compact(ForEachIndex&& for_each_index) {
+        std::vector<int32_t*> live;
+        for_each_index([&](int32_t& index) { live.push_back(&index); });
+        std::sort(live.begin(), live.end(), [](const int32_t* a, const int32_t* b) { return *a < *b; });
+        size_t chunk = 0, used = 0;
+        for (int32_t* index : live) {
+            const uint8_t* record = (*this)[*index];
+            const size_t size = padded(size_of(record));
+            if (used + size > kChunkBytes) ++chunk, used = 0;
+            uint8_t* to = chunks_[chunk].get() + used;
+            std::memmove(to, record, size);  // to <= record: records only move down
+            *index = int32_t((chunk * kChunkBytes + used) / 4);
+            used += size;
+        }
+        chunks_.resize(live.empty() ? 0 : chunk + 1);
+        used_ = used;
+        dropped_ = 0;
+        return live.capacity() * sizeof(live[0]);
+    }
+    // The bytes held.
+    size_t capacity() const { return chunks_.size() * kChunkBytes + chunks_.capacity() * sizeof(chunks_[0]); }
+
+private:
+    static size_t padded(size_t size) { return (size + 3) / 4 * 4; }
+    static void put(std::vector<uint8_t>& out, size_t value) {
+        for (; value >= 0x80; value >>= 7) out.push_back(uint8_t(value | 0x80));
+        out.push_back(uint8_t(value));
+    }
+    static size_t get(const uint8_t*& at) {
+        size_t value = 0;
+        for (int shift = 0;; shift += 7) {
+            const uint8_t byte = *at++;
+            value |= size_t(byte & 0x7f) << shift;
+            if (byte < 0x80) return value;
+        }
+    }
+    // Bytes stored (with the unused ends of full chunks).
+    size_t bytes() const { return chunks_.empty() ? 0 : (chunks_.size() - 1) * kChunkBytes + used_; }
+    static constexpr size_t kChunkBytes = size_t(1) << 16, kChunkWords = kChunkBytes / 4;
+    std::vector<std::unique_ptr<uint8_t[]>> chunks_;
+    size_t used_ = 0, dropped_ = 0;
+};
+
 // What the centre of one cell of one side sees: light, and whether its rays reach surfaces. A
 // cell not lit directly asks its rays' ends whether they carry light; a large scene's probe
 // would hold millions of them, so the rays are cast again when asked (the probe is
 // deterministic), at a pass of the fixed point where a cell they depend on was lit. Cells are
 // numbered (surface * 2 + side) * kCells + cell.
+// A view is 20 bytes (what it holds is in the probe's pools, freed once it is lit): there are
+// 72 a surface.
 struct CellView {
-    int light = kNoLight;
+    int32_t light = kNoLight;
+    // If it asks: the record (in the probe's ReachedCells) of the receiving cells its rays end
+    // in, and when it was last asked (the count of cells lit before; -1: never). Until one of
+    // these or of its checked ends' cells is lit, asking again would give the same answer.
+    int32_t ends = -1;
+    int32_t asked_at = -1;
+    // Once an end of its rays is asked: its block of kRays in the probe's `checks`, per ray
+    // kNotChecked, kCarries, or the record of the cells that end's own probe rays reach.
+    int32_t checked = -1;
     bool asks = false;     // in the surface's domain and not lit directly
     bool escaped = false;  // some rays reach no surface
     bool others = false;   // some rays reach another surface than the one probed
-    // Per ray, once its end is asked: whether the end carries light (kCarries), else which
-    // record of the probe's ReachedCells lists the cells its own probe rays reach.
-    std::vector<int32_t> checked;
-    // If it asks: the distinct receiving cells its rays end in, and when it was last asked (the
-    // count of cells lit before; -1: never). Until one of these or of its checked ends' cells is
-    // lit, asking again would give the same answer.
-    std::vector<uint32_t> ends;
-    int32_t asked_at = -1;
 };
 
 // Why a cell is lit: it emits, receives light directly (`source` a light as above) or
@@ -62,17 +177,31 @@ int cell_of(double u, double v) {
     return a * kPoints + b;
 }
 
-// Direction k of the probe's cosine-weighted set on the side of normal n = +-frame.z, turned
-// about the normal by `turn` (a fraction of the azimuth step): each cell turns its set by its
-// own amount, so that the cells' rays do not line up with the edges of boxes made of patches,
-// where a ray may slip between two patches that meet. The directions go in the cosine rule's
-// tiles of neighbours (tile_order), traced together in packets.
-Vec3 probe_direction(const SurfacePoint& p, int side, int k, double turn) {
-    static const std::vector<std::pair<int, int>> order = tile_order(kTheta, kPhi);
-    const auto [row, column] = order[size_t(k)];
-    const double w = (row + 0.5) / kTheta, phi = 2 * kPi * (column + turn) / kPhi;
-    const double cos_t = std::sqrt(w), sin_t = std::sqrt(1 - w);
-    return p.frame.to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), side ? -cos_t : cos_t});
+// The probe's cosine-weighted set on the side of normal n = +-frame.z, turned about the normal
+// by `turn` (a fraction of the azimuth step): each cell turns its set by its own amount, so that
+// the cells' rays do not line up with the edges of boxes made of patches, where a ray may slip
+// between two patches that meet. The directions go in the cosine rule's tiles of neighbours
+// (tile_order), traced together in packets. The turn is one rotation of them all: a sine and
+// cosine a point rather than a ray.
+struct ProbeSet {
+    std::array<double, kRays> cos_t, sin_t, cos_phi, sin_phi;
+    ProbeSet() {
+        const std::vector<std::pair<int, int>> order = tile_order(kTheta, kPhi);
+        for (int k = 0; k < kRays; ++k) {
+            const auto [row, column] = order[size_t(k)];
+            const double w = (row + 0.5) / kTheta, phi = 2 * kPi * column / kPhi;
+            cos_t[k] = std::sqrt(w), sin_t[k] = std::sqrt(1 - w);
+            cos_phi[k] = std::cos(phi), sin_phi[k] = std::sin(phi);
+        }
+    }
+};
+void probe_directions(const SurfacePoint& p, int side, double turn, std::array<Vec3, kRays>& dirs) {
+    static const ProbeSet set;
+    const double c = std::cos(2 * kPi * turn / kPhi), s = std::sin(2 * kPi * turn / kPhi);
+    for (int k = 0; k < kRays; ++k) {
+        const double cos_phi = set.cos_phi[k] * c - set.sin_phi[k] * s, sin_phi = set.sin_phi[k] * c + set.cos_phi[k] * s;
+        dirs[k] = p.frame.to_world({set.sin_t[k] * cos_phi, set.sin_t[k] * sin_phi, side ? -set.cos_t[k] : set.cos_t[k]});
+    }
 }
 
 // The first surface a probe ray meets that is not a window pane, from the ray's first hit:
@@ -93,7 +222,7 @@ struct ProbeRays {
     std::array<SurfaceHit, kRays> hits;
 };
 void cast_probe_rays(const RayCaster& caster, const SurfacePoint& p, int side, double turn, ProbeRays& out) {
-    for (int k = 0; k < kRays; ++k) out.dirs[k] = probe_direction(p, side, k, turn);
+    probe_directions(p, side, turn, out.dirs);
     caster.closest_hits_from(caster.spawn(p.p, p.frame.z, out.dirs[0]), out.dirs.data(), kRays, out.hits.data());
     for (int k = 0; k < kRays; ++k) out.hits[k] = past_panes(caster, out.hits[k], out.dirs[k]);
 }
@@ -153,12 +282,16 @@ int direct_light(const Scene& scene, const std::vector<int>& emitters, const Ray
     return kNoLight;
 }
 
+// The views of the cells of one side; a view that asks gets its ends' record appended to
+// `records`, and `ends` its place there (the caller moves it to the probe's pool).
 std::vector<CellView> probe_side(const Scene& scene, const std::vector<int>& emitters, const RayCaster& caster, int i,
-                                 int side) {
+                                 int side, std::vector<uint8_t>& records) {
     std::vector<CellView> cells(kCells);
     const Surface& surface = *scene[i].surface;
+    std::array<uint32_t, kRays> ends;
     for (int c = 0; c < kCells; ++c) {
         CellView& view = cells[c];
+        size_t m = 0;
         if (!surface.in_domain((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints)) continue;
         const SurfacePoint p = cell_centre(surface, c);
         view.light = direct_light(scene, emitters, caster, i, p, side);
@@ -173,123 +306,33 @@ std::vector<CellView> probe_side(const Scene& scene, const std::vector<int>& emi
                 continue;
             }
             view.others |= hit.surface != i;
-            if (scene[hit.surface].receiver) view.ends.push_back(end_cell(hit, dir));
+            if (scene[hit.surface].receiver) ends[m++] = end_cell(hit, dir);
         }
         view.asks = view.light == kNoLight;
-        if (!view.asks) {
-            std::vector<uint32_t>().swap(view.ends);
-            continue;
-        }
-        std::sort(view.ends.begin(), view.ends.end());
-        view.ends.erase(std::unique(view.ends.begin(), view.ends.end()), view.ends.end());
-        view.ends.shrink_to_fit();
+        if (!view.asks) continue;
+        std::sort(ends.begin(), ends.begin() + m);
+        view.ends = int32_t(records.size());
+        ReachedCells::encode(ends.data(), m, records);
     }
     return cells;
 }
 
-// What the checked ray ends see, each end's record the distinct receiving cells its probe rays
-// reach with their counts of rays. Most of the probe's memory at a thousand objects was these
-// records as (cell, rays) pairs of 4-byte words (21 kB a surface); a record here is a varint
-// count, then per cell the varint step from the previous cell id (sorted: an end's rays land on
-// a few surfaces, so steps are small) and its rays in a byte (at most kRays), padded to 4 bytes
-// so that an int32 indexes 8 GB. A record is dropped once its end carries light or its own cell
-// is lit (neither is asked again) and the pool compacted when half of it is dropped.
-class ReachedCells {
-public:
-    // Appends to `out` the record of the sorted cells[0, m), a cell repeated once per ray.
-    static void encode(const uint32_t* cells, size_t m, std::vector<uint8_t>& out) {
-        size_t distinct = 0;
-        for (size_t r = 0; r < m; ++r) distinct += r == 0 || cells[r] != cells[r - 1];
-        put(out, distinct);
-        uint32_t previous = 0;
-        for (size_t r = 0; r < m;) {
-            size_t next = r;
-            while (next < m && cells[next] == cells[r]) ++next;
-            put(out, cells[r] - previous);
-            out.push_back(uint8_t(next - r));
-            previous = cells[r];
-            r = next;
-        }
-    }
-    // f(cell, rays) for each cell of the record starting at `record` (an encoded one).
-    template <class F>
-    static void for_each(const uint8_t* record, F&& f) {
-        uint32_t count = uint32_t(get(record)), cell = 0;
-        for (uint32_t j = 0; j < count; ++j) {
-            cell += uint32_t(get(record));
-            f(cell, uint32_t(*record++));
-        }
-    }
-    // The bytes of the record starting at `record`.
-    static size_t size_of(const uint8_t* record) {
-        const uint8_t* at = record;
-        const size_t count = get(at);
-        for (size_t j = 0; j < count; ++j) get(at), ++at;
-        return size_t(at - record);
-    }
-
-    // Stores an encoded record; returns its index.
-    int32_t add(const uint8_t* record, size_t size) {
-        const size_t at = bytes_.size();
-        if (at / 4 > size_t(INT32_MAX)) throw std::length_error("the sides probe's record of what ray ends see passed 8 GB");
-        bytes_.insert(bytes_.end(), record, record + size);
-        bytes_.resize((bytes_.size() + 3) / 4 * 4);
-        return int32_t(at / 4);
-    }
-    const uint8_t* operator[](int32_t index) const { return bytes_.data() + 4 * size_t(index); }
-    void drop(int32_t index) { dropped_ += padded(size_of((*this)[index])); }
-    // Whether at least half of the pool (and a megabyte) is dropped records.
-    bool half_dropped() const { return dropped_ >= (1u << 20) && 2 * dropped_ >= bytes_.size(); }
-    // Moves the records still indexed into a new pool: for_each_index(g) calls g(index) on
-    // each index still held, by reference, which gets the record's new index. Returns the bytes
-    // the new pool holds (the old one's are held beside them until it is freed).
-    template <class ForEachIndex>
-    size_t compact(ForEachIndex&& for_each_index) {
-        std::vector<uint8_t> kept;
-        kept.reserve(bytes_.size() - dropped_);
-        for_each_index([&](int32_t& index) {
-            const uint8_t* record = (*this)[index];
-            const size_t size = padded(size_of(record));
-            const size_t at = kept.size();
-            kept.insert(kept.end(), record, record + size);
-            index = int32_t(at / 4);
-        });
-        bytes_.swap(kept);
-        dropped_ = 0;
-        return bytes_.capacity();
-    }
-    size_t capacity() const { return bytes_.capacity(); }
-
-private:
-    static size_t padded(size_t size) { return (size + 3) / 4 * 4; }
-    static void put(std::vector<uint8_t>& out, size_t value) {
-        for (; value >= 0x80; value >>= 7) out.push_back(uint8_t(value | 0x80));
-        out.push_back(uint8_t(value));
-    }
-    static size_t get(const uint8_t*& at) {
-        size_t value = 0;
-        for (int shift = 0;; shift += 7) {
-            const uint8_t byte = *at++;
-            value |= size_t(byte & 0x7f) << shift;
-            if (byte < 0x80) return value;
-        }
-    }
-    std::vector<uint8_t> bytes_;
-    size_t dropped_ = 0;
-};
+// The blocks of checked ray ends of cells (CellView::checked), in a deque: a vector would hold
+// up to twice what it needs as it grows.
+using CheckedEnds = std::deque<std::array<int32_t, kRays>>;
 
 // What the probe holds at its end, its peak: the cells' views with what their rays' ends see,
 // and each cell's reason. A heap block costs its capacity and about 16 bytes.
 size_t held_bytes(const std::vector<std::array<std::vector<CellView>, 2>>& views, const std::vector<Reason>& why,
-                  const std::vector<int32_t>& lit_as, const ReachedCells& seen) {
+                  const std::vector<int32_t>& lit_as, const ReachedCells& seen, const CheckedEnds& checks,
+                  const std::vector<int32_t>& free_checks) {
     constexpr size_t kBlock = 16;
     auto block = [](const auto& v) { return v.capacity() * sizeof(v[0]) + (v.capacity() ? kBlock : 0); };
-    size_t bytes = block(views) + block(why) + block(lit_as) + seen.capacity() + kBlock;
+    // A deque's blocks hold one block of checked ends each (512 bytes or less) and a pointer.
+    const size_t checked = checks.size() * (sizeof(checks[0]) + kBlock + sizeof(void*));
+    size_t bytes = block(views) + block(why) + block(lit_as) + seen.capacity() + kBlock + checked + block(free_checks);
     for (const auto& surface : views)
-        for (const std::vector<CellView>& cells : surface) {
-            bytes += block(cells);
-            for (const CellView& c : cells) bytes += block(c.checked) + block(c.ends);
-        }
+        for (const std::vector<CellView>& cells : surface) bytes += block(cells);
     return bytes;
 }
 
@@ -313,10 +356,33 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     if (probed.empty()) return out;
     const std::vector<int> emitters = scene.emitters();
     std::vector<std::array<std::vector<CellView>, 2>> views(n);
-    parallel_for(probed.size(), 1, settings.threads, [&](size_t begin, size_t end) {
-        for (size_t k = begin; k < end; ++k)
-            for (int side = 0; side < 2; ++side) views[probed[k]][side] = probe_side(scene, emitters, caster, probed[k], side);
-    });
+    // What checked ray ends see, and the cells' ends: see ReachedCells.
+    ReachedCells seen;
+    // The cells' blocks of checked ends (CellView::checked), those of lit cells free for others.
+    CheckedEnds checks;
+    std::vector<int32_t> free_checks;
+    // The sides in chunks, each surface's ends' records moved into `seen` after its chunk.
+    constexpr size_t kChunk = 256;
+    std::vector<std::vector<uint8_t>> records(kChunk);
+    for (size_t first = 0; first < probed.size(); first += kChunk) {
+        const size_t count = std::min(kChunk, probed.size() - first);
+        parallel_for(count, 1, settings.threads, [&](size_t begin, size_t end) {
+            for (size_t k = begin; k < end; ++k) {
+                records[k].clear();
+                for (int side = 0; side < 2; ++side)
+                    views[probed[first + k]][side] = probe_side(scene, emitters, caster, probed[first + k], side, records[k]);
+            }
+        });
+        for (size_t k = 0; k < count; ++k)
+            for (std::vector<CellView>& side : views[probed[first + k]])
+                for (CellView& view : side)
+                    if (view.ends >= 0) {
+                        const uint8_t* record = &records[k][size_t(view.ends)];
+                        view.ends = seen.add(record, ReachedCells::size_of(record));
+                    }
+    }
+    std::vector<uint8_t>().swap(records[0]);
+    records.clear();
     // Cells lit directly (or emitting), then cells that see a lit cell, to a fixed point; `why`
     // keeps what lit each first. Light is carried per cell rather than per side, so that only
     // where a side is lit lights others: the floor under a box standing on it (its rays end on
@@ -336,17 +402,17 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         for (int side = 0; side < 2; ++side)
             for (int c = 0; c < kCells; ++c) {
                 const size_t id = (2 * size_t(i) + side) * kCells + c;
-                const CellView& v = views[i][side][c];
+                CellView& v = views[i][side][c];
                 const bool emits = (side == 0 || (scene[i].material.two_sided_emission && !out[i].encloses_emission)) &&
                                    scene[i].material.emits();
                 if (emits) why[id].kind = Reason::kEmits;
                 else if (v.light != kNoLight) why[id] = {Reason::kDirect, v.light};
+                if (emits && v.ends >= 0) seen.drop(v.ends), v.ends = -1;  // never asked
             }
     // A ray's end carries light if its cell is lit and the point itself sees light directly or
     // sees a lit cell (a cell lit at its centre may be dark where the ray ends). What a checked
     // end sees is kept as the distinct cells its rays reach, each with its count of rays, in
     // `seen`.
-    ReachedCells seen;
     // The order in which the fixed point lit each cell (1, 2, ...; 0: lit from the start or dark).
     std::vector<int32_t> lit_as(why.size(), 0);
     int32_t lit_count = 0;
@@ -355,14 +421,12 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     auto changed_for = [&](const CellView& view) {
         if (view.asked_at < 0) return true;
         auto after = [&](uint32_t id) { return lit_as[id] > view.asked_at; };
-        if (std::any_of(view.ends.begin(), view.ends.end(), after)) return true;
-        for (const int32_t checked : view.checked) {
-            if (checked < 0) continue;
-            bool changed = false;
-            ReachedCells::for_each(seen[checked], [&](uint32_t cell, uint32_t) { changed |= after(cell); });
-            if (changed) return true;
-        }
-        return false;
+        bool changed = false;
+        if (view.ends >= 0) ReachedCells::for_each(seen[view.ends], [&](uint32_t cell, uint32_t) { changed |= after(cell); });
+        for (int k = 0; view.checked >= 0 && k < kRays && !changed; ++k)
+            if (const int32_t checked = checks[size_t(view.checked)][k]; checked >= 0)
+                ReachedCells::for_each(seen[checked], [&](uint32_t cell, uint32_t) { changed |= after(cell); });
+        return changed;
     };
     // What the end h of a ray, in cell `end`, sees: true if light directly (the world's through
     // any of its rays); else appends to `out` the record of the cells its rays reach.
@@ -389,12 +453,26 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         ReachedCells::for_each(record, [&](uint32_t cell, uint32_t count) { rays += lit(cell) ? count : 0; });
         return rays >= kRaysToCarry;
     };
+    // The block of a view's checked ends, one allocated if it has none.
+    auto checks_of = [&](CellView& view) {
+        if (view.checked < 0) {
+            if (!free_checks.empty()) {
+                view.checked = free_checks.back();
+                free_checks.pop_back();
+            } else {
+                if (checks.size() >= size_t(INT32_MAX)) throw std::length_error("the sides probe's checked ray ends passed its index");
+                view.checked = int32_t(checks.size());
+                checks.emplace_back();
+            }
+            checks[size_t(view.checked)].fill(kNotChecked);
+        }
+        return checks[size_t(view.checked)].data();
+    };
     // Whether the end h of ray k of a cell's view, in cell `end`, carries light.
     std::vector<uint8_t> record;
     auto carries_light = [&](CellView& view, int k, uint32_t end, const SurfaceHit& h) {
         if (!lit(end)) return false;
-        if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
-        int32_t& checked = view.checked[k];
+        int32_t& checked = checks_of(view)[k];
         if (checked == kNotChecked) {
             record.clear();
             checked = check_end(end, h, record) ? kCarries : seen.add(record.data(), record.size());
@@ -456,7 +534,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                 cell_rays(cell.i, cell.side, cell.c, [&](int k, const SurfaceHit& hit, uint32_t end) {
                     ends[d].push_back({k, end, hit.surface, hit.u, hit.v});
                     if (!lit(end)) return false;
-                    const int32_t checked = view.checked.empty() ? kNotChecked : view.checked[k];
+                    const int32_t checked = view.checked < 0 ? kNotChecked : checks[size_t(view.checked)][k];
                     bool carries = checked == kCarries || (checked >= 0 && reaches_lit(seen[checked]));
                     if (checked == kNotChecked) {
                         out.push_back(uint8_t(k));
@@ -473,15 +551,14 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             CellView& view = views[window[d].i][window[d].side][window[d].c];
             const std::vector<uint8_t>& records = found[d];
             for (size_t r = 0; r < records.size();) {
-                if (view.checked.empty()) view.checked.assign(kRays, kNotChecked);
-                const int k = records[r];
+                int32_t& checked = checks_of(view)[records[r]];
                 if (records[r + 1]) {
-                    view.checked[k] = kCarries;
+                    checked = kCarries;
                     r += 2;
                     continue;
                 }
                 const size_t size = ReachedCells::size_of(&records[r + 2]);
-                view.checked[k] = seen.add(&records[r + 2], size);
+                checked = seen.add(&records[r + 2], size);
                 r += 2 + size;
             }
         }
@@ -523,18 +600,24 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                 cell_rays(cell.i, cell.side, cell.c, visit);  // asked since the window was fetched
             }
             if (lit(id)) {  // never asked again
-                std::vector<uint32_t>().swap(view.ends);
-                for (const int32_t checked : view.checked)
-                    if (checked >= 0) seen.drop(checked);
-                std::vector<int32_t>().swap(view.checked);
-                if (seen.half_dropped()) {
-                    const size_t before = held_bytes(views, why, lit_as, seen);
-                    peak = std::max(peak, before + seen.compact([&](auto&& move) {
+                if (view.ends >= 0) seen.drop(view.ends);
+                view.ends = -1;
+                if (view.checked >= 0) {
+                    for (int k = 0; k < kRays; ++k)
+                        if (const int32_t checked = checks[size_t(view.checked)][k]; checked >= 0) seen.drop(checked);
+                    free_checks.push_back(view.checked);
+                    view.checked = -1;
+                }
+                if (seen.mostly_dropped()) {
+                    const size_t held = held_bytes(views, why, lit_as, seen, checks, free_checks);
+                    peak = std::max(peak, held + seen.compact([&](auto&& move) {
                         for (int j : probed)
                             for (auto& cells_of_side : views[j])
-                                for (CellView& other : cells_of_side)
-                                    for (int32_t& checked : other.checked)
-                                        if (checked >= 0) move(checked);
+                                for (CellView& other : cells_of_side) {
+                                    if (other.ends >= 0) move(other.ends);
+                                    for (int k = 0; other.checked >= 0 && k < kRays; ++k)
+                                        if (int32_t& checked = checks[size_t(other.checked)][k]; checked >= 0) move(checked);
+                                }
                     }));
                 }
             }
@@ -566,7 +649,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                                        ? "emits, but only into itself (the inside of a closed mesh)"
                                        : escaped ? "sees no light" : "sees no light (the inside of a closed mesh?)";
         }
-    if (bytes) *bytes = std::max(peak, held_bytes(views, why, lit_as, seen));
+    if (bytes) *bytes = std::max(peak, held_bytes(views, why, lit_as, seen, checks, free_checks));
     return out;
 }
 

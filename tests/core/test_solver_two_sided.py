@@ -308,11 +308,11 @@ def test_probe_of_the_furnished_interior_and_its_bytes():
     per_surface = held / len(scene)
     print(f"\nsides probe of the interior at 30 objects ({len(scene)} surfaces): {per_surface / 1e3:.1f} kB a surface")
     record(probe_interior_30_bytes_per_surface=per_surface)
-    # Measured 2026-12-02: 27.1 kB a surface, keeping per dark cell the distinct cells its rays
-    # end in (21.1 kB without them, when every dark cell was asked again at every pass; 41.6 kB
-    # holding each ray's end as a 4-byte cell id, 131 kB as 24 bytes with each end asked the
-    # cells its 72 rays reach, 4 bytes each).
-    assert per_surface < 42e3
+    # Measured 2026-12-05: 8.1 kB a surface, what ray ends see and where dark cells' rays end as
+    # varint records in a pool of 64 kB chunks, dropped once not asked again (24.7 kB as
+    # 4-byte words in growing vectors; 27.1 kB on 2 December, 41.6 kB holding each ray's end as
+    # a 4-byte cell id, 131 kB as 24 bytes with each end asked the cells its 72 rays reach).
+    assert per_surface < 16e3
 
 
 def test_sides_probed_once_serve_the_estimate_and_the_solve():
