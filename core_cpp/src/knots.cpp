@@ -99,6 +99,14 @@ void KnotVector::validate() const {
     if (!(domain_end() > domain_begin())) fail("empty parameter domain [t_d, t_n]");
 }
 
+size_t KnotVector::bytes(int num_coeffs, int degree) {
+    constexpr size_t kBlock = 16;
+    const size_t d = size_t(std::max(degree, 0)), n = std::max(size_t(std::max(num_coeffs, 0)), d + 1), spans = n - d;
+    // knots_, span_poly_ (padded by 4, as precompute makes it) and span_inv_width_
+    return sizeof(KnotVector) + (n + d + 1) * sizeof(double) + (spans * (d + 1) * (d + 1) + 4) * sizeof(double) +
+           spans * sizeof(double) + 3 * kBlock;
+}
+
 void KnotVector::precompute() {
     const int d = degree_, n = num_basis(), P = d + 1;
     last_span_ = n - 1;

@@ -223,12 +223,23 @@ size_t set_bytes(const Plan& p, Precision precision = Precision::Float64) {
     return p.coefficients() * 3 * value + size_t(p.sides) * (sizeof(TensorSpline) + 64);
 }
 
-// A receiver's nodes: their grid (SpatialNodes).
-size_t node_bytes(const Plan& p) { return size_t(p.nu + p.nv) * sizeof(double); }
+// A receiver's nodes: their grid (SpatialNodes, two heap blocks) and the nodes moved out from
+// under closed meshes (move_hidden_nodes), kept in a map: about 12 bytes a node over the
+// furnished interior's receivers, measured at 300 and 2,000 objects with 3 x 3 to 12 x 12 nodes.
+size_t node_bytes(const Plan& p) { return size_t(p.nu + p.nv) * sizeof(double) + 32 + size_t(p.nu) * p.nv * 12; }
 
-size_t plan_bytes(const Plan& p) {
-    // Three spline sets (Le, L, Ltmp), plus the nodes.
-    return 3 * set_bytes(p) + node_bytes(p);
+// A receiver besides its spline sets and nodes: the object, the axes its splines share (in a
+// shared vector) and a glossy one's angular node directions.
+size_t receiver_bytes(const Plan& p, const SolverSettings& s) {
+    size_t bytes = sizeof(Receiver) + 64 + KnotVector::bytes(p.nu, s.spatial_degree) + KnotVector::bytes(p.nv, s.spatial_degree);
+    if (p.kind != Representation::Diffuse)
+        bytes += 2 * KnotVector::bytes(p.na, s.angular_degree) + size_t(p.na) * p.na * sizeof(Vec3) + 16;
+    return bytes;
+}
+
+size_t plan_bytes(const Plan& p, const SolverSettings& s) {
+    // Three spline sets (Le, L, Ltmp), the nodes and the receiver.
+    return 3 * set_bytes(p) + node_bytes(p) + receiver_bytes(p, s);
 }
 
 // `detail`: per scene surface, the coefficients its direct light asks for (empty: none probed).
@@ -513,9 +524,15 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
         r.per_node = r.directions.size();
     }
     // A side not solved keeps a single zero coefficient (degree 0), which every lookup reads as 0.
-    // The spline sets share their axes.
-    const auto solved = std::make_shared<const std::vector<KnotVector>>(axes);
-    const auto none = std::make_shared<const std::vector<KnotVector>>(axes.size(), KnotVector::clamped_uniform(1, 0, 0.0, 1.0));
+    // The spline sets share their axes (a knot vector of a dozen coefficients holds about a
+    // kilobyte with its span polynomials: copies a receiver cost what its coefficients do), and
+    // all unsolved sides one set of them.
+    auto unsolved = [](size_t dims) {
+        return std::make_shared<const std::vector<KnotVector>>(dims, KnotVector::clamped_uniform(1, 0, 0.0, 1.0));
+    };
+    static const std::shared_ptr<const std::vector<KnotVector>> none_2d = unsolved(2), none_4d = unsolved(4);
+    const auto solved = std::make_shared<const std::vector<KnotVector>>(std::move(axes));
+    const auto& none = solved->size() == 4 ? none_4d : none_2d;
     for (int side = 0; side < r.sides; ++side) {
         const auto& a = r.live[side] ? solved : none;
         r.Le.emplace_back(a, 3);
@@ -523,7 +540,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
         r.L.emplace_back(a, 3);
         r.Ltmp.emplace_back(a, 3);
     }
-    r.axes = axes;
+    r.axes = solved;
     r.nodes = SpatialNodes(nodes_beside_jumps(ku), nodes_beside_jumps(kv));
     return r;
 }
@@ -549,7 +566,7 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
                     if (r.solves(side) && gather.enclosed(p, side, receiver_of, local)) return true;
                 return false;
             };
-            const std::vector<double> us = r.axes[0].schoenberg_nodes(), vs = r.axes[1].schoenberg_nodes();
+            const std::vector<double> us = (*r.axes)[0].schoenberg_nodes(), vs = (*r.axes)[1].schoenberg_nodes();
             std::vector<uint8_t> is_hidden(r.nodes.size());
             size_t count = 0;
             for (size_t j = 0; j < r.nodes.size(); ++j) count += is_hidden[j] = hidden(gather.node_point(r, j));
@@ -638,7 +655,7 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
             for (size_t k = begin + b; k < begin + e; ++k) {
                 if (!skip.empty() && skip[k]) continue;
                 Receiver& r = receivers[k];
-                const std::vector<double> nodes[2] = {nodes_beside_jumps(r.axes[0]), nodes_beside_jumps(r.axes[1])};
+                const std::vector<double> nodes[2] = {nodes_beside_jumps((*r.axes)[0]), nodes_beside_jumps((*r.axes)[1])};
                 for (int side = 0; side < r.sides; ++side) {
                     if (!r.solves(side)) continue;
                     // A Float32 set (a regather's correction) is sharpened in float64, one
@@ -987,15 +1004,31 @@ double final_density(const Scene& scene, const SolverSettings& s, int i) {
     return double(s.final_integration_factor) * scene[i].options.integration_factor;
 }
 
-// What a solve holds from its start to its end: the ray caster (a 64-byte record and about as
-// much BVH a triangle, and an Embree geometry a surface, about 1 kB: 410 MB for the 350,000
-// quads of the interior of 50,000 objects), the gather's copy of the scene, the plans and the
-// sides (about 8 kB a receiver, measured on the furnished interior).
-size_t fixed_bytes(const Scene& scene, const std::vector<Plan>& plans) {
+// The fields of an error check's record (SolveSteps::State::CheckField).
+constexpr int kCheckFields = 9;
+
+// The error estimate's checks of a receiver of this many nodes: error_checks, but no more than a
+// quarter of its nodes, in fours (each four has an input check and a doubled-nodes one), and at
+// least 16: 48 checks on a book's face of 8 x 8 final nodes cost more than its final gather; 16
+// say its relative RMS error to about 1/sqrt(32), 18%, against a factor of two asked of the
+// estimate.
+size_t error_checks_of(size_t nodes, const SolverSettings& s) {
+    constexpr size_t kFewestChecks = 16;
+    const size_t quarter = (nodes / 4 + 3) / 4 * 4;
+    return std::min(size_t(s.error_checks), std::max(kFewestChecks, quarter));
+}
+
+// What a solve holds from its start to its end besides its receivers: the ray caster (a 64-byte
+// record and about as much BVH a triangle, and an Embree geometry a surface, about 1 kB: 410 MB
+// for the 350,000 quads of the interior of 50,000 objects), and per scene surface the gather's
+// copy of it, its plans and its sides (768 bytes: the solve's state less its receivers and ray
+// caster, 0.6-0.8 kB a surface on the furnished interior at 300 and 2,000 objects, measured
+// with mallinfo2; it was counted as 8 kB a receiver with the receivers' axes copied thrice).
+size_t fixed_bytes(const Scene& scene) {
     size_t triangles = 0, occluders = 0;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
-    return triangles * 128 + occluders * 1024 + plans.size() * 8192;
+    return triangles * 128 + occluders * 1024 + scene.size() * 768;
 }
 
 // The bytes a local solve of these plans (and final plans) allocates after the sides probe, at
@@ -1007,14 +1040,14 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
     size_t coarse = 0, resident = 0, rows = 0, fine = 0, correction = 0, fine_nodes = 0;
     for (const Plan& p : plans) {
         coarse += set_bytes(p);
-        resident += plan_bytes(p);
+        resident += plan_bytes(p, settings);
         // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
         if (settings.form_factors && p.kind == Representation::Diffuse)
             rows += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
                     (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
     for (const Plan& p : final_plans)
-        fine += set_bytes(p), correction += set_bytes(p, Precision::Float32), fine_nodes += node_bytes(p);
+        fine += set_bytes(p), correction += set_bytes(p, Precision::Float32), fine_nodes += node_bytes(p) + receiver_bytes(p, settings);
     // The local solve gathers each phase from the splines that hold its input (a runner's packed
     // copy of it is not counted). A bounce holds its packed output; with settle_factor, the pairs
     // of increments of receivers that may settle as well (at most a set).
@@ -1030,25 +1063,30 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
                                                    (settings.final_passes > 2 ? fine : 0) + fine_nodes;
     const size_t freed = final_plans.empty() ? 0 : coarse;
     // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
-    // the final gather's density; the error estimate's second gatherer keeps its own at twice
-    // that, but only after the final gather's packed copies are freed (measured: on the interior
-    // at 10 objects the estimate does not raise the peak the final gather set).
-    auto tables_at = [&](double factor) {
-        size_t table = 0;
-        for (const Plan& p : plans) {
-            if (p.kind == Representation::Diffuse) continue;
-            const bool transmits = p.bsdf->transmits();
-            const double density = factor * (settings.final_gather ? std::max(1.0, final_density(scene, settings, p.surface)) : 1.0);
-            const size_t incoming = size_t(transmits ? 2 : 1) * nodes_along(settings.hemisphere_nodes_theta, density) *
-                                    nodes_along(settings.hemisphere_nodes_phi, density);
-            table = std::max(table, ScatterTable::bytes(size_t(transmits ? p.sides : 1) * p.na * p.na, incoming,
-                                                        nodes_along(settings.bsdf_samples, density)));
-        }
-        return size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
-    };
-    resident += tables_at(1);
-    const size_t estimate = settings.estimate_error ? tables_at(2) : 0;
-    return fixed_bytes(scene, plans) + resident +
+    // the final gather's density. (The error estimate's gatherer at twice that density gathers a
+    // check's few directions at a time: its tables are small. Counted as the largest tables at
+    // twice the density, the estimate was 1.9 times the peak measured at 10 objects.)
+    size_t table = 0;
+    for (const Plan& p : plans) {
+        if (p.kind == Representation::Diffuse) continue;
+        const bool transmits = p.bsdf->transmits();
+        const double density = settings.final_gather ? std::max(1.0, final_density(scene, settings, p.surface)) : 1.0;
+        const size_t incoming = size_t(transmits ? 2 : 1) * nodes_along(settings.hemisphere_nodes_theta, density) *
+                                nodes_along(settings.hemisphere_nodes_phi, density);
+        table = std::max(table, ScatterTable::bytes(size_t(transmits ? p.sides : 1) * p.na * p.na, incoming,
+                                                    nodes_along(settings.bsdf_samples, density)));
+    }
+    resident += size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
+    // The error estimate reads the result (the finals, if any; the correction is freed) and
+    // keeps per result receiver its checks' record (a count and kCheckFields doubles a check),
+    // and while gathering them the checks' points, then their input errors.
+    size_t records = 0;
+    for (const Plan& p : final_plans.empty() ? plans : final_plans) {
+        const size_t checks = error_checks_of(size_t(p.nu) * p.nv, settings);
+        records += (1 + (kCheckFields + 3 + 1) * checks) * sizeof(double) + 48;
+    }
+    const size_t estimate = settings.estimate_error ? records + (final_plans.empty() ? 0 : fine + fine_nodes) : 0;
+    return fixed_bytes(scene) + resident +
            std::max(bounce, std::max(final, estimate) - std::min(freed, std::max(final, estimate)));
 }
 
@@ -1076,7 +1114,7 @@ size_t estimate_solve_bytes(const Scene& scene, const SolverSettings& settings, 
                                                               : std::vector<Plan>{});
     // The probe runs beside what the whole solve holds; its memory is freed before the receivers
     // are made.
-    return std::max(probe ? probe + fixed_bytes(scene, plans) : 0, solve);
+    return std::max(probe ? probe + fixed_bytes(scene) : 0, solve);
 }
 
 namespace {
@@ -1298,6 +1336,7 @@ struct SolveSteps::State {
     // Whether the receivers hold the converged coarse light Le that the finals are planned from.
     bool coarse_light = false;
     std::vector<const Receiver*> receiver_of, final_of;
+    std::vector<size_t> checks_before_;  // see checks_before()
     // With form factors, Lambertian receivers keep their rows of the transport operator. A row's
     // weights are scalars: they cannot carry the colour of a textured surface its rays hit.
     bool rows_possible = false;
@@ -1348,12 +1387,12 @@ struct SolveSteps::State {
         if (bytes <= settings.memory_budget_mb * 1024 * 1024) return;
         const Plan* largest = nullptr;
         for (const Plan& p : of)
-            if (!largest || plan_bytes(p) > plan_bytes(*largest)) largest = &p;
+            if (!largest || plan_bytes(p, settings) > plan_bytes(*largest, settings)) largest = &p;
         std::ostringstream msg;
         msg << "solve needs about " << bytes / (1024 * 1024) << " MB, over the budget of " << settings.memory_budget_mb << " MB";
         if (largest)
             msg << "; the largest is surface '" << scene[largest->surface].surface->name() << "' with "
-                << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest) / (1024 * 1024) << " MB: "
+                << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest, settings) / (1024 * 1024) << " MB: "
                 << largest->reason << ")";
         throw std::runtime_error(msg.str());
     }
@@ -1427,22 +1466,28 @@ struct SolveSteps::State {
     std::vector<Receiver>& estimated() { return settings.final_gather ? finals : receivers; }
     bool plans_from_detail() const { return settings.coeffs_from_size && settings.detail_tolerance > 0; }
     // A receiver's record of the first pass: the count of its checks, then per check these
-    // fields (weighted sums over its visible values, and where it lies).
-    enum CheckField { Fit, CoarseFit, Integration, Radiance, Values, U, V, Weight, Visible, kCheckFields };
-    size_t record_size() const { return 1 + size_t(kCheckFields) * size_t(settings.error_checks); }
+    // fields (weighted sums over its visible values, and where it lies), as many as checks_of
+    // gives it (a book's face 16 where the floor has 48: records of error_checks each held
+    // 3.5 kB a surface, most of the estimate's memory on a large interior).
+    enum CheckField { Fit, CoarseFit, Integration, Radiance, Values, U, V, Weight, Visible, kFields };
+    static_assert(kFields == kCheckFields);
+    // Checks of the estimated receivers before each (and all, last): receiver k's record starts
+    // at k + kCheckFields * before[k] of all receivers' records, its input errors at before[k].
+    const std::vector<size_t>& checks_before() {
+        if (checks_before_.empty()) {
+            const std::vector<Receiver>& result = estimated();
+            checks_before_.assign(result.size() + 1, 0);
+            for (size_t k = 0; k < result.size(); ++k) checks_before_[k + 1] = checks_before_[k] + checks_of(result[k]);
+        }
+        return checks_before_;
+    }
+    size_t record_at(size_t k) { return k + size_t(kCheckFields) * checks_before()[k]; }
+    size_t checks_in(size_t k) { return checks_before()[k + 1] - checks_before()[k]; }
     // Every other check measures the input's error, every fourth also gathers at doubled
     // integration nodes (four times the rays): spread over the surface as all of them are.
     static bool input_check(size_t i) { return i % 2 == 0; }
     static bool fine_check(size_t i) { return i % 4 == 0; }
-    // A receiver's checks: error_checks, but no more than a quarter of its nodes, in fours (each
-    // four has an input check and a doubled-nodes one), and at least kFewestChecks: 48 checks on
-    // a book's face of 8 x 8 final nodes cost more than its final gather; 16 say its relative
-    // RMS error to about 1/sqrt(32), 18%, against a factor of two asked of the estimate.
-    static constexpr size_t kFewestChecks = 16;
-    size_t checks_of(const Receiver& r) const {
-        const size_t quarter = (r.nodes.size() / 4 + 3) / 4 * 4;
-        return std::min(size_t(settings.error_checks), std::max(kFewestChecks, quarter));
-    }
+    size_t checks_of(const Receiver& r) const { return error_checks_of(r.nodes.size(), settings); }
     std::vector<size_t> checks_of_all() {
         std::vector<size_t> n;
         for (const Receiver& r : estimated()) n.push_back(checks_of(r));
@@ -1525,13 +1570,16 @@ struct SolveSteps::State {
         rays += counted;
     }
 
-    // The first pass for receivers [begin, end) of estimated(): their records (record_size()
-    // each). At each check the spline (and the coarse one) against the last phase's gather, and
+    // The first pass for receivers [begin, end) of estimated(): their records (each
+    // 1 + kCheckFields * checks_of). At each check the spline (and the coarse one) against the last phase's gather, and
     // the gather at doubled nodes against the phase's.
     std::vector<double> estimate_checks(size_t begin, size_t end, Progress& progress, size_t& rays) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
         const std::vector<Receiver>& result = estimated();
-        const size_t size = record_size();
+        // Receiver begin + k's record in these receivers' records.
+        const size_t first = record_at(begin);
+        std::vector<size_t> at(end - begin + 1);
+        for (size_t k = 0; k <= end - begin; ++k) at[k] = record_at(begin + k) - first;
         // The others' splines a gather read err (the contact shadows blurred over a coarse grid),
         // and that error enters each surface's light through its gather, where its own splines
         // cannot show it: it is measured from the others' coarse and final splines (estimate_inputs).
@@ -1540,7 +1588,7 @@ struct SolveSteps::State {
         // checked from the result's.
         const bool regathered = settings.final_gather && settings.final_passes > 1;
         const std::vector<const Receiver*>& last_of = regathered ? result_of : receiver_of;
-        std::vector<double> records((end - begin) * size, 0.0);
+        std::vector<double> records(at.back(), 0.0);
         std::vector<std::vector<CheckPoint>> points(end - begin);
         std::atomic<size_t> candidate_rays{0};
         parallel_for(end - begin, 1, settings.threads, [&](size_t b, size_t e) {
@@ -1554,7 +1602,7 @@ struct SolveSteps::State {
                     const SurfacePoint p = surface.evaluate(u, v);
                     return behind(p.p, p.frame.z, p.frame.z * side, local);
                 });
-                records[k * size] = double(points[k].size());
+                records[at[k]] = double(points[k].size());
             }
             candidate_rays += local;
         }, progress.cancel_flag());
@@ -1593,7 +1641,7 @@ struct SolveSteps::State {
                 I = regathered || !settings.final_gather ? G : values_of(r, u, v, dirs, gather_from(*gather, result_of, local));
             }
             const uint16_t visible = visible_values(r, p, dirs, local);
-            double* c = &records[k * size + 1 + i * kCheckFields];
+            double* c = &records[at[k] + 1 + i * kCheckFields];
             c[U] = u, c[V] = v, c[Weight] = weight, c[Visible] = visible;
             for (size_t x = 0; x < 2 * dirs.size(); ++x) {
                 const double share = value_weight(r, weight, visible, x);
@@ -1617,14 +1665,13 @@ struct SolveSteps::State {
     // taken as at most 1/2 (first order, as at a contact shadow): nearer 1 the difference is noise.
     std::vector<double> input_scales(const std::vector<double>& records) {
         const std::vector<Receiver>& result = estimated();
-        const size_t n = size_t(settings.error_checks), size = record_size();
         const bool regathered = settings.final_gather && settings.final_passes > 1;
         std::vector<double> scale(scene.size(), 1.0);
         for (size_t k = 0; k < result.size(); ++k) {
             if (result[k].is_partner) continue;
             double fine = 0, coarse = 0;
-            for (size_t i = 0; i < n; ++i) {
-                const double* c = &records[k * size + 1 + i * kCheckFields];
+            for (size_t i = 0; i < checks_in(k); ++i) {
+                const double* c = &records[record_at(k) + 1 + i * kCheckFields];
                 fine += c[Fit], coarse += c[CoarseFit];
             }
             const double r = coarse > 0 ? std::min(std::sqrt(fine / coarse), 0.5) : 0.5;
@@ -1634,25 +1681,27 @@ struct SolveSteps::State {
     }
 
     // The second pass (with a final gather) for receivers [begin, end) of estimated(): per
-    // check (n each, 0 where none), the input's error: the others' finals less their coarse
+    // check (checks_of each, 0 where none), the input's error: the others' finals less their coarse
     // splines, gathered, each surface's weighted by `scale` (input_scales). `records`: the first
     // pass's of all receivers, which say where the checks lie and what they see.
     std::vector<double> estimate_inputs(size_t begin, size_t end, const double* scale, const double* records,
                                         Progress& progress, size_t& rays) {
         const std::vector<Receiver>& result = estimated();
-        const size_t n = size_t(settings.error_checks), size = record_size();
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
         const std::vector<double> input_scale(scale, scale + scene.size());
-        std::vector<double> inputs((end - begin) * n, 0.0);
+        const std::vector<size_t>& before = checks_before();
+        std::vector<size_t> record(end - begin);
+        for (size_t k = 0; k < end - begin; ++k) record[k] = record_at(begin + k);
+        std::vector<double> inputs(before[end] - before[begin], 0.0);
         for_each_check(begin, end, progress, rays, [&](size_t k, size_t i, const Receiver& r, size_t& local) {
-            const double* c = &records[(begin + k) * size + 1 + i * kCheckFields];
-            if (i >= size_t(records[(begin + k) * size]) || !input_check(i)) return;
+            const double* c = &records[record[k] + 1 + i * kCheckFields];
+            if (i >= size_t(records[record[k]]) || !input_check(i)) return;
             const std::vector<Vec3> dirs = check_directions(i);
             const std::vector<Vec3> E = values_of(r, c[U], c[V], dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
                 gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
             });
             for (size_t x = 0; x < 2 * dirs.size(); ++x)
-                inputs[k * n + i] += value_weight(r, c[Weight], uint16_t(c[Visible]), x) * squared(E[value_index(x, E.size() / 2)]);
+                inputs[before[begin + k] - before[begin] + i] += value_weight(r, c[Weight], uint16_t(c[Visible]), x) * squared(E[value_index(x, E.size() / 2)]);
         });
         return inputs;
     }
@@ -1664,16 +1713,15 @@ struct SolveSteps::State {
     std::vector<double> estimate_errors(const std::vector<double>& records, const std::vector<double>& inputs,
                                         const std::vector<double>& tail, std::vector<std::array<double, 4>>& parts) {
         const std::vector<Receiver>& result = estimated();
-        const size_t n = size_t(settings.error_checks), size = record_size();
         std::vector<double> errors(result.size(), std::nan(""));
         for (size_t k = 0; k < result.size(); ++k) {
             if (result[k].is_partner) continue;
             // Sums over the checks: all of them, the input's, the doubled nodes'.
             double fit = 0, radiance = 0, values = 0, input = 0, input_values = 0, integration = 0, fine_values = 0;
-            for (size_t i = 0; i < n; ++i) {
-                const double* c = &records[k * size + 1 + i * kCheckFields];
+            for (size_t i = 0; i < checks_in(k); ++i) {
+                const double* c = &records[record_at(k) + 1 + i * kCheckFields];
                 fit += c[Fit], radiance += c[Radiance], values += c[Values];
-                if (input_check(i)) input += inputs.empty() ? 0.0 : inputs[k * n + i], input_values += c[Values];
+                if (input_check(i)) input += inputs.empty() ? 0.0 : inputs[checks_before()[k] + i], input_values += c[Values];
                 if (fine_check(i)) integration += c[Integration], fine_values += c[Values];
             }
             // Emission leaves the front side (and the back where two-sided) on top of the spline.
@@ -1710,14 +1758,27 @@ struct SolveSteps::State {
             throw std::invalid_argument("solve step: without a final gather the error estimate has no input pass");
         if (!settled.empty()) throw std::invalid_argument("solve step: only a bounce's receivers settle");
         const size_t coarse_size = settings.final_gather ? packed_size(receivers, 0, receivers.size(), &Receiver::Le) : 0;
-        // The finals count as many receivers as the coarse ones (each surface's parts alike).
-        const size_t extra = phase == SolveSteps::Phase::EstimateInput ? scene.size() + receivers.size() * record_size() : 0;
+        // The input pass's input ends with the checks pass's records of all receivers and their
+        // count (the records' length follows from the finals, which may be planned from the
+        // coarse Le before them).
+        size_t extra = 0, records = 0;
+        if (phase == SolveSteps::Phase::EstimateInput) {
+            const double count = input.size ? input.data[input.size - 1] : -1.0;
+            if (!(count >= 0 && count + 1 + double(scene.size()) <= double(input.size) && count == std::floor(count)))
+                throw std::invalid_argument("solve step: the error estimate's input pass ends with the count of its records, given " +
+                                            std::to_string(count));
+            records = size_t(count);
+            extra = scene.size() + records + 1;
+        }
         finals_from_input(input, extra, "the error estimate's pass", progress);
         std::vector<Receiver>& result = estimated();
         if (begin > end || end > result.size())
             throw std::invalid_argument("solve step: receivers " + std::to_string(begin) + " to " + std::to_string(end) +
                                         " out of " + std::to_string(result.size()));
         const size_t result_size = packed_size(result, 0, result.size(), &Receiver::Le);
+        if (phase == SolveSteps::Phase::EstimateInput && records != record_at(result.size()))
+            throw std::invalid_argument("solve step: the error estimate's checks have " + std::to_string(record_at(result.size())) +
+                                        " record values, given " + std::to_string(records));
         if (input.size != result_size + coarse_size + extra)
             throw std::invalid_argument("solve step: the error estimate's pass reads " + std::to_string(result_size + coarse_size + extra) +
                                         " values, given " + std::to_string(input.size));
@@ -2068,11 +2129,12 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
                                                   : st.estimate_inputs(0, result.size(), scale.data(), records.data(), progress, counted);
             std::vector<double> input;
             input.reserve(packed_size(result, 0, result.size(), &Receiver::Le) +
-                          (settings.final_gather ? packed_size(receivers, 0, all, &Receiver::Le) : 0) + scale.size() + records.size());
+                          (settings.final_gather ? packed_size(receivers, 0, all, &Receiver::Le) : 0) + scale.size() + records.size() + 1);
             pack_onto(input, result, 0, result.size(), &Receiver::Le);
             if (settings.final_gather) pack_onto(input, receivers, 0, all, &Receiver::Le);
             input.insert(input.end(), scale.begin(), scale.end());
             input.insert(input.end(), records.begin(), records.end());
+            if (p == Phase::EstimateInput) input.push_back(double(records.size()));  // see estimate_step
             std::vector<double> out = run(p, input, checks, counted);
             progress.throw_if_cancelled();
             return out;

@@ -146,15 +146,27 @@ def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_a
     scene, s = room(), settings(final_passes=2, final_spatial_factor=2, late_bounces_after=late_bounces_after)
     local = bsgi.solve(scene, s)
     worker = bsgi.SolveSteps(scene, s, bsgi.Progress())
-    phases = []
+    phases, records = [], [None]
 
     def runner(phase, coefficients, nodes):
         phases.append(phase)
         half = len(nodes) // 2
         second = np.zeros_like(coefficients) if unpacked and phase != "estimate input" else coefficients
+        if phase == "estimate input":
+            # It ends with the count of the checks pass's records, which must be what the finals' checks hold.
+            assert coefficients[-1] == records[0]
+            wrong = np.array(coefficients)
+            wrong[-1] -= 1
+            with pytest.raises(ValueError, match=r"the error estimate's checks have \d+ record values, given \d+"):
+                worker.gather(phase, 0, half, wrong, bsgi.Progress())
         parts = [worker.gather(phase, 0, half, coefficients, bsgi.Progress()),
                  worker.gather(phase, half, len(nodes), second, bsgi.Progress(), unpacked=unpacked)]
-        return np.concatenate([p[0] for p in parts]), sum(p[1] for p in parts)
+        out = np.concatenate([p[0] for p in parts])
+        if phase == "estimate checks":
+            # A receiver's record: its count of checks (`nodes` here), then 9 fields a check.
+            assert len(out) == sum(1 + 9 * c for c in nodes)
+            records[0] = len(out)
+        return out, sum(p[1] for p in parts)
 
     steps = bsgi.SolveSteps(scene, s, bsgi.Progress())
     assert_same_coefficients(local, steps.solve(bsgi.Progress(), runner))
@@ -340,6 +352,8 @@ def test_solve_steps_check_what_they_are_given():
         two.gather("estimate checks", 0, 1, np.zeros(7), bsgi.Progress())
     with pytest.raises(ValueError, match="has no input pass"):
         steps.gather("estimate input", 0, 1, np.zeros(0), bsgi.Progress())
+    with pytest.raises(ValueError, match="ends with the count of its records"):
+        two.gather("estimate input", 0, 1, np.full(7, 0.5), bsgi.Progress())
     with pytest.raises(ValueError, match="estimate no error"):
         bsgi.SolveSteps(scene, settings(estimate_error=False), bsgi.Progress()).gather("estimate checks", 0, 1, np.zeros(0),
                                                                                        bsgi.Progress())

@@ -75,7 +75,7 @@ struct Receiver {
     std::vector<Vec3> directions;     // outgoing local directions of the angular nodes, upper side
     size_t per_node = 1;              // angular nodes per spatial node (1 if diffuse)
     std::vector<TensorSpline> Le, L, Ltmp;  // cumulative, incremental, temporary; per side
-    std::vector<KnotVector> axes;           // of a solved side's splines
+    std::shared_ptr<const std::vector<KnotVector>> axes;  // of a solved side's splines, which share them
 
     using Splines = std::vector<TensorSpline> Receiver::*;
     size_t values() const { return sides * nodes.size() * per_node; }

@@ -23,6 +23,10 @@ public:
     // The angular knots (24): clamped uniform on [-R, R].
     static KnotVector symmetric(int num_coeffs, int degree, double R);
 
+    // The bytes an open knot vector of num_coeffs coefficients of this degree holds: the object,
+    // its knots and its span tables, with each heap block's own few bytes (for memory estimates).
+    static size_t bytes(int num_coeffs, int degree);
+
     // Periodic extension (paper section 3.2) of the breakpoints b_0 <= ... <= b_m over one period
     // [b_0, b_m]: the stored knots are extended by d knots on each side, repeating the spacing,
     // and basis function j uses coefficient j mod m. There are m coefficients, parameters wrap

@@ -236,8 +236,8 @@ public:
     // coefficients are returned as they were). Advances `progress` by nodes; throws Cancelled if
     // it is cancelled. The error estimate's passes read the estimated splines' Le (the finals',
     // or the coarse ones' without a final gather), then with a final gather the coarse Le; the
-    // input pass then also each scene surface's input scale and the checks pass's result for all
-    // receivers; they give per receiver its checks' record (the checks pass) or each check's
+    // input pass then also each scene surface's input scale, the checks pass's result for all
+    // receivers and its length; they give per receiver its checks' record (the checks pass) or each check's
     // input error (the input pass), and count their rays as the estimate's. With
     // coeffs_from_size and a detail tolerance the finals are planned from the coarse Le that the
     // first of these phases reads (and nodes() of a final phase or an estimate pass, on the
