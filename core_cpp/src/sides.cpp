@@ -381,8 +381,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                         view.ends = seen.add(record, ReachedCells::size_of(record));
                     }
     }
-    std::vector<uint8_t>().swap(records[0]);
-    records.clear();
+    std::vector<std::vector<uint8_t>>().swap(records);
     // Cells lit directly (or emitting), then cells that see a lit cell, to a fixed point; `why`
     // keeps what lit each first. Light is carried per cell rather than per side, so that only
     // where a side is lit lights others: the floor under a box standing on it (its rays end on
