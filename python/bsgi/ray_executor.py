@@ -91,10 +91,16 @@ def guided_groups(nodes: list, workers: int, cost_per_node=None, smallest: float
     total = float(cumulative[-1])
     if not total > 0:
         return [(0, len(cost), int(sum(nodes)))]
+    # A phase whose cost lies mostly in its last receiver (a glossy one, or one whose measured
+    # cost a busy machine inflated) would be one group, and the other workers idle: the first
+    # group stops before the last receiver that costs anything.
+    last = int(np.flatnonzero(cost)[-1])
     groups, begin, done = [], 0, 0.0
     while begin < len(cost):
         want = max((total - done) / (2 * workers), smallest * total)
         end = min(max(int(np.searchsorted(cumulative, done + want)) + 1, begin + 1), len(cost))
+        if not groups and workers > 1 and last > 0 and end > last:
+            end = last
         groups.append((begin, end, int(sum(nodes[begin:end]))))
         begin, done = end, float(cumulative[end - 1])
     return groups

@@ -135,7 +135,7 @@ def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounce
     bounces = ["bounce", "late bounce", "late bounce"] if late_bounces_after else ["bounce"] * 3
     assert [p[0] for p in executor.phase_times] == ["direct", *bounces, "final", *["regather"] * (final_passes - 1),
                                                     "estimate checks", "estimate input"]
-    assert all(began < ended and len(seconds) >= 2 for _, began, ended, seconds in executor.phase_times)
+    assert all(began < ended and len(seconds) >= 2 for _, began, ended, seconds in executor.phase_times), executor.phase_times
 
 
 @pytest.mark.parametrize("late_bounces_after,unpacked", [(0, False), (2, False), (2, True)])
@@ -313,6 +313,11 @@ def test_guided_groups_fall_in_cost_and_cover_every_receiver_once():
     # Measured costs: the dear glossy receivers (ten times a diffuse node) get groups of their own.
     assert [(b, e) for b, e, _ in guided_groups([4] * 10, 2, [1] * 8 + [10] * 2)] == [(0, 7), (7, 9), (9, 10)]
     assert guided_groups([], 2) == [] and guided_groups([0, 0, 0], 2) == [(0, 3, 0)]  # all settled: one group
+    # A phase whose cost is mostly its last receiver's still goes to both workers (it was one
+    # group, and the Ray solve's phase times showed a single group under load).
+    assert [(b, e) for b, e, _ in guided_groups([1] * 5, 2, [1, 1, 1, 1, 100])] == [(0, 4), (4, 5)]
+    assert [(b, e) for b, e, _ in guided_groups([1, 1, 1, 0], 2, [1, 1, 100, 1])] == [(0, 2), (2, 3), (3, 4)]
+    assert guided_groups([1, 1], 1, [1, 100]) == [(0, 2, 2)]  # one worker: one group is right
 
 
 def test_costs_learned_from_a_phase_rebalance_the_next():
