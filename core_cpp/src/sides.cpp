@@ -397,6 +397,19 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     }
     std::vector<Reason> why(2 * n * kCells);
     auto lit = [&](size_t id) { return why[id].kind != Reason::kDark; };
+    // f(index) on each record of `seen` a view holds, by reference: its ends', its checked ends'.
+    auto for_each_record = [&](auto& view, auto&& f) {
+        if (view.ends >= 0) f(view.ends);
+        if (view.checked >= 0)
+            for (int32_t& checked : checks[size_t(view.checked)])
+                if (checked >= 0) f(checked);
+    };
+    // A view never asked again (its cell lit) gives back its records and its block of checked ends.
+    auto release = [&](CellView& view) {
+        for_each_record(view, [&](int32_t index) { seen.drop(index); });
+        view.ends = -1;
+        if (view.checked >= 0) free_checks.push_back(view.checked), view.checked = -1;
+    };
     for (int i : probed)
         for (int side = 0; side < 2; ++side)
             for (int c = 0; c < kCells; ++c) {
@@ -406,12 +419,10 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
                                    scene[i].material.emits();
                 if (emits) why[id].kind = Reason::kEmits;
                 else if (v.light != kNoLight) why[id] = {Reason::kDirect, v.light};
-                if (emits && v.ends >= 0) seen.drop(v.ends), v.ends = -1;  // never asked
+                if (emits) release(v);  // never asked
             }
     // A ray's end carries light if its cell is lit and the point itself sees light directly or
-    // sees a lit cell (a cell lit at its centre may be dark where the ray ends). What a checked
-    // end sees is kept as the distinct cells its rays reach, each with its count of rays, in
-    // `seen`.
+    // sees a lit cell (a cell lit at its centre may be dark where the ray ends).
     // The order in which the fixed point lit each cell (1, 2, ...; 0: lit from the start or dark).
     std::vector<int32_t> lit_as(why.size(), 0);
     int32_t lit_count = 0;
@@ -421,10 +432,9 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         if (view.asked_at < 0) return true;
         auto after = [&](uint32_t id) { return lit_as[id] > view.asked_at; };
         bool changed = false;
-        if (view.ends >= 0) ReachedCells::for_each(seen[view.ends], [&](uint32_t cell, uint32_t) { changed |= after(cell); });
-        for (int k = 0; view.checked >= 0 && k < kRays && !changed; ++k)
-            if (const int32_t checked = checks[size_t(view.checked)][k]; checked >= 0)
-                ReachedCells::for_each(seen[checked], [&](uint32_t cell, uint32_t) { changed |= after(cell); });
+        for_each_record(view, [&](int32_t index) {
+            if (!changed) ReachedCells::for_each(seen[index], [&](uint32_t cell, uint32_t) { changed |= after(cell); });
+        });
         return changed;
     };
     // What the end h of a ray, in cell `end`, sees: true if light directly (the world's through
@@ -562,7 +572,7 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             }
         }
     };
-    // The most the probe held before the end: at a compaction of `seen`, the old pool and the new.
+    // The most the probe held before the end: at a compaction of `seen`, with the compaction's list.
     size_t peak = 0;
     for (bool changed = true; changed;) {
         changed = false;
@@ -598,25 +608,14 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
             } else {
                 cell_rays(cell.i, cell.side, cell.c, visit);  // asked since the window was fetched
             }
-            if (lit(id)) {  // never asked again
-                if (view.ends >= 0) seen.drop(view.ends);
-                view.ends = -1;
-                if (view.checked >= 0) {
-                    for (int k = 0; k < kRays; ++k)
-                        if (const int32_t checked = checks[size_t(view.checked)][k]; checked >= 0) seen.drop(checked);
-                    free_checks.push_back(view.checked);
-                    view.checked = -1;
-                }
+            if (lit(id)) {
+                release(view);
                 if (seen.mostly_dropped()) {
                     const size_t held = held_bytes(views, why, lit_as, seen, checks, free_checks);
                     peak = std::max(peak, held + seen.compact([&](auto&& move) {
                         for (int j : probed)
                             for (auto& cells_of_side : views[j])
-                                for (CellView& other : cells_of_side) {
-                                    if (other.ends >= 0) move(other.ends);
-                                    for (int k = 0; other.checked >= 0 && k < kRays; ++k)
-                                        if (int32_t& checked = checks[size_t(other.checked)][k]; checked >= 0) move(checked);
-                                }
+                                for (CellView& other : cells_of_side) for_each_record(other, move);
                     }));
                 }
             }
