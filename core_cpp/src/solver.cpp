@@ -602,6 +602,8 @@ public:
         for (size_t k = 0; k < receivers; ++k) first_[k + 1] = first_[k] + count(k);
     }
     size_t total() const { return first_.back(); }
+    // Items before receiver k (k up to the receivers: all).
+    size_t first(size_t k) const { return first_[k]; }
     // f(k, i) for items [b, e), item i of receiver k, in order (past receivers of no items).
     template <class F>
     void walk(size_t b, size_t e, F&& f) const {
@@ -1336,7 +1338,7 @@ struct SolveSteps::State {
     // Whether the receivers hold the converged coarse light Le that the finals are planned from.
     bool coarse_light = false;
     std::vector<const Receiver*> receiver_of, final_of;
-    std::vector<size_t> checks_before_;  // see checks_before()
+    std::optional<RunningCount> checks_;  // see checks()
     // With form factors, Lambertian receivers keep their rows of the transport operator. A row's
     // weights are scalars: they cannot carry the colour of a textured surface its rays hit.
     bool rows_possible = false;
@@ -1471,18 +1473,18 @@ struct SolveSteps::State {
     // 3.5 kB a surface, most of the estimate's memory on a large interior).
     enum CheckField { Fit, CoarseFit, Integration, Radiance, Values, U, V, Weight, Visible, kFields };
     static_assert(kFields == kCheckFields);
-    // Checks of the estimated receivers before each (and all, last): receiver k's record starts
-    // at k + kCheckFields * before[k] of all receivers' records, its input errors at before[k].
-    const std::vector<size_t>& checks_before() {
-        if (checks_before_.empty()) {
+    // The estimated receivers' checks (checks_of each) as a running count, made once the result
+    // is: receiver k's record starts at k + kCheckFields * first(k) of all receivers' records,
+    // its input errors at first(k).
+    const RunningCount& checks() {
+        if (!checks_) {
             const std::vector<Receiver>& result = estimated();
-            checks_before_.assign(result.size() + 1, 0);
-            for (size_t k = 0; k < result.size(); ++k) checks_before_[k + 1] = checks_before_[k] + checks_of(result[k]);
+            checks_.emplace(result.size(), [&](size_t k) { return checks_of(result[k]); });
         }
-        return checks_before_;
+        return *checks_;
     }
-    size_t record_at(size_t k) { return k + size_t(kCheckFields) * checks_before()[k]; }
-    size_t checks_in(size_t k) { return checks_before()[k + 1] - checks_before()[k]; }
+    size_t record_at(size_t k) { return k + size_t(kCheckFields) * checks().first(k); }
+    size_t checks_in(size_t k) { return checks().first(k + 1) - checks().first(k); }
     // Every other check measures the input's error, every fourth also gathers at doubled
     // integration nodes (four times the rays): spread over the surface as all of them are.
     static bool input_check(size_t i) { return i % 2 == 0; }
@@ -1490,7 +1492,7 @@ struct SolveSteps::State {
     size_t checks_of(const Receiver& r) const { return error_checks_of(r.nodes.size(), settings); }
     std::vector<size_t> checks_of_all() {
         std::vector<size_t> n;
-        for (const Receiver& r : estimated()) n.push_back(checks_of(r));
+        for (size_t k = 0; k < estimated().size(); ++k) n.push_back(checks_in(k));
         return n;
     }
     // The integration nodes per axis of the gather that made a receiver's result.
@@ -1556,12 +1558,13 @@ struct SolveSteps::State {
     template <class Body>
     void for_each_check(size_t begin, size_t end, Progress& progress, size_t& rays, Body&& body) {
         const std::vector<Receiver>& result = estimated();
-        const RunningCount checks(end - begin, [&](size_t k) { return checks_of(result[begin + k]); });
+        const RunningCount& count = checks();
+        const size_t first = count.first(begin);
         std::atomic<size_t> counted{0};
-        parallel_for(checks.total(), 1, settings.threads, [&](size_t b, size_t e) {
+        parallel_for(count.first(end) - first, 1, settings.threads, [&](size_t b, size_t e) {
             size_t local = 0;
-            checks.walk(b, e, [&](size_t k, size_t i) {
-                if (!result[begin + k].is_partner) body(k, i, result[begin + k], local);
+            count.walk(first + b, first + e, [&](size_t k, size_t i) {
+                if (!result[k].is_partner) body(k - begin, i, result[k], local);
             });
             counted += local;
             progress.advance(e - b);
@@ -1576,10 +1579,10 @@ struct SolveSteps::State {
     std::vector<double> estimate_checks(size_t begin, size_t end, Progress& progress, size_t& rays) {
         if (!fine_gather) fine_gather.emplace(lit_scene, fine_settings, caster);
         const std::vector<Receiver>& result = estimated();
-        // Receiver begin + k's record in these receivers' records.
+        // Receiver begin + k's record in these receivers' records (checks() made here, before
+        // the threads read it).
         const size_t first = record_at(begin);
-        std::vector<size_t> at(end - begin + 1);
-        for (size_t k = 0; k <= end - begin; ++k) at[k] = record_at(begin + k) - first;
+        auto at = [&](size_t k) { return record_at(begin + k) - first; };
         // The others' splines a gather read err (the contact shadows blurred over a coarse grid),
         // and that error enters each surface's light through its gather, where its own splines
         // cannot show it: it is measured from the others' coarse and final splines (estimate_inputs).
@@ -1588,7 +1591,7 @@ struct SolveSteps::State {
         // checked from the result's.
         const bool regathered = settings.final_gather && settings.final_passes > 1;
         const std::vector<const Receiver*>& last_of = regathered ? result_of : receiver_of;
-        std::vector<double> records(at.back(), 0.0);
+        std::vector<double> records(at(end - begin), 0.0);
         std::vector<std::vector<CheckPoint>> points(end - begin);
         std::atomic<size_t> candidate_rays{0};
         parallel_for(end - begin, 1, settings.threads, [&](size_t b, size_t e) {
@@ -1602,7 +1605,7 @@ struct SolveSteps::State {
                     const SurfacePoint p = surface.evaluate(u, v);
                     return behind(p.p, p.frame.z, p.frame.z * side, local);
                 });
-                records[at[k]] = double(points[k].size());
+                records[at(k)] = double(points[k].size());
             }
             candidate_rays += local;
         }, progress.cancel_flag());
@@ -1641,7 +1644,7 @@ struct SolveSteps::State {
                 I = regathered || !settings.final_gather ? G : values_of(r, u, v, dirs, gather_from(*gather, result_of, local));
             }
             const uint16_t visible = visible_values(r, p, dirs, local);
-            double* c = &records[at[k] + 1 + i * kCheckFields];
+            double* c = &records[at(k) + 1 + i * kCheckFields];
             c[U] = u, c[V] = v, c[Weight] = weight, c[Visible] = visible;
             for (size_t x = 0; x < 2 * dirs.size(); ++x) {
                 const double share = value_weight(r, weight, visible, x);
@@ -1689,19 +1692,18 @@ struct SolveSteps::State {
         const std::vector<Receiver>& result = estimated();
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
         const std::vector<double> input_scale(scale, scale + scene.size());
-        const std::vector<size_t>& before = checks_before();
-        std::vector<size_t> record(end - begin);
-        for (size_t k = 0; k < end - begin; ++k) record[k] = record_at(begin + k);
-        std::vector<double> inputs(before[end] - before[begin], 0.0);
+        const RunningCount& count = checks();
+        std::vector<double> inputs(count.first(end) - count.first(begin), 0.0);
         for_each_check(begin, end, progress, rays, [&](size_t k, size_t i, const Receiver& r, size_t& local) {
-            const double* c = &records[record[k] + 1 + i * kCheckFields];
-            if (i >= size_t(records[record[k]]) || !input_check(i)) return;
+            const size_t record = record_at(begin + k);
+            const double* c = &records[record + 1 + i * kCheckFields];
+            if (i >= size_t(records[record]) || !input_check(i)) return;
             const std::vector<Vec3> dirs = check_directions(i);
             const std::vector<Vec3> E = values_of(r, c[U], c[V], dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
                 gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
             });
             for (size_t x = 0; x < 2 * dirs.size(); ++x)
-                inputs[before[begin + k] - before[begin] + i] += value_weight(r, c[Weight], uint16_t(c[Visible]), x) * squared(E[value_index(x, E.size() / 2)]);
+                inputs[count.first(begin + k) - count.first(begin) + i] += value_weight(r, c[Weight], uint16_t(c[Visible]), x) * squared(E[value_index(x, E.size() / 2)]);
         });
         return inputs;
     }
@@ -1721,7 +1723,7 @@ struct SolveSteps::State {
             for (size_t i = 0; i < checks_in(k); ++i) {
                 const double* c = &records[record_at(k) + 1 + i * kCheckFields];
                 fit += c[Fit], radiance += c[Radiance], values += c[Values];
-                if (input_check(i)) input += inputs.empty() ? 0.0 : inputs[checks_before()[k] + i], input_values += c[Values];
+                if (input_check(i)) input += inputs.empty() ? 0.0 : inputs[checks().first(k) + i], input_values += c[Values];
                 if (fine_check(i)) integration += c[Integration], fine_values += c[Values];
             }
             // Emission leaves the front side (and the back where two-sided) on top of the spline.
