@@ -5,7 +5,8 @@ the solve's own estimate (bsgi.estimate_solve_bytes) at the preview preset, as i
 coeffs_from_size (small faces fewer coefficients), with and without the final gather, and with
 coeffs_from_size and detail_tolerance 0.005 as the scale benchmark solves. The
 estimates are of front sides only (two_sided off): the sides probe of every surface's both sides
-would take about half an hour and hold about 12 GB at this size; its own memory is the
+would take about half an hour at this size (and hold about 3.7 GB, 12 GB before 5 December's
+compact records); its own memory is the
 `memory_probe_bytes_per_surface` figure, measured
 at 100 objects by the probe's own count (bsgi.probe_sides), and that times this size's surfaces.
 In a process of its own.
@@ -56,7 +57,7 @@ def measure(objects: int) -> dict:
             setattr(settings, key, value)
         figures[f"memory_{objects}_estimate_{label}_mb"] = bsgi.estimate_solve_bytes(scene, settings) / 2**20
     # The sides probe's peak a surface, its own count at 100 objects (bsgi.probe_sides), and what
-    # that makes at this size (the probe of every surface's both sides would hold about 12 GB here).
+    # that makes at this size.
     small, _ = interior_core.build_scene(100)
     per_surface = bsgi.probe_sides(small, bsgi.SolverSettings.preset("draft"))[1] / len(small)
     figures["memory_probe_bytes_per_surface"] = per_surface
