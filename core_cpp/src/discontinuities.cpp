@@ -162,16 +162,112 @@ bool clip_unit(std::array<double, 2>& a, std::array<double, 2>& b) {
 
 }  // namespace
 
-DiscontinuityFinder::DiscontinuityFinder(const Scene& scene) : emitters_(scene.emitters()), scene_(&scene) {
+// A light at infinity and the occluders whose shadows it casts, by cells of the plane across its
+// direction (each occluder in the cells its box covers there): a receiver asks only for those
+// over its own box, not for every occluder of an interior of thousands.
+struct DiscontinuityFinder::Distant {
+    DistantSource source;
+    Vec3 axis[2];        // of the plane across the direction
+    double lo[2]{0, 0}, step[2]{1, 1};
+    int cells[2]{0, 0};
+    std::vector<std::vector<int>> occluders;  // per cell, scene indices
+    double depth = 0;    // the occluders' extent along the direction (a penumbra's widening)
+
+    std::array<double, 2> across(const Vec3& p) const { return {dot(p, axis[0]), dot(p, axis[1])}; }
+    // The occluders over the box [lo, hi] of the plane (with repeats).
+    std::vector<int> over(std::array<double, 2> a, std::array<double, 2> b) const {
+        std::vector<int> out;
+        int first[2], last[2];
+        for (int k = 0; k < 2; ++k) {
+            first[k] = std::clamp(int(std::floor((a[k] - lo[k]) / step[k])), 0, cells[k] - 1);
+            last[k] = std::clamp(int(std::floor((b[k] - lo[k]) / step[k])), 0, cells[k] - 1);
+            if (b[k] < lo[k] || a[k] > lo[k] + cells[k] * step[k]) return out;
+        }
+        for (int i = first[0]; i <= last[0]; ++i)
+            for (int j = first[1]; j <= last[1]; ++j) {
+                const auto& c = occluders[size_t(i) * cells[1] + j];
+                out.insert(out.end(), c.begin(), c.end());
+            }
+        return out;
+    }
+};
+
+std::vector<DistantSource> bright_world_sources(const std::vector<std::pair<Vec3, double>>& bright) {
+    std::vector<size_t> order(bright.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return bright[x].second > bright[y].second; });
+    double total = 0;
+    for (const auto& b : bright) total += b.second;
+    std::vector<char> taken(bright.size(), 0);
+    std::vector<DistantSource> out;
+    for (size_t i : order) {
+        if (taken[i]) continue;
+        const Vec3 centre = bright[i].first;
+        double share = 0, spread = 0;
+        for (size_t j : order) {
+            const double cos_angle = std::clamp(dot(bright[j].first, centre), -1.0, 1.0);
+            if (taken[j] || std::acos(cos_angle) > DiscontinuityFinder::kClusterAngle) continue;
+            taken[j] = 1;
+            share += bright[j].second;
+            spread = std::max(spread, std::acos(cos_angle));
+        }
+        if (share >= DiscontinuityFinder::kMinShare * total)
+            out.push_back({"the world's bright part", centre, 2 * spread});
+    }
+    return out;
+}
+
+DiscontinuityFinder::DiscontinuityFinder(const Scene& scene, std::vector<DistantSource> distant, const RayCaster* caster)
+    : emitters_(scene.emitters()), scene_(&scene), caster_(caster) {
     polys_.resize(scene.size());
     for (size_t i = 0; i < scene.size(); ++i)
         if (scene[i].occluder || scene[i].material.emits()) polys_[i] = polygonal_of(*scene[i].surface);
+    for (DistantSource& source : distant) {
+        Distant D;
+        const Frame f = Frame::from_normal(source.direction);
+        D.axis[0] = f.x, D.axis[1] = f.y;
+        D.source = std::move(source);
+        std::vector<std::pair<int, std::array<double, 4>>> boxes;  // occluder, box across
+        double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300}, near = 1e300, far = -1e300;
+        for (size_t o = 0; o < scene.size(); ++o) {
+            if (!scene[o].occluder || polys_[o].edges.empty()) continue;
+            std::array<double, 4> box{1e300, 1e300, -1e300, -1e300};
+            for (const Vec3& v : polys_[o].vertices) {
+                const auto c = D.across(v);
+                for (int k = 0; k < 2; ++k) box[k] = std::min(box[k], c[k]), box[2 + k] = std::max(box[2 + k], c[k]);
+                near = std::min(near, dot(v, D.source.direction)), far = std::max(far, dot(v, D.source.direction));
+            }
+            for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], box[k]), hi[k] = std::max(hi[k], box[2 + k]);
+            boxes.emplace_back(int(o), box);
+        }
+        if (boxes.empty()) continue;
+        D.depth = far - near;
+        // About one occluder a cell, at most 512 cells a side.
+        const double extent[2] = {std::max(hi[0] - lo[0], 1e-12), std::max(hi[1] - lo[1], 1e-12)};
+        const double side = std::sqrt(extent[0] * extent[1] / double(boxes.size()));
+        for (int k = 0; k < 2; ++k) {
+            D.lo[k] = lo[k];
+            D.cells[k] = std::clamp(int(std::ceil(extent[k] / std::max(side, 1e-12))), 1, 512);
+            D.step[k] = extent[k] / D.cells[k];
+        }
+        D.occluders.resize(size_t(D.cells[0]) * D.cells[1]);
+        for (const auto& [o, box] : boxes) {
+            const int i0 = std::clamp(int((box[0] - D.lo[0]) / D.step[0]), 0, D.cells[0] - 1);
+            const int i1 = std::clamp(int((box[2] - D.lo[0]) / D.step[0]), 0, D.cells[0] - 1);
+            const int j0 = std::clamp(int((box[1] - D.lo[1]) / D.step[1]), 0, D.cells[1] - 1);
+            const int j1 = std::clamp(int((box[3] - D.lo[1]) / D.step[1]), 0, D.cells[1] - 1);
+            for (int i = i0; i <= i1; ++i)
+                for (int j = j0; j <= j1; ++j) D.occluders[size_t(i) * D.cells[1] + j].push_back(o);
+        }
+        distant_.push_back(std::move(D));
+    }
 }
 
 DiscontinuityFinder::~DiscontinuityFinder() = default;
 DiscontinuityFinder::DiscontinuityFinder(DiscontinuityFinder&&) noexcept = default;
 
-ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 2> live, std::array<double, 2> tolerance) const {
+ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 2> live, std::array<double, 2> tolerance,
+                                                  size_t& rays) const {
     const Scene& scene = *scene_;
     ReceiverDiscontinuities out;
     Affine A;
@@ -185,8 +281,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
     auto on_live_side = [&](double h) { return (h > flat && live[0]) || (h < -flat && live[1]); };
     // The segment a-b of the receiver's plane clipped to the surface: -1 if it misses it (or is a
     // point), 0 or 1 if it is a parameter line u or v = `position`, 2 if it is oblique.
-    auto line_of = [&](const Vec3& a, const Vec3& b, double& position) {
-        std::array<double, 2> p = A.uv(a), q = A.uv(b);
+    auto line_of_uv = [&](std::array<double, 2> p, std::array<double, 2> q, double& position) {
         if (!clip_unit(p, q)) return -1;
         if (std::abs(p[0] - q[0]) + std::abs(p[1] - q[1]) < 1e-9) return -1;  // a point
         for (int k = 0; k < 2; ++k)
@@ -196,6 +291,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             }
         return 2;
     };
+    auto line_of = [&](const Vec3& a, const Vec3& b, double& position) { return line_of_uv(A.uv(a), A.uv(b), position); };
     // Records what line_of found (`k`, `position`) as a line of the given order, if it is one.
     auto record = [&](int k, double position, int order) {
         if (k == 0 || k == 1) out.lines[k].push_back({position, order});
@@ -311,7 +407,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                     lo = std::min(lo, event.position), hi = std::max(hi, event.position);
                 }
                 if (narrow && hi - lo <= 2 * tolerance[axis]) {
-                    out.lines[axis].push_back({0.5 * (lo + hi), 0});
+                    out.lines[axis].push_back({0.5 * (lo + hi), 0, hi - lo});
                     continue;
                 }
                 for (const Event& event : events) record(event.k, event.position, event.order);
@@ -329,6 +425,129 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                 }
         }
     }
+    // Lights at infinity: an occluder edge's shadow is its projection along the disc's rim where
+    // a plane through the edge touches the cone of the disc's directions, one on each side: the
+    // penumbra between them; a jump where it is narrower than the tolerance.
+    for (const Distant& D : distant_) {
+        const Vec3& d = D.source.direction;
+        const double dn = dot(d, A.n), r = 0.5 * D.source.angle;
+        // (Grazing: part of the disc below the horizon, little light, no clean edge.)
+        if (std::abs(dn) <= std::sin(r) + 1e-6 || !live[dn > 0 ? 0 : 1]) continue;
+        const double sign = dn > 0 ? 1 : -1;
+        // The receiver's box across the light, widened by the penumbra's reach.
+        std::array<double, 2> lo{1e300, 1e300}, hi{-1e300, -1e300};
+        for (const Vec3& c : {A.o, A.o + A.du, A.o + A.dv, A.o + A.du + A.dv}) {
+            const auto x = D.across(c);
+            for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], x[k]), hi[k] = std::max(hi[k], x[k]);
+        }
+        const double widen = std::tan(r) * D.depth;
+        for (int k = 0; k < 2; ++k) lo[k] -= widen, hi[k] += widen;
+        std::vector<int> near = D.over(lo, hi);
+        std::sort(near.begin(), near.end());
+        near.erase(std::unique(near.begin(), near.end()), near.end());
+        std::vector<std::pair<double, int>> between;  // nearest first
+        for (const int o : near) {
+            if (o == surface) continue;
+            double closest = 1e300;
+            for (const Vec3& v : polys_[o].vertices)
+                if (sign * height(v) > flat) closest = std::min(closest, sign * height(v));
+            if (closest < 1e300) between.emplace_back(closest, o);
+        }
+        std::sort(between.begin(), between.end());
+        // Whether the line a-b (in (u, v), clipped) bounds the light arriving along `dir`: at
+        // some point along it, one of the two points `offset` to either side is lit and the
+        // other is not. Without a ray caster every line counts.
+        auto bounds_light = [&](std::array<double, 2> a, std::array<double, 2> b, const Vec3& dir, double offset) {
+            if (!caster_) return true;
+            const double du = b[0] - a[0], dv = b[1] - a[1], len = std::hypot(du, dv);
+            const std::array<double, 2> across{-dv / len, du / len};
+            const double half_span = 5 * std::min(tolerance[0], tolerance[1]);
+            const int samples = std::clamp(int(std::ceil(len / half_span)) + 1, 3, 32);
+            for (int i = 0; i < samples; ++i) {
+                const double t = (i + 0.5) / samples;
+                int lit = 0, seen = 0;
+                for (const double side : {-1.0, 1.0}) {
+                    const double u = a[0] + t * du + side * offset * across[0], v = a[1] + t * dv + side * offset * across[1];
+                    if (u < 0 || u > 1 || v < 0 || v > 1) break;
+                    const Vec3 x = A.o + A.du * u + A.dv * v;
+                    ++rays, ++seen;
+                    lit += caster_->transmittance(caster_->spawn(x, A.n, dir), dir) > 0;
+                }
+                if (seen == 2 && lit == 1) return true;
+            }
+            return false;
+        };
+        // The edge's shadow along `dir` as (u, v) segment ends, clipped: false if it has none.
+        auto shadow = [&](const Vec3& a, const Vec3& b, const Vec3& dir, std::array<double, 2>& pa,
+                          std::array<double, 2>& pb) {
+            const double down = sign * dot(dir, A.n);
+            if (!(down > 1e-9)) return false;
+            pa = A.uv(a - dir * (sign * height(a) / down));
+            pb = A.uv(b - dir * (sign * height(b) / down));
+            return clip_unit(pa, pb) && std::abs(pa[0] - pb[0]) + std::abs(pa[1] - pb[1]) >= 1e-9;
+        };
+        for (const auto& [unused, o] : between) {
+            const Poly& P = polys_[o];
+            const size_t cost = P.edges.size() * (r > 0 ? 2 : 1);
+            if (pairs + cost > kMaxPairs) {
+                ++skipped;
+                continue;
+            }
+            pairs += cost;
+            for (const auto& e : P.edges) {
+                Vec3 a = P.vertices[e[0]], b = P.vertices[e[1]];
+                const double ha = sign * height(a), hb = sign * height(b);
+                if (ha <= flat && hb <= flat) continue;  // on the receiver (a contact line) or behind it
+                if (ha < 0) a = a + (b - a) * (ha / (ha - hb));
+                if (hb < 0) b = b + (a - b) * (hb / (hb - ha));
+                const Vec3 along = normalize(b - a);
+                // The rim's grazing directions: in the plane through the edge at angle r from d.
+                std::vector<Vec3> rims;
+                if (r == 0) rims.push_back(d);
+                else {
+                    const Vec3 off = d - along * dot(d, along);
+                    const double s = length(off);
+                    if (s <= std::sin(r) + 1e-9) continue;  // the edge points into the disc
+                    const Vec3 x = off / s, y = cross(along, x);
+                    for (const double side : {-1.0, 1.0}) {
+                        const double c = side * std::sin(r) / s;
+                        const Vec3 normal = x * c + y * std::sqrt(1 - c * c);
+                        rims.push_back(normalize(d - normal * dot(d, normal)));  // where the plane touches the cone
+                    }
+                }
+                struct Rim {
+                    std::array<double, 2> a, b;
+                    int k;
+                    double position = 0;
+                    Vec3 dir;
+                };
+                std::vector<Rim> found;
+                for (const Vec3& w : rims) {
+                    Rim rim{{}, {}, -1, 0, w};
+                    if (!shadow(a, b, w, rim.a, rim.b)) continue;
+                    rim.k = line_of_uv(rim.a, rim.b, rim.position);
+                    found.push_back(rim);
+                }
+                if (found.empty()) continue;
+                const int k = found[0].k;
+                const bool narrow = found.size() == rims.size() && (k == 0 || k == 1) &&
+                                    std::all_of(found.begin(), found.end(), [&](const Rim& x) {
+                                        return x.k == k && std::abs(x.position - found[0].position) <= 2 * tolerance[k];
+                                    });
+                if (narrow) {
+                    // One jump, checked along the centre direction beyond the penumbra's half.
+                    double position = 0, band = 0;
+                    for (const Rim& x : found) position += x.position / found.size();
+                    for (const Rim& x : found)  // (at its widest: a penumbra widens away from its edge)
+                        band = std::max({band, 2 * std::abs(x.a[k] - position), 2 * std::abs(x.b[k] - position)});
+                    if (bounds_light(found[0].a, found[0].b, d, 1.5 * tolerance[k])) out.lines[k].push_back({position, 0, band});
+                    continue;
+                }
+                for (const Rim& x : found)
+                    if (bounds_light(x.a, x.b, x.dir, 0.5 * std::min(tolerance[0], tolerance[1]))) record(x.k, x.position, 1);
+            }
+        }
+    }
     if (skipped) {
         std::ostringstream why;
         why << (out.note.empty() ? "" : out.note + "; ") << skipped << " farther occluders not searched (over " << kMaxPairs
@@ -339,8 +558,8 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
 }
 
 KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coeffs, int degree, double a, double b,
-                               const std::vector<double>& density, int& placed) {
-    placed = 0;
+                               const std::vector<double>& density, std::vector<DiscontinuityLine>& placed) {
+    placed.clear();
     const int inner = num_coeffs - degree - 1;
     const double span = (b - a) / std::max(inner + 1, 1);
     // Lines at the ends are the clamped ends' knots already; close ones are one line.
@@ -348,9 +567,11 @@ KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coe
     std::vector<DiscontinuityLine> merged;
     for (const DiscontinuityLine& l : lines) {
         if (!(l.position > a + 0.2 * span && l.position < b - 0.2 * span)) continue;
-        if (!merged.empty() && l.position - merged.back().position < 0.2 * span)
-            merged.back().order = std::min(merged.back().order, l.order);
-        else
+        if (!merged.empty() && l.position - merged.back().position < 0.2 * span) {
+            DiscontinuityLine& m = merged.back();
+            m.order = std::min(m.order, l.order);
+            m.band = std::max(m.band, l.band);
+        } else
             merged.push_back(l);
     }
     // At most half the inner knots go to lines, the lowest orders (the strongest) first.
@@ -367,7 +588,7 @@ KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coe
         if (merged[k].order >= std::max(degree, 1) || used + m > inner / 2) continue;
         fixed.emplace_back(merged[k].position, m);
         used += m;
-        ++placed;
+        placed.push_back(merged[k]);
     }
     std::sort(fixed.begin(), fixed.end());
     // The density's integral from a to x (uniform if none was given).

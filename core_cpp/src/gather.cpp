@@ -81,9 +81,18 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
         // The bright part (an HDRI's sun, a sky's sun disc, too small for the hemisphere nodes
         // to find) as directions for shadow rays.
         EnvironmentMap::Split split = map->split(settings.world_bright_factor, size_t(settings.world_bright_samples));
+        world_bright_first_ = distant_.size();
         for (const auto& b : split.bright) distant_.push_back({b.direction, b.irradiance});
         world_smooth_.emplace(map->height(), map->width(), std::move(split.smooth));
     }
+}
+
+std::vector<std::pair<Vec3, double>> Gatherer::world_bright() const {
+    std::vector<std::pair<Vec3, double>> out;
+    if (!world_smooth_) return out;
+    for (size_t i = world_bright_first_; i < distant_.size(); ++i)
+        out.emplace_back(distant_[i].direction, max_component(distant_[i].irradiance));
+    return out;
 }
 
 // The geometric part of (8) over the parameter cell [s0, s1] x [t0, t1] of an emitter: the

@@ -346,8 +346,14 @@ std::array<std::vector<double>, 2> detail_density(const Gatherer& gather, const 
     return {density_along(true), density_along(false)};
 }
 
-std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const Scene& scene, const Plan& p,
-                                                 const SolverSettings& settings, size_t& rays) {
+// A receiver's knots along u and v, and the jumps among them that stand for a narrow penumbra.
+struct SpatialKnots {
+    KnotVector u, v;
+    std::array<std::vector<DiscontinuityLine>, 2> bands;
+};
+
+SpatialKnots adaptive_knots(const Gatherer& gather, const Scene& scene, const Plan& p, const SolverSettings& settings,
+                            size_t& rays) {
     const int d = settings.spatial_degree;
     const double a = settings.epsilon, b = 1 - settings.epsilon;
     const auto density = detail_density(gather, scene, p, settings, rays);
@@ -360,29 +366,31 @@ std::pair<KnotVector, KnotVector> adaptive_knots(const Gatherer& gather, const S
 // Knots on the lines where the direct light is not smooth (discontinuities.h), the others spread
 // uniformly or, with adaptive_knots, by the probe's density; what was found goes into the
 // plan's reason.
-std::pair<KnotVector, KnotVector> knots_at_discontinuities(const DiscontinuityFinder& finder, const Gatherer& gather,
-                                                           const Scene& scene, Plan& p, const SolverSettings& settings,
-                                                           size_t& rays) {
+SpatialKnots knots_at_discontinuities(const DiscontinuityFinder& finder, const Gatherer& gather, const Scene& scene,
+                                      Plan& p, const SolverSettings& settings, size_t& rays) {
     const int d = settings.spatial_degree;
     const double a = settings.epsilon, b = 1 - settings.epsilon;
     // A segment is a parameter line if it stays within a tenth of a span of one.
     const std::array<double, 2> tolerance{0.1 * (b - a) / std::max(p.nu - d, 1), 0.1 * (b - a) / std::max(p.nv - d, 1)};
-    const ReceiverDiscontinuities found = finder.find(p.surface, p.live, tolerance);
+    const ReceiverDiscontinuities found = finder.find(p.surface, p.live, tolerance, rays);
     std::array<std::vector<double>, 2> density;
     if (settings.adaptive_knots) density = detail_density(gather, scene, p, settings, rays);
-    std::array<int, 2> placed{0, 0};
-    const KnotVector ku = discontinuity_knots(found.lines[0], p.nu, d, a, b, density[0], placed[0]);
-    const KnotVector kv = discontinuity_knots(found.lines[1], p.nv, d, a, b, density[1], placed[1]);
+    std::array<std::vector<DiscontinuityLine>, 2> placed;
+    SpatialKnots out{discontinuity_knots(found.lines[0], p.nu, d, a, b, density[0], placed[0]),
+                     discontinuity_knots(found.lines[1], p.nv, d, a, b, density[1], placed[1]), {}};
+    for (int k = 0; k < 2; ++k)
+        for (const DiscontinuityLine& line : placed[k])
+            if (line.order == 0 && line.band > 0) out.bands[k].push_back(line);
     std::ostringstream why;
     why << "; discontinuity knots: ";
     if (!found.planar) why << found.note;
     else {
-        why << placed[0] << " lines in u, " << placed[1] << " in v";
+        why << placed[0].size() << " lines in u, " << placed[1].size() << " in v";
         if (found.oblique) why << ", " << found.oblique << " oblique event segments left to " << (settings.adaptive_knots ? "the probe" : "uniform knots");
         if (!found.note.empty()) why << "; " << found.note;
     }
     p.reason += why.str();
-    return {ku, kv};
+    return out;
 }
 
 // The spatial coefficients per direction that light sampled on an m x m grid over [eps, 1 - eps]^2
@@ -480,8 +488,10 @@ std::vector<std::array<int, 2>> detail_of_scene(const Gatherer& gather, const Sc
 
 // Schoenberg nodes (12), except that at a knot of multiplicity degree + 1 (a jump) the two
 // nodes that fall on it sample the light just before and just after it: the basis function
-// ending there takes the left limit, the one starting there the right limit.
-std::vector<double> nodes_beside_jumps(const KnotVector& k) {
+// ending there takes the left limit, the one starting there the right limit. A jump standing
+// for a narrow penumbra (`bands`) has them just outside the band, at most halfway across the
+// span beside it: inside it they took the penumbra's middle for both sides.
+std::vector<double> nodes_beside_jumps(const KnotVector& k, const std::vector<DiscontinuityLine>& bands = {}) {
     std::vector<double> nodes = k.schoenberg_nodes();
     for (size_t i = 0; i + 1 < nodes.size(); ++i)
         if (nodes[i] == nodes[i + 1] && k.degree() > 0) {
@@ -489,14 +499,18 @@ std::vector<double> nodes_beside_jumps(const KnotVector& k) {
             const auto& knots = k.knots();
             const auto lo = std::lower_bound(knots.begin(), knots.end(), t), hi = std::upper_bound(knots.begin(), knots.end(), t);
             const double left = lo == knots.begin() ? 0 : t - *(lo - 1), right = hi == knots.end() ? 0 : *hi - t;
-            nodes[i] = t - 1e-3 * left, nodes[i + 1] = t + 1e-3 * right;
+            double half = 0;
+            for (const DiscontinuityLine& b : bands)
+                if (std::abs(b.position - t) <= 1e-12) half = 0.5 * b.band;  // (t a knot average: rounded)
+            nodes[i] = t - std::min(half + 1e-3 * left, 0.5 * left), nodes[i + 1] = t + std::min(half + 1e-3 * right, 0.5 * right);
         }
     return nodes;
 }
 
 // `bounces`: the receiver gathers bounces (L, Ltmp); a final gather's receiver holds Le only.
-Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, const KnotVector& kv,
-                       const SolverSettings& s, bool bounces) {
+Receiver make_receiver(const Scene& scene, const Plan& p, const SpatialKnots& knots, const SolverSettings& s,
+                       bool bounces) {
+    const KnotVector &ku = knots.u, &kv = knots.v;
     Receiver r;
     r.surface = p.surface;
     r.kind = p.kind;
@@ -541,7 +555,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const KnotVector& ku, 
         r.Ltmp.emplace_back(a, 3);
     }
     r.axes = solved;
-    r.nodes = SpatialNodes(nodes_beside_jumps(ku), nodes_beside_jumps(kv));
+    r.nodes = SpatialNodes(nodes_beside_jumps(ku, knots.bands[0]), nodes_beside_jumps(kv, knots.bands[1]));
     return r;
 }
 
@@ -657,7 +671,7 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
             for (size_t k = begin + b; k < begin + e; ++k) {
                 if (!skip.empty() && skip[k]) continue;
                 Receiver& r = receivers[k];
-                const std::vector<double> nodes[2] = {nodes_beside_jumps((*r.axes)[0]), nodes_beside_jumps((*r.axes)[1])};
+                const std::vector<double>* nodes[2] = {&r.nodes.axis(0), &r.nodes.axis(1)};
                 for (int side = 0; side < r.sides; ++side) {
                     if (!r.solves(side)) continue;
                     // A Float32 set (a regather's correction) is sharpened in float64, one
@@ -666,7 +680,7 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
                     std::optional<TensorSpline> wide;
                     if (stored.precision() == Precision::Float32) wide = stored.with_precision(Precision::Float64);
                     TensorSpline& spline = wide ? *wide : stored;
-                    for (int axis = 0; axis < 2; ++axis) sharpen_samples(spline, axis, nodes[axis]);
+                    for (int axis = 0; axis < 2; ++axis) sharpen_samples(spline, axis, *nodes[axis]);
                     // A glossy spline's angular samples are at its Schoenberg nodes too: of the
                     // radiance extended outward from the disc's rim (the map pulls the nodes
                     // beyond it in), a kink there that the limiter leaves alone.
@@ -693,12 +707,16 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
                                       const SolverSettings& settings, bool adaptive, Progress& progress, size_t& rays,
                                       bool bounces = true) {
     const double a = settings.epsilon, b = 1 - settings.epsilon;
-    std::vector<std::pair<KnotVector, KnotVector>> knots;
+    std::vector<SpatialKnots> knots;
     for (const Plan& p : plans)
-        knots.emplace_back(KnotVector::clamped_uniform(p.nu, settings.spatial_degree, a, b),
-                           KnotVector::clamped_uniform(p.nv, settings.spatial_degree, a, b));
+        knots.push_back({KnotVector::clamped_uniform(p.nu, settings.spatial_degree, a, b),
+                         KnotVector::clamped_uniform(p.nv, settings.spatial_degree, a, b), {}});
     std::optional<DiscontinuityFinder> finder;
-    if (settings.discontinuity_knots) finder.emplace(scene);
+    if (settings.discontinuity_knots) {
+        std::vector<DistantSource> distant = bright_world_sources(gather.world_bright());
+        for (const DistantLight& light : scene.distant_lights()) distant.push_back({light.name, light.direction, light.angle});
+        finder.emplace(scene, std::move(distant), &gather.caster());
+    }
     if (adaptive || finder) {
         std::atomic<size_t> probe_rays{0};
         parallel_for(plans.size(), 1, settings.threads, [&](size_t begin, size_t end) {
@@ -714,7 +732,7 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
     std::vector<Receiver> receivers;
     receivers.reserve(plans.size());  // no copies of the nodes while growing
     for (size_t k = 0; k < plans.size(); ++k) {
-        receivers.push_back(make_receiver(scene, plans[k], knots[k].first, knots[k].second, settings, bounces));
+        receivers.push_back(make_receiver(scene, plans[k], knots[k], settings, bounces));
         receivers.back().index = int(k);
     }
     for (size_t k = 0; k < plans.size(); ++k)

@@ -31,7 +31,7 @@ MEASURED = {"open_box": (0.0340, 0.9962),  # the ceiling
             "thin_occluder": (0.0118, 0.9977),  # the small wall
             # (added 3 December: the board's back bright, the wedge behind it lit through the
             # coarse bounces' blurred shadow edges at its open ends; README, validation section)
-            "leaning_board": (0.0266, 1.0063)}  # the board
+            "leaning_board": (0.0261, 1.0064)}  # the board (2.66% until the nodes beside a narrow penumbra's jump left it)
 # The issue's targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
 TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01, "leaning_board": 0.01}
 

@@ -5,9 +5,11 @@
 #pragma once
 #include <array>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bsgi/knots.h"
+#include "bsgi/ray_caster.h"
 #include "bsgi/scene.h"
 
 namespace bsgi {
@@ -19,6 +21,9 @@ namespace bsgi {
 struct DiscontinuityLine {
     double position;
     int order;
+    // A jump (order 0) that stands for a penumbra narrower than the spline resolves: the band's
+    // width in the parameter, which the nodes beside the knot keep out of (0: a true jump).
+    double band = 0;
 };
 
 struct ReceiverDiscontinuities {
@@ -28,19 +33,37 @@ struct ReceiverDiscontinuities {
     std::string note;      // why not searched, or what was left out (for the surface's report)
 };
 
+// A light at infinity as a disc of directions: a distant light (Blender's sun), or the world
+// map's bright directions around one centre (an HDRI's or a sky's sun).
+struct DistantSource {
+    std::string name;
+    Vec3 direction;    // unit, towards the light
+    double angle = 0;  // the disc's angular diameter
+};
+
+// The world map's bright directions (direction, irradiance) as discs: each within kClusterAngle
+// of the brightest left joins it, the disc's angle twice the farthest member's; discs bringing
+// under kMinShare of the bright part's irradiance cast no line worth a knot.
+std::vector<DistantSource> bright_world_sources(const std::vector<std::pair<Vec3, double>>& bright);
+
 // The polygonal emitters and occluders of a scene, their feature edges extracted once.
 class DiscontinuityFinder {
 public:
-    explicit DiscontinuityFinder(const Scene& scene);
+    // `distant`: the lights at infinity whose shadow edges count (the scene's distant lights
+    // and the world's bright part); `caster`: keeps an edge of theirs only where it bounds light
+    // on the receiver (an edge in another's shadow, a window wall's outer edges, bounds none).
+    DiscontinuityFinder(const Scene& scene, std::vector<DistantSource> distant = {}, const RayCaster* caster = nullptr);
     ~DiscontinuityFinder();
     DiscontinuityFinder(DiscontinuityFinder&&) noexcept;
 
     // The lines on receiver `surface` (its sides `live`): EV events (an emitter vertex and an
-    // occluder edge), VE events (an occluder vertex and an emitter edge) and contact lines
-    // (an occluder edge lying on the receiver). A segment counts as the parameter line
+    // occluder edge), VE events (an occluder vertex and an emitter edge), contact lines (an
+    // occluder edge lying on the receiver) and the shadow edges of lights at infinity (an
+    // occluder edge seen along the disc's rim). A segment counts as the parameter line
     // u = const when its u varies by at most `tolerance[0]` over the part crossing the
-    // surface (likewise v).
-    ReceiverDiscontinuities find(int surface, std::array<bool, 2> live, std::array<double, 2> tolerance) const;
+    // surface (likewise v). `rays`: the shadow rays that checked the distant lights' edges.
+    ReceiverDiscontinuities find(int surface, std::array<bool, 2> live, std::array<double, 2> tolerance,
+                                 size_t& rays) const;
 
     // Polygonal surfaces (a plane, or a mesh whose tessellation is the surface) with at most
     // this many feature edges take part; curved ones do not.
@@ -48,12 +71,18 @@ public:
     // Emitter x occluder edge pairs examined per receiver, nearest occluders first beyond it.
     static constexpr size_t kMaxPairs = 200000;
 
+    static constexpr double kClusterAngle = 0.1;  // radians (5.7 degrees: a sun and its aureole)
+    static constexpr double kMinShare = 0.01;
+
     struct Polygonal;  // a surface's feature edges (discontinuities.cpp)
+    struct Distant;    // a distant source and its occluders by cells across it (discontinuities.cpp)
 
 private:
     std::vector<Polygonal> polys_;  // by scene index; empty edges: not polygonal
     std::vector<int> emitters_;     // scene indices, found once: find() runs for every receiver
+    std::vector<Distant> distant_;
     const Scene* scene_;
+    const RayCaster* caster_;
 };
 
 // Clamped knots on [a, b] with num_coeffs coefficients: each line of order below the degree
@@ -63,6 +92,6 @@ private:
 // knots are spread between them, each gap getting its share of `density` (given on equal cells
 // of [a, b]; empty: uniform) equidistributed. `placed`: the lines that got knots.
 KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coeffs, int degree, double a, double b,
-                               const std::vector<double>& density, int& placed);
+                               const std::vector<double>& density, std::vector<DiscontinuityLine>& placed);
 
 }  // namespace bsgi

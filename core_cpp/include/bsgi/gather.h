@@ -45,6 +45,8 @@ public:
         return {u_[j / v_.size()], v_[j % v_.size()]};
     }
     void move(size_t j, const SpatialNode& to) { moved_[j] = to; }
+    // The grid's nodes along u (k = 0) or v (k = 1).
+    const std::vector<double>& axis(int k) const { return k == 0 ? u_ : v_; }
 
 private:
     std::vector<double> u_, v_;
@@ -177,6 +179,10 @@ public:
     bool enclosed(const SurfacePoint& p, int side, const std::vector<const Receiver*>& receiver_of, size_t& rays) const;
     // Direct irradiance at a point on the given sides (for probing where the light has detail).
     Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays, std::array<bool, 2> sides = {true, false}) const;
+    // The world map's bright part (a sun) as the directions its shadow rays take, each with the
+    // largest channel of the irradiance it brings to a surface facing it.
+    std::vector<std::pair<Vec3, double>> world_bright() const;
+    const RayCaster& caster() const { return caster_; }
 
 private:
     // The hemispherical integral at node j of r of radiance_along(hit, world direction), the
@@ -231,6 +237,7 @@ private:
     mutable std::mutex scatter_mutex_;
     mutable std::unordered_map<std::thread::id, std::vector<std::unique_ptr<ScatterTable>>> scatter_tables_;
     std::vector<DistantSample> distant_;  // of all distant lights and the world map's bright part
+    size_t world_bright_first_ = 0;       // where the world map's bright part begins in distant_
     std::optional<EnvironmentMap> world_smooth_;
     std::vector<int> emitters_;
     std::vector<int> self_lit_;  // curved emitters, which light themselves too
