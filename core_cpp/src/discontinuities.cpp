@@ -279,29 +279,28 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
     const double size = scene[surface].surface->size(), flat = 1e-7 * size;
     auto height = [&](const Vec3& p) { return dot(p - A.o, A.n); };
     auto on_live_side = [&](double h) { return (h > flat && live[0]) || (h < -flat && live[1]); };
-    // The segment a-b of the receiver's plane clipped to the surface: -1 if it misses it (or is a
-    // point), 0 or 1 if it is a parameter line u or v = `position`, 2 if it is oblique.
-    auto line_of_uv = [&](std::array<double, 2> p, std::array<double, 2> q, double& position) {
-        if (!clip_unit(p, q)) return -1;
-        if (std::abs(p[0] - q[0]) + std::abs(p[1] - q[1]) < 1e-9) return -1;  // a point
+    // The segment p-q of (u, v) clipped to the surface: k -1 if it misses it (or is a point), 0 or
+    // 1 if it is a parameter line u or v = `position` over `length` of the other parameter, 2 if
+    // it is oblique.
+    struct Segment {
+        int k = -1;
+        double position = 0, length = 0;
+    };
+    auto line_of_uv = [&](std::array<double, 2> p, std::array<double, 2> q) {
+        Segment out;
+        if (!clip_unit(p, q)) return out;
+        if (std::abs(p[0] - q[0]) + std::abs(p[1] - q[1]) < 1e-9) return out;  // a point
+        out.k = 2, out.length = std::hypot(p[0] - q[0], p[1] - q[1]);
         for (int k = 0; k < 2; ++k)
-            if (std::abs(p[k] - q[k]) <= tolerance[k] && std::abs(p[1 - k] - q[1 - k]) > tolerance[1 - k]) {
-                position = 0.5 * (p[k] + q[k]);
-                return k;
-            }
-        return 2;
+            if (std::abs(p[k] - q[k]) <= tolerance[k] && std::abs(p[1 - k] - q[1 - k]) > tolerance[1 - k])
+                return Segment{k, 0.5 * (p[k] + q[k]), std::abs(p[1 - k] - q[1 - k])};
+        return out;
     };
-    auto line_of = [&](const Vec3& a, const Vec3& b, double& position) { return line_of_uv(A.uv(a), A.uv(b), position); };
-    // Records what line_of found (`k`, `position`) as a line of the given order, if it is one.
-    auto record = [&](int k, double position, int order) {
-        if (k == 0 || k == 1) out.lines[k].push_back({position, order});
-        out.oblique += k == 2;
-    };
-    // Adds the segment a-b as a line of the given order, if it is one.
-    auto add = [&](const Vec3& a, const Vec3& b, int order) {
-        double position = 0;
-        const int k = line_of(a, b, position);
-        record(k, position, order);
+    auto line_of = [&](const Vec3& a, const Vec3& b) { return line_of_uv(A.uv(a), A.uv(b)); };
+    // Records what line_of found as a line of the given order, if it is one.
+    auto record = [&](const Segment& x, int order, double band = 0) {
+        if (x.k == 0 || x.k == 1) out.lines[x.k].push_back({x.position, order, band, x.length});
+        out.oblique += x.k == 2;
     };
     // Contact lines: an occluder's feature edge on the receiver's plane with a face leaving it.
     for (size_t o = 0; o < scene.size(); ++o) {
@@ -312,7 +311,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             if (std::abs(height(a)) > flat || std::abs(height(b)) > flat) continue;
             bool leaves = false;
             for (const Vec3& n : P.edge_faces[e]) leaves = leaves || std::abs(dot(n, A.n)) < 1 - 1e-9;
-            if (leaves) add(a, b, 0);
+            if (leaves) record(line_of(a, b), 0);
         }
     }
     // Occluders that can stand between the receiver and an emitter, nearest first.
@@ -383,34 +382,28 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             // a jump, one line of order 0 (as a contact line) instead of kinks the spline would
             // blur light across (the wall's light leaked under the board, 1.3x in the wedge).
             for (const auto& e : P.edges) {
-                struct Event {
-                    int k;  // line_of's answer
-                    double position;
-                    int order;
-                };
-                std::vector<Event> events;
+                std::vector<std::pair<Segment, int>> events;  // and its order
                 for (size_t v = 0; v < E.vertices.size(); ++v) {
                     Vec3 a, b;
                     if (!project(E.vertices[v], P.vertices[e[0]], a) || !project(E.vertices[v], P.vertices[e[1]], b)) continue;
                     int order = 2;
                     for (int f : E.edges_at[v])
                         if (parallel(E.vertices[E.edges[f][1]] - E.vertices[E.edges[f][0]], P.vertices[e[1]] - P.vertices[e[0]])) order = 1;
-                    Event event{0, 0, order};
-                    event.k = line_of(a, b, event.position);
-                    events.push_back(event);
+                    events.emplace_back(line_of(a, b), order);
                 }
-                const int axis = events.empty() ? -1 : events[0].k;
+                const int axis = events.empty() ? -1 : events[0].first.k;
                 bool narrow = events.size() == E.vertices.size() && (axis == 0 || axis == 1);
-                double lo = 1e300, hi = -1e300;
-                for (const Event& event : events) {
+                double lo = 1e300, hi = -1e300, length = 0;
+                for (const auto& [event, order] : events) {
                     narrow = narrow && event.k == axis;
                     lo = std::min(lo, event.position), hi = std::max(hi, event.position);
+                    length = std::max(length, event.length);
                 }
                 if (narrow && hi - lo <= 2 * tolerance[axis]) {
-                    out.lines[axis].push_back({0.5 * (lo + hi), 0, hi - lo});
+                    record(Segment{axis, 0.5 * (lo + hi), length}, 0, hi - lo);
                     continue;
                 }
-                for (const Event& event : events) record(event.k, event.position, event.order);
+                for (const auto& [event, order] : events) record(event, order);
             }
             // VE: an occluder vertex and an emitter edge.
             for (size_t w = 0; w < P.vertices.size(); ++w)
@@ -421,7 +414,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                     int order = 2;
                     for (int f : P.edges_at[w])
                         if (parallel(P.vertices[P.edges[f][1]] - P.vertices[P.edges[f][0]], E.vertices[e[1]] - E.vertices[e[0]])) order = 1;
-                    add(a, b, order);
+                    record(line_of(a, b), order);
                 }
         }
     }
@@ -454,15 +447,16 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             if (closest < 1e300) between.emplace_back(closest, o);
         }
         std::sort(between.begin(), between.end());
-        // Whether the line a-b (in (u, v), clipped) bounds the light arriving along `dir`: at
-        // some point along it, one of the two points `offset` to either side is lit and the
-        // other is not. Without a ray caster every line counts.
+        // The part of the line a-b (in (u, v), clipped) along which it bounds the light arriving
+        // along `dir`: where one of the two points `offset` to either side is lit and the other
+        // is not. Without a ray caster, all of it.
         auto bounds_light = [&](std::array<double, 2> a, std::array<double, 2> b, const Vec3& dir, double offset) {
-            if (!caster_) return true;
+            if (!caster_) return 1.0;
             const double du = b[0] - a[0], dv = b[1] - a[1], len = std::hypot(du, dv);
             const std::array<double, 2> across{-dv / len, du / len};
             const double half_span = 5 * std::min(tolerance[0], tolerance[1]);
             const int samples = std::clamp(int(std::ceil(len / half_span)) + 1, 3, 32);
+            int bounding = 0;
             for (int i = 0; i < samples; ++i) {
                 const double t = (i + 0.5) / samples;
                 int lit = 0, seen = 0;
@@ -473,9 +467,9 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                     ++rays, ++seen;
                     lit += caster_->transmittance(caster_->spawn(x, A.n, dir), dir) > 0;
                 }
-                if (seen == 2 && lit == 1) return true;
+                bounding += seen == 2 && lit == 1;
             }
-            return false;
+            return double(bounding) / samples;
         };
         // The edge's shadow along `dir` as (u, v) segment ends, clipped: false if it has none.
         auto shadow = [&](const Vec3& a, const Vec3& b, const Vec3& dir, std::array<double, 2>& pa,
@@ -517,34 +511,39 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                 }
                 struct Rim {
                     std::array<double, 2> a, b;
-                    int k;
-                    double position = 0;
+                    Segment line;
                     Vec3 dir;
                 };
                 std::vector<Rim> found;
                 for (const Vec3& w : rims) {
-                    Rim rim{{}, {}, -1, 0, w};
+                    Rim rim{{}, {}, {}, w};
                     if (!shadow(a, b, w, rim.a, rim.b)) continue;
-                    rim.k = line_of_uv(rim.a, rim.b, rim.position);
+                    rim.line = line_of_uv(rim.a, rim.b);
                     found.push_back(rim);
                 }
                 if (found.empty()) continue;
-                const int k = found[0].k;
+                const int k = found[0].line.k;
                 const bool narrow = found.size() == rims.size() && (k == 0 || k == 1) &&
                                     std::all_of(found.begin(), found.end(), [&](const Rim& x) {
-                                        return x.k == k && std::abs(x.position - found[0].position) <= 2 * tolerance[k];
+                                        return x.line.k == k && std::abs(x.line.position - found[0].line.position) <= 2 * tolerance[k];
                                     });
+                // Its length: the part of it that bounds light (a window sill's shadow across
+                // the floor only where the window is).
                 if (narrow) {
                     // One jump, checked along the centre direction beyond the penumbra's half.
-                    double position = 0, band = 0;
-                    for (const Rim& x : found) position += x.position / found.size();
+                    Segment jump{k, 0, found[0].line.length};
+                    double band = 0;
+                    for (const Rim& x : found) jump.position += x.line.position / found.size();
                     for (const Rim& x : found)  // (at its widest: a penumbra widens away from its edge)
-                        band = std::max({band, 2 * std::abs(x.a[k] - position), 2 * std::abs(x.b[k] - position)});
-                    if (bounds_light(found[0].a, found[0].b, d, 1.5 * tolerance[k])) out.lines[k].push_back({position, 0, band});
+                        band = std::max({band, 2 * std::abs(x.a[k] - jump.position), 2 * std::abs(x.b[k] - jump.position)});
+                    jump.length *= bounds_light(found[0].a, found[0].b, d, 1.5 * tolerance[k]);
+                    if (jump.length > 0) record(jump, 0, band);
                     continue;
                 }
-                for (const Rim& x : found)
-                    if (bounds_light(x.a, x.b, x.dir, 0.5 * std::min(tolerance[0], tolerance[1]))) record(x.k, x.position, 1);
+                for (Rim& x : found) {
+                    x.line.length *= bounds_light(x.a, x.b, x.dir, 0.5 * std::min(tolerance[0], tolerance[1]));
+                    if (x.line.length > 0) record(x.line, 1);
+                }
             }
         }
     }
@@ -571,13 +570,16 @@ KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coe
             DiscontinuityLine& m = merged.back();
             m.order = std::min(m.order, l.order);
             m.band = std::max(m.band, l.band);
+            m.length = std::min(m.length + l.length, 1.0);
         } else
             merged.push_back(l);
     }
     // At most half the inner knots go to lines, the lowest orders (the strongest) first.
     std::vector<size_t> by_order(merged.size());
     std::iota(by_order.begin(), by_order.end(), 0);
-    std::stable_sort(by_order.begin(), by_order.end(), [&](size_t x, size_t y) { return merged[x].order < merged[y].order; });
+    std::stable_sort(by_order.begin(), by_order.end(), [&](size_t x, size_t y) {
+        return merged[x].order != merged[y].order ? merged[x].order < merged[y].order : merged[x].length > merged[y].length;
+    });
     std::vector<std::pair<double, int>> fixed;  // position, multiplicity
     int used = 0;
     for (size_t k : by_order) {

@@ -257,13 +257,22 @@ def test_form_factor_rows_see_through_panes():
 UV_GRID = np.stack(np.meshgrid(np.linspace(0.05, 0.95, 7), np.linspace(0.05, 0.95, 7)), -1).reshape(-1, 2)
 
 
-def test_panes_with_adaptive_knots():
+@pytest.mark.parametrize("discontinuity_knots", [False, True])
+def test_panes_with_adaptive_knots(discontinuity_knots):
     # Adaptive knots probe the direct light through the pane (the final gather, which would add the
-    # floor's light reflected in the pane, is checked against Cycles in tests/blender).
+    # floor's light reflected in the pane, is checked against Cycles in tests/blender). The final
+    # preset's discontinuity knots find the sun's patch through the pane and the open sun under
+    # the ceiling's edge: three jumps in u, which 16 coefficients cannot all take (the longest,
+    # the open sun's across the floor, and one of the patch's go first), 24 can.
     s = bsgi.SolverSettings.preset("final")
     s.max_bounces = 0
     s.final_gather = False
+    s.discontinuity_knots = discontinuity_knots
+    if discontinuity_knots:
+        s.spatial_coeffs = 24
     sol = bsgi.solve(skylight(40), s)
+    if discontinuity_knots:
+        assert "discontinuity knots: 3 lines in u, 2 in v" in sol.reports[0]["reason"]
     t = math.radians(40)
     x = -H * math.tan(t) + np.linspace(-0.1, 0.1, 5)
     lit = ALBEDO / math.pi * E * math.cos(t) * sheet_transmittance(math.cos(t))

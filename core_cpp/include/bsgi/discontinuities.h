@@ -24,6 +24,9 @@ struct DiscontinuityLine {
     // A jump (order 0) that stands for a penumbra narrower than the spline resolves: the band's
     // width in the parameter, which the nodes beside the knot keep out of (0: a true jump).
     double band = 0;
+    // The part of the other parameter's range along which the light is discontinuous there
+    // (a tensor-product knot spans all of it; a shadow edge of a small object a little).
+    double length = 1;
 };
 
 struct ReceiverDiscontinuities {
@@ -88,7 +91,8 @@ private:
 // Clamped knots on [a, b] with num_coeffs coefficients: each line of order below the degree
 // (where the light is less smooth than the spline, C^(degree-1)) gets a knot of multiplicity
 // degree + 1 - order (lines closer than a fifth of a uniform span merged, the lowest order
-// kept; at most half the inner knots go to lines, lowest orders first), and the remaining inner
+// kept, their lengths added; at most half the inner knots go to lines, lowest orders first and
+// of an order the longest first), and the remaining inner
 // knots are spread between them, each gap getting its share of `density` (given on equal cells
 // of [a, b]; empty: uniform) equidistributed. `placed`: the lines that got knots.
 KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coeffs, int degree, double a, double b,
