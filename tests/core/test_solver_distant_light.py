@@ -187,3 +187,21 @@ def test_window_patch_is_sharp_on_discontinuity_knots(angle):
     else:
         assert errors[True][0] < 0.6  # measured 0.52: the penumbrae against the closed form's steps
     assert errors[True][1] < 1e-9  # measured 0 (to rounding) 5 cm from the edges
+
+
+def test_the_longest_lines_get_the_knots_first():
+    # Two small blocks standing in the sun's patch cast short shadow edges beside it; 16
+    # coefficients take two jumps an axis. The window's edges, each along a third of the floor,
+    # get them (of one order the longest lines go first): by position the blocks' edges on the
+    # left took them and the patch was blurred.
+    scene = window_scene()
+    for k, x in enumerate((-0.45, -0.25)):
+        for i, corners in enumerate(scene_spec.box([x, -0.3, 0.05], [0.04, 0.04, 0.04])):
+            scene.add_bilinear_patch(f"block {k} {i}", corners, albedo=[0.0] * 3, emission=[0, 0, 0])
+    sol = solve(scene, spatial_coeffs=16, discontinuity_knots=True)
+    knots = np.array(sol.radiance[0].axes[0].knots)
+    jumps = sorted({round(float(t), 6) for t in knots[3:-3] if (np.abs(knots - t) < 1e-12).sum() == 3})
+    # The sill's and the lintel's shadows: x = 0.715 and -0.571.
+    want = [(x + 2) / 4 for x in (2 - 1.8 / math.tan(math.radians(35)), 2 - 0.9 / math.tan(math.radians(35)))]
+    print(f"\njumps in u at {jumps}, the window's at {np.round(want, 6)}")
+    np.testing.assert_allclose(jumps, want, atol=2e-3)  # within the penumbra's half (none: a sun of no size)
