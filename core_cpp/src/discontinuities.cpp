@@ -471,6 +471,15 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             }
             return double(bounding) / samples;
         };
+        // The shadow rays leave the receiver lifted off it (RayCaster::spawn), which moves a sun's
+        // shadow edge by the lift times the tangent of its incidence: nodes beside a jump closer
+        // than that took the other side's light (adaptive knots put spans of millimetres there).
+        // Four times that, as a band in each parameter, keeps them out.
+        std::array<double, 2> lifted_band{0, 0};
+        if (caster_) {
+            const double shift = 4 * caster_->offset() * std::sqrt(std::max(0.0, 1 - dn * dn)) / std::abs(dn);
+            lifted_band = {2 * shift / length(A.du), 2 * shift / length(A.dv)};
+        }
         // The edge's shadow along `dir` as (u, v) segment ends, clipped: false if it has none.
         auto shadow = [&](const Vec3& a, const Vec3& b, const Vec3& dir, std::array<double, 2>& pa,
                           std::array<double, 2>& pb) {
@@ -536,6 +545,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                     for (const Rim& x : found) jump.position += x.line.position / found.size();
                     for (const Rim& x : found)  // (at its widest: a penumbra widens away from its edge)
                         band = std::max({band, 2 * std::abs(x.a[k] - jump.position), 2 * std::abs(x.b[k] - jump.position)});
+                    band = std::max(band, lifted_band[k]);
                     jump.length *= bounds_light(found[0].a, found[0].b, d, 1.5 * tolerance[k]);
                     if (jump.length > 0) record(jump, 0, band);
                     continue;

@@ -155,13 +155,15 @@ def window_patch_exact(x, y):
     return np.where(lit[:, None], ALBEDO / math.pi * E * math.sin(t), 0.0)
 
 
-@pytest.mark.parametrize("angle", [0, 0.53])
-def test_window_patch_is_sharp_on_discontinuity_knots(angle):
+@pytest.mark.parametrize("angle,adaptive", [(0, False), (0.53, False), (0, True)])
+def test_window_patch_is_sharp_on_discontinuity_knots(angle, adaptive):
     # The sun's patch through a window: its four edges are shadows of the window's edges along
     # the sun, parameter lines of the floor. Jumps there make the spline exact on both sides of
     # each; the real sun (0.53 degrees) draws penumbrae of 1.5-2.9 cm, narrower than a span,
     # kept as jumps with the nodes beside them outside the band. The block's edges cast their
-    # shadows in the wall's: no line there.
+    # shadows in the wall's: no line there. With adaptive knots (the final preset's) the spans
+    # beside the jumps are millimetres: the nodes there were within the shadow rays' lift of the
+    # edge and took the other side's light (46% with the knots, 45% without).
     uv = np.random.default_rng(3).uniform(0.001, 0.999, (20000, 2))
     x, y = 4 * uv[:, 0] - 2, 4 * uv[:, 1] - 2
     want = window_patch_exact(x, y)
@@ -171,17 +173,17 @@ def test_window_patch_is_sharp_on_discontinuity_knots(angle):
             & (np.abs(y) < 1.7))
     errors = {}
     for knots in (False, True):
-        sol = solve(window_scene(angle, block=True), spatial_coeffs=24, discontinuity_knots=knots)
+        sol = solve(window_scene(angle, block=True), spatial_coeffs=24, discontinuity_knots=knots, adaptive_knots=adaptive)
         got = sol.radiance[0].evaluate(uv)
         errors[knots] = (np.sqrt(((got - want) ** 2).mean()) / want.mean(),
                          np.abs(got - want)[away].max() / want.max())
         reason = sol.reports[0]["reason"]
-    print(f"\nsun {angle} degrees through a window, 24 x 24: relative RMSE {errors[False][0]:.4f} -> {errors[True][0]:.4f}, "
+    print(f"\nsun {angle} degrees through a window, 24 x 24{' adaptive' if adaptive else ''}: relative RMSE {errors[False][0]:.4f} -> {errors[True][0]:.4f}, "
           f"largest error 5 cm from the edges {errors[False][1]:.4f} -> {errors[True][1]:.2e}; {reason.split('; ')[-1]}")
     # The lintel's penumbra (2.9 cm) is wider than a jump may stand for at 24 coefficients: two kinks.
     assert f"discontinuity knots: {2 if angle == 0 else 3} lines in u, 2 in v" in reason  # none from the block
-    assert errors[False][0] > 0.5  # measured 0.93 and 1.01
-    assert errors[False][1] > 0.1
+    assert errors[False][0] > (0.25 if adaptive else 0.5)  # measured 1.04, 1.14 and 0.45
+    assert adaptive or errors[False][1] > 0.1  # (adaptive knots alone are exact 5 cm away)
     if angle == 0:
         assert errors[True][0] < 1e-9  # measured 0 (to rounding)
     else:
