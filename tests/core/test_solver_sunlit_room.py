@@ -1,0 +1,112 @@
+"""A room lit by the sun through a window (issue 15's validation, a scene the presets were not
+tuned on), against Mitsuba 3's directional emitter: the sun's patch on the floor and the shadows
+of a block turned in it, and the room lit by that patch. What the discontinuity knots of a light
+at infinity buy at the final preset, and where the solve stands.
+
+    .venv/bin/python -m pytest tests/core/test_solver_sunlit_room.py -s     (prints the figures)
+"""
+import math
+
+import numpy as np
+import pytest
+
+import bsgi
+from reference import committed, mitsuba_reference, scene_spec
+from reference.scene_spec import quad
+
+SUN = np.array([math.cos(math.radians(35)), 0.0, math.sin(math.radians(35))])  # over the window's wall
+E = np.array([4.0, 3.8, 3.4])
+
+
+def sunlit_room() -> scene_spec.SceneSpec:
+    """A 4 x 3 x 2.5 m room, its quads facing in; a 1.2 x 0.9 m window in its x = 2 wall (sill at
+    0.9 m); a block turned 30 degrees standing in the sun's patch (its shadow edges oblique to
+    the floor's parameters, the patch's own along them) and a box in the shade."""
+    spec = scene_spec.SceneSpec()
+    spec.add("floor", quad([0, 0, 0], [2, 0, 0], [0, 1.5, 0]), (0.7, 0.68, 0.65))
+    spec.add("ceiling", quad([0, 0, 2.5], [0, 1.5, 0], [2, 0, 0]), (0.8, 0.8, 0.8))
+    spec.add("back wall", quad([-2, 0, 1.25], [0, 1.5, 0], [0, 0, 1.25]), (0.65, 0.65, 0.7))
+    spec.add("left wall", quad([0, -1.5, 1.25], [0, 0, 1.25], [2, 0, 0]), (0.7, 0.6, 0.5))
+    spec.add("right wall", quad([0, 1.5, 1.25], [2, 0, 0], [0, 0, 1.25]), (0.5, 0.6, 0.7))
+    for name, c, hu, hv in (("sill wall", [2, 0, 0.45], [0, 0, 0.45], [0, 1.5, 0]),
+                            ("lintel wall", [2, 0, 2.15], [0, 0, 0.35], [0, 1.5, 0]),
+                            ("window left", [2, -1.05, 1.35], [0, 0, 0.45], [0, 0.45, 0]),
+                            ("window right", [2, 1.05, 1.35], [0, 0, 0.45], [0, 0.45, 0])):
+        spec.add(name, quad(c, hu, hv), (0.75, 0.75, 0.75))
+    for i, corners in enumerate(scene_spec.box([0.3, 0.25, 0.2], [0.3, 0.3, 0.4], math.radians(30))):
+        spec.add(f"block {i}", corners, (0.6, 0.5, 0.4))
+    for i, corners in enumerate(scene_spec.box([-1.2, -0.8, 0.125], [0.5, 0.4, 0.25])):
+        spec.add(f"box {i}", corners, (0.5, 0.55, 0.6))
+    return spec
+
+
+def mitsuba_under_the_sun(spec):
+    mi = mitsuba_reference.load_mitsuba()
+    shapes = {f"shape{i}": s for i, s in enumerate(mitsuba_reference.to_mitsuba(spec).shapes())}
+    return mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": -1},
+                         "sun": {"type": "directional", "direction": list(-SUN),
+                                 "irradiance": {"type": "rgb", "value": list(E)}}, **shapes})
+
+
+_solved = {}
+
+
+def compare(preset, **overrides):
+    """Relative RMSE over all pairs and per object (the block's and the box's faces together):
+    (mean ratio ours / Mitsuba, relative RMSE), Mitsuba's noise taken out in quadrature."""
+    label = (preset, tuple(sorted(overrides.items())))
+    if label in _solved:
+        return _solved[label]
+    spec = sunlit_room()
+    pairs, ref, stderr = committed.reference("sunlit room", spec, pairs=3000, pair_seed=5, spp=16384, seed=3,
+                                             scene=mitsuba_under_the_sun, inputs={"SUN": SUN, "E": E})
+    scene = scene_spec.to_bsgi(spec)
+    scene.add_distant_light("sun", SUN, E)
+    settings = bsgi.SolverSettings.preset(preset)
+    for k, v in overrides.items():
+        setattr(settings, k, v)
+    sol = bsgi.solve(scene, settings)
+    ours = scene_spec.solved_radiance(scene, sol, pairs)
+
+    def error(m):
+        return math.sqrt(max(((ours[m] - ref[m]) ** 2).sum() - (stderr[m] ** 2).sum(), 0) / (ref[m] ** 2).sum())
+
+    names = np.array([spec.patches[i].name.split(" ")[0] if spec.patches[i].name.startswith(("block", "box"))
+                      else spec.patches[i].name for i in pairs["patch"]])
+    objects = {n: (ours[names == n].sum() / ref[names == n].sum(), error(names == n)) for n in sorted(set(names))}
+    noise = math.sqrt((stderr ** 2).sum() / (ref ** 2).sum())
+    total = error(np.ones(len(ref), bool))
+    print(f"\nsunlit room, {preset} {overrides or ''}: {100 * total:.2f}% (Mitsuba's noise {100 * noise:.2f}%); "
+          + ", ".join(f"{n} {r:.3f} ({100 * e:.1f}%)" for n, (r, e) in objects.items()))
+    _solved[label] = total, objects, sol
+    return _solved[label]
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba_reference
+def test_the_suns_lines_sharpen_the_patch_at_final():
+    # Measured (5 December): final 14.8% (the floor 16.5%: most of it the block's oblique shadow
+    # edges, which get no knots), 16.5% without discontinuity knots (the floor 18.5%).
+    total, objects, sol = compare("final")
+    without, objects_without, _ = compare("final", discontinuity_knots=False)
+    assert "discontinuity knots: 4 lines in u, 4 in v" in sol.reports[0]["reason"]  # the window's and the box's
+    assert total < 0.22  # measured 0.148
+    assert total < without  # measured 0.148 against 0.165
+    assert objects["floor"][1] < objects_without["floor"][1]  # measured 0.165 against 0.185
+    # Every object's mean within 6% (measured 1.012 to 1.038: the room lit by the sun's small,
+    # bright patch through the final gather's hemisphere, issue 15's target of 1% not met).
+    for name, (ratio, _) in objects.items():
+        assert abs(ratio - 1) < 0.06, (name, ratio)
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba_reference
+def test_the_reference_preset_resolves_the_patch():
+    # Four times final's coefficients and twice its integration nodes: the floor 0.5% (18.5% at
+    # final without the sun's lines, before the nodes beside them kept off the shadow rays'
+    # lift: 11.4%), the walls lit by the patch 2.8-5.3%, means 1.000 to 1.027.
+    total, objects, _ = compare("reference")
+    assert total < 0.02  # measured 0.0107
+    assert objects["floor"][1] < 0.01  # measured 0.005
+    for name, (ratio, error) in objects.items():
+        assert abs(ratio - 1) < 0.05 and error < 0.1, (name, ratio, error)
