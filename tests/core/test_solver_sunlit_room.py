@@ -110,3 +110,19 @@ def test_the_reference_preset_resolves_the_patch():
     assert objects["floor"][1] < 0.01  # measured 0.005
     for name, (ratio, error) in objects.items():
         assert abs(ratio - 1) < 0.05 and error < 0.1, (name, ratio, error)
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba_reference
+def test_the_preview_floor_loses_the_patchs_light():
+    # At preview (12 coefficients, 24 in the final gather; no discontinuity knots) the patch's
+    # light is sampled at nodes that fall as they fall about its edges: the floor's mean 0.878 of
+    # Mitsuba's, and the room it lights as dark (0.87-0.94); with 24 and 48 coefficients 0.965
+    # and 0.997 (the walls with it), twice the integration nodes change nothing. Not resolved
+    # (issue 15; a node's direct light as its cell's mean where an edge crosses the cell would
+    # keep the patch's light): bounded here so that it does not get worse unseen.
+    total, objects, _ = compare("preview")
+    assert total < 0.45  # measured 0.309
+    assert 0.80 < objects["floor"][0] < 1.05  # measured 0.878
+    for name, (ratio, _) in objects.items():
+        assert 0.75 < ratio < 1.1, (name, ratio)  # measured 0.827 (the box) to 1.007 (the block)
