@@ -108,14 +108,16 @@ void bind_fitting(py::module_& m) {
         "rule is applied dimension by dimension.");
     m.def(
         "sharpen_samples",
-        [](TensorSpline& s, int axis, const std::vector<double>& nodes) {
+        [](TensorSpline& s, int axis, const std::vector<double>& nodes, const std::vector<uint8_t>& keep) {
             py::gil_scoped_release release;
-            sharpen_samples(s, axis, nodes);
+            sharpen_samples(s, axis, nodes, keep);
         },
         py::arg("spline"), py::arg("axis"), py::arg("nodes") = std::vector<double>{},
+        py::arg("keep") = std::vector<uint8_t>{},
         "In place along `axis`: coefficients that are samples of f at `nodes` (default: the axis's Schoenberg "
         "nodes) become the limited quadratic correction of Schoenberg's fit (sharpen.h): quadratics reproduced "
-        "where f is smooth, no correction where its curvature changes sign (an edge).");
+        "where f is smooth, no correction where its curvature changes sign (an edge). `keep`: per spatial node "
+        "(the first two axes, u slowest), 1 where the coefficients stay their samples (cell means).");
 }
 
 }  // namespace bsgi::bindings

@@ -183,13 +183,15 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
 
 template <typename Visit>
 void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, std::array<bool, 2> sides,
-                                       Visit&& visit, size_t& rays) const {
+                                       Visit&& visit, size_t& rays, LightParts parts) const {
     for (int e : emitters_) {
+        if (parts == LightParts::Distant) break;
         if (e == receiver && std::find(self_lit_.begin(), self_lit_.end(), e) == self_lit_.end()) continue;
         const SceneSurface& es = scene_[e];
         emitter_cell(r, *es.surface, es.material, 0, 1, 0, 1, 0, ratio, sides, visit, rays);
     }
     for (const DistantSample& d : distant_) {
+        if (parts == LightParts::Emitters) break;
         const double cos_r = dot(d.direction, r.frame.z);
         if (cos_r == 0 || !sides[cos_r < 0]) continue;
         ++rays;
@@ -207,7 +209,77 @@ Vec3 Gatherer::irradiance(int surface, const SurfacePoint& p, size_t& rays, std:
 }
 
 void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
-    const SurfacePoint p = node_point(r, j);
+    direct_at(r, node_point(r, j), LightParts::All, out, rays);
+}
+
+void Gatherer::direct_over_cell(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
+    const std::vector<double>&us = r.nodes.axis(0), &vs = r.nodes.axis(1);
+    const SpatialNode node = r.nodes[j];
+    const size_t i = us.empty() || vs.empty() ? 0 : j / vs.size(), k = vs.empty() ? 0 : j % vs.size();
+    // (A node moved off the grid, a hidden one at a contact line, has no cell.)
+    if (!settings_.distant_cell_means || distant_.empty() || us.empty() || vs.empty() || node.u != us[i] || node.v != vs[k]) {
+        direct(r, j, out, rays);
+        return;
+    }
+    const Surface& surface = *scene_[r.surface].surface;
+    const size_t n = r.sides * r.per_node;
+    direct_at(r, surface.evaluate(node.u, node.v), LightParts::Emitters, out, rays);
+    std::vector<Vec3> sun(n), at(n);
+    direct_at(r, surface.evaluate(node.u, node.v), LightParts::Distant, sun.data(), rays);
+    // The node's basis function B_i(u) B_k(v): where it is not zero, and its value. Its mean of
+    // the light weighed by it makes the coefficients' integral the light's (sum_i c_i int B_i =
+    // int f where every c_i is such a mean): the patch keeps its light at any resolution.
+    const KnotVector &ku = (*r.axes)[0], &kv = (*r.axes)[1];
+    auto support = [](const KnotVector& kn, size_t c, double& lo, double& hi) {
+        const auto& t = kn.knots();
+        lo = std::max(t[c], kn.domain_begin()), hi = std::min(t[c + size_t(kn.degree()) + 1], kn.domain_end());
+    };
+    auto basis_at = [](const KnotVector& kn, size_t c, double x) {
+        const int span = kn.find_span(x), d = kn.degree();
+        if (int(c) < span - d || int(c) > span) return 0.0;
+        double b[8];
+        kn.basis(x, span, b);
+        return b[int(c) - (span - d)];
+    };
+    double u0, u1, v0, v1;
+    support(ku, i, u0, u1);
+    support(kv, k, v0, v1);
+    auto brightness = [n](const std::vector<Vec3>& x) {
+        double b = 0;
+        for (size_t a = 0; a < n; ++a) b += x[a].x + x[a].y + x[a].z;
+        return b;
+    };
+    auto sun_at = [&](double u, double v) { direct_at(r, surface.evaluate(u, v), LightParts::Distant, at.data(), rays); };
+    // Does an edge cross the support? Its points halfway to its ends, against the node's.
+    double lo = brightness(sun), hi = lo;
+    for (const double fu : {0.25, 0.75})
+        for (const double fv : {0.25, 0.75}) {
+            sun_at(u0 + fu * (u1 - u0), v0 + fv * (v1 - v0));
+            lo = std::min(lo, brightness(at)), hi = std::max(hi, brightness(at));
+        }
+    if (hi - lo > kEdgeContrast * std::max(std::abs(hi), std::abs(lo)) && ku.degree() <= 7 && kv.degree() <= 7) {
+        std::vector<Vec3> mean(n, Vec3{0, 0, 0});
+        constexpr int m = 6;  // midpoints a side over the support
+        double total = 0;
+        for (int a = 0; a < m; ++a) {
+            const double u = u0 + (a + 0.5) / m * (u1 - u0), bu = basis_at(ku, i, u);
+            for (int b = 0; b < m; ++b) {
+                const double v = v0 + (b + 0.5) / m * (v1 - v0), w = bu * basis_at(kv, k, v);
+                if (!(w > 0)) continue;
+                sun_at(u, v);
+                for (size_t c = 0; c < n; ++c) mean[c] += at[c] * w;
+                total += w;
+            }
+        }
+        if (total > 0) {
+            for (size_t c = 0; c < n; ++c) sun[c] = mean[c] * (1.0 / total);
+            if (j < r.cell_means.size()) r.cell_means[j] = 1;
+        }
+    }
+    for (size_t c = 0; c < n; ++c) out[c] += sun[c];
+}
+
+void Gatherer::direct_at(const Receiver& r, const SurfacePoint& p, LightParts parts, Vec3* out, size_t& rays) const {
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     // Glossy receivers: emitter cells no wider than a fraction of the lobe, seen from here.
@@ -222,7 +294,7 @@ void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) cons
         for (int side = 0; side < r.sides; ++side)
             if (r.solves(side))
                 for (size_t a = 0; a < r.per_node; ++a) out[side * r.per_node + a] += r.scatter(side, a, wi) * value;
-    }, rays);
+    }, rays, parts);
 }
 
 // The albedo texture as a ray sees it: box-filtered over the ray's footprint, the solid angle

@@ -40,7 +40,7 @@ double minmod(double a, double b) {
 
 }  // namespace
 
-void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& nodes) {
+void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& nodes, const std::vector<uint8_t>& keep) {
     if (axis < 0 || axis >= spline.dims())
         throw std::invalid_argument("sharpen: axis " + std::to_string(axis) + " of a " + std::to_string(spline.dims()) +
                                     "-dimensional spline");
@@ -74,6 +74,11 @@ void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& 
     // close range, so they count as no peak or trough. (has[j]: sample j has neighbours on both
     // sides, so an end sample's curvature never enters a minmod.)
     const std::vector<size_t> shape = spline.shape();
+    size_t per_node = 1;  // values per spatial node
+    for (size_t k = 2; k < shape.size(); ++k) per_node *= shape[k];
+    if (!keep.empty() && (shape.size() < 3 || keep.size() * per_node != spline.coeffs().size()))
+        throw std::invalid_argument("sharpen: " + std::to_string(keep.size()) + " marks for " +
+                                    std::to_string(spline.coeffs().size() / per_node) + " spatial nodes");
     size_t inner = 1, outer = 1;
     for (size_t k = size_t(axis) + 1; k < shape.size(); ++k) inner *= shape[k];
     for (int k = 0; k < axis; ++k) outer *= shape[k];
@@ -106,7 +111,7 @@ void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& 
             }
             for (int i = 0; i < n; ++i) {
                 out[i] = f[i];
-                if (beta[i] == 0) continue;
+                if (beta[i] == 0 || (!keep.empty() && keep[(base + size_t(i) * inner) / per_node])) continue;
                 // The stencil: the sample and its neighbours, moved inward next to an end.
                 const int c = line.periodic ? i : std::clamp(i, 1, n - 2);
                 if (!has[c]) continue;

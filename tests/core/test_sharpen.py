@@ -150,3 +150,31 @@ def test_unclamped_knots_correct_their_end_coefficients_from_inside():
     p = np.polynomial.Polynomial([0.9, -0.4, 1.1])
     assert max_error(sharpened(k, p), p, lo, hi) <= 1e-12
     assert max_error(schoenberg(k, p), p, lo, hi) > 1e-3
+
+
+def test_kept_samples_stay_and_the_rest_sharpen_as_without():
+    # Marked nodes (a sun's light as a mean over a node's support, SolverSettings.distant_cell_means)
+    # keep their samples as coefficients; along the axis every other coefficient is what it is
+    # without marks (a correction reads the samples, not its neighbours' corrections). One mark
+    # per spatial node of the first two axes, u slowest; its channels share it.
+    ku = bsgi.KnotVector.clamped_uniform(9, 2, 0.0, 1.0)
+    kv = bsgi.KnotVector.clamped_uniform(8, 2, 0.0, 1.0)
+    s = bsgi.TensorSpline([ku, kv], 3)
+    bsgi.fit(s, lambda x: np.stack([1 + x[:, 0] ** 2 * x[:, 1], 2 - x[:, 1] ** 2, np.exp(x[:, 0])], axis=1), "schoenberg")
+    samples = np.array(s.coefficients).copy()
+    keep = np.zeros(9 * 8, np.uint8)
+    keep[[4 * 8 + 3, 4 * 8 + 4, 6 * 8 + 2]] = 1
+    kept = keep.reshape(9, 8).astype(bool)
+    for axis in (0, 1):
+        plain = bsgi.TensorSpline([ku, kv], 3)
+        plain.coefficients = samples
+        marked = bsgi.TensorSpline([ku, kv], 3)
+        marked.coefficients = samples
+        bsgi.sharpen_samples(plain, axis)
+        bsgi.sharpen_samples(marked, axis, [], keep)
+        a, b = np.array(plain.coefficients), np.array(marked.coefficients)
+        np.testing.assert_array_equal(b[kept], samples[kept])
+        assert np.abs(a[kept] - samples[kept]).max() > 1e-4  # sharpening moves them
+        np.testing.assert_array_equal(a[~kept], b[~kept])
+    with pytest.raises(ValueError, match="marks for 72 spatial nodes"):
+        bsgi.sharpen_samples(marked, 0, [], np.zeros(5, np.uint8))

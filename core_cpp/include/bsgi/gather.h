@@ -78,6 +78,9 @@ struct Receiver {
     size_t per_node = 1;              // angular nodes per spatial node (1 if diffuse)
     std::vector<TensorSpline> Le, L, Ltmp;  // cumulative, incremental, temporary; per side
     std::shared_ptr<const std::vector<KnotVector>> axes;  // of a solved side's splines, which share them
+    // While a phase gathers (SolverSettings::distant_cell_means), per spatial node whether its
+    // fit is left unsharpened: a mean over its support, or beside one (set by the node's own thread).
+    mutable std::vector<uint8_t> cell_means;
 
     using Splines = std::vector<TensorSpline> Receiver::*;
     size_t values() const { return sides * nodes.size() * per_node; }
@@ -139,6 +142,10 @@ inline int nodes_along(int count, double density) { return std::max(1, int(std::
 // gather's cosine-weighted node rule.
 Vec3 directional_albedo(const Bsdf& b);
 
+// The direct light's sources: the emitting surfaces, the lights at infinity (distant lights and
+// the world map's bright part), or both.
+enum class LightParts { Emitters, Distant, All };
+
 class Gatherer {
 public:
     Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster);
@@ -150,6 +157,11 @@ public:
     // Reflected (and transmitted) direct light at node j of r: r.values() / r.nodes.size()
     // values into out, side-major then angular node.
     void direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
+    // The same with the lights at infinity as their mean weighed by node j's basis function where
+    // one of their shadow edges crosses its support (SolverSettings::distant_cell_means; marks
+    // r.cell_means): five evaluations of their light a node, up to 41 where an edge crosses.
+    void direct_over_cell(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
+    static constexpr double kEdgeContrast = 0.3;
     // Light arriving from the other surfaces' splines `which` at node j of r, scattered, and
     // with `with_world` the world's light along the rays no occluder stops (the final gather:
     // one set of rays for both). `density` scales the integration nodes along each axis (the
@@ -222,7 +234,9 @@ private:
     // Light arriving on the receiver's sides marked in `sides` (front: along its normal).
     template <typename Visit>
     void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, std::array<bool, 2> sides,
-                                 Visit&& visit, size_t& rays) const;
+                                 Visit&& visit, size_t& rays, LightParts parts = LightParts::All) const;
+    // direct() at point p of r's surface, from the lights `parts`.
+    void direct_at(const Receiver& r, const SurfacePoint& p, LightParts parts, Vec3* out, size_t& rays) const;
 
     // A direction of a distant light's disc, and the irradiance it brings to a surface facing it.
     struct DistantSample {

@@ -17,6 +17,7 @@
 // Every bound is continuous in the samples, so rounding (a scene scaled by 10^4) changes the
 // result by rounding only.
 #pragma once
+#include <cstdint>
 #include <vector>
 
 #include "bsgi/tensor_spline.h"
@@ -28,7 +29,11 @@ namespace bsgi {
 // as they are (their Schoenberg fit already reproduces what a quadratic correction would), and so
 // are open axes of fewer than 6 coefficients (too few samples clear of the ends). A
 // coefficient whose three samples are all >= 0 stays >= 0, so a non-negative radiance keeps
-// non-negative coefficients. Throws std::invalid_argument for a bad axis or node count.
-void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& nodes = {});
+// non-negative coefficients. `keep`, where given (one entry per spatial node: the first two axes,
+// u slowest), marks the coefficients left as their samples (a local mean already holds what the
+// correction would add back, and its neighbours' corrections would read it as a point value).
+// Throws std::invalid_argument for a bad axis or node count.
+void sharpen_samples(TensorSpline& spline, int axis, const std::vector<double>& nodes = {},
+                     const std::vector<uint8_t>& keep = {});
 
 }  // namespace bsgi
