@@ -212,20 +212,21 @@ void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) cons
     direct_at(r, node_point(r, j), LightParts::All, out, rays);
 }
 
-void Gatherer::direct_over_cell(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
+void Gatherer::direct_over_support(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {
     const std::vector<double>&us = r.nodes.axis(0), &vs = r.nodes.axis(1);
     const SpatialNode node = r.nodes[j];
     const size_t i = us.empty() || vs.empty() ? 0 : j / vs.size(), k = vs.empty() ? 0 : j % vs.size();
-    // (A node moved off the grid, a hidden one at a contact line, has no cell.)
-    if (!settings_.distant_cell_means || distant_.empty() || us.empty() || vs.empty() || node.u != us[i] || node.v != vs[k]) {
+    // (A node moved off the grid, a hidden one at a contact line, has no basis function of its own.)
+    if (!settings_.distant_support_means || distant_.empty() || us.empty() || vs.empty() || node.u != us[i] || node.v != vs[k]) {
         direct(r, j, out, rays);
         return;
     }
     const Surface& surface = *scene_[r.surface].surface;
     const size_t n = r.sides * r.per_node;
-    direct_at(r, surface.evaluate(node.u, node.v), LightParts::Emitters, out, rays);
+    const SurfacePoint p = surface.evaluate(node.u, node.v);
+    direct_at(r, p, LightParts::Emitters, out, rays);
     std::vector<Vec3> sun(n), at(n);
-    direct_at(r, surface.evaluate(node.u, node.v), LightParts::Distant, sun.data(), rays);
+    direct_at(r, p, LightParts::Distant, sun.data(), rays);
     // The node's basis function B_i(u) B_k(v): where it is not zero, and its value. Its mean of
     // the light weighed by it makes the coefficients' integral the light's (sum_i c_i int B_i =
     // int f where every c_i is such a mean): the patch keeps its light at any resolution.
@@ -273,7 +274,7 @@ void Gatherer::direct_over_cell(const Receiver& r, size_t j, Vec3* out, size_t& 
         }
         if (total > 0) {
             for (size_t c = 0; c < n; ++c) sun[c] = mean[c] * (1.0 / total);
-            if (j < r.cell_means.size()) r.cell_means[j] = 1;
+            if (j < r.support_means.size()) r.support_means[j] = 1;
         }
     }
     for (size_t c = 0; c < n; ++c) out[c] += sun[c];

@@ -650,9 +650,9 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
     const RunningCount nodes(end - begin, [&](size_t k) {
         return skip.empty() || !skip[begin + k] ? receivers[begin + k].nodes.size() : size_t(0);
     });
-    // Marked by the work where it takes a node's sun as a mean over its support (Gatherer::direct_over_cell).
-    if (settings.distant_cell_means)
-        for (size_t k = begin; k < end; ++k) receivers[k].cell_means.assign(receivers[k].nodes.size(), 0);
+    // Marked by the work where it takes a node's sun as a mean over its support (Gatherer::direct_over_support).
+    if (settings.distant_support_means)
+        for (size_t k = begin; k < end; ++k) receivers[k].support_means.assign(receivers[k].nodes.size(), 0);
     std::atomic<size_t> rays{0};
     parallel_for(nodes.total(), 4, settings.threads, [&](size_t b, size_t e) {
         size_t local_rays = 0;
@@ -674,19 +674,19 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
             for (size_t k = begin + b; k < begin + e; ++k) {
                 if (!skip.empty() && skip[k]) continue;
                 Receiver& r = receivers[k];
-                if (std::find(r.cell_means.begin(), r.cell_means.end(), 1) != r.cell_means.end()) {
+                if (std::find(r.support_means.begin(), r.support_means.end(), 1) != r.support_means.end()) {
                     // The samples beside such a mean keep theirs too (their corrections read it
                     // as a point value).
                     const size_t nu = r.nodes.axis(0).size(), nv = r.nodes.axis(1).size();
-                    std::vector<uint8_t> keep(r.cell_means.size(), 0);
+                    std::vector<uint8_t> keep(r.support_means.size(), 0);
                     for (size_t i = 0; i < nu; ++i)
                         for (size_t j = 0; j < nv; ++j)
-                            if (r.cell_means[i * nv + j])
+                            if (r.support_means[i * nv + j])
                                 for (size_t a = i > 0 ? i - 1 : 0; a <= std::min(i + 1, nu - 1); ++a)
                                     for (size_t c = j > 0 ? j - 1 : 0; c <= std::min(j + 1, nv - 1); ++c) keep[a * nv + c] = 1;
-                    r.cell_means.swap(keep);
+                    r.support_means.swap(keep);
                 } else {
-                    std::vector<uint8_t>().swap(r.cell_means);
+                    std::vector<uint8_t>().swap(r.support_means);
                 }
                 const std::vector<double>* nodes[2] = {&r.nodes.axis(0), &r.nodes.axis(1)};
                 for (int side = 0; side < r.sides; ++side) {
@@ -697,12 +697,12 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
                     std::optional<TensorSpline> wide;
                     if (stored.precision() == Precision::Float32) wide = stored.with_precision(Precision::Float64);
                     TensorSpline& spline = wide ? *wide : stored;
-                    for (int axis = 0; axis < 2; ++axis) sharpen_samples(spline, axis, *nodes[axis], r.cell_means);
+                    for (int axis = 0; axis < 2; ++axis) sharpen_samples(spline, axis, *nodes[axis], r.support_means);
                     // A glossy spline's angular samples are at its Schoenberg nodes too: of the
                     // radiance extended outward from the disc's rim (the map pulls the nodes
                     // beyond it in), a kink there that the limiter leaves alone.
                     if (spline.dims() == 4 && lobe_resolved(r, spline.axis(2)))
-                        for (int axis = 2; axis < 4; ++axis) sharpen_samples(spline, axis, {}, r.cell_means);
+                        for (int axis = 2; axis < 4; ++axis) sharpen_samples(spline, axis, {}, r.support_means);
                     if (wide) {  // in place: a new float32 array a spline would leave the old ones as holes
                         const std::vector<double>& sharp = wide->coeffs();
                         std::transform(sharp.begin(), sharp.end(), stored.coeffs_f32(), [](double x) { return float(x); });
@@ -711,7 +711,7 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
             }
         });
     }
-    for (size_t k = begin; k < end; ++k) std::vector<uint8_t>().swap(receivers[k].cell_means);
+    for (size_t k = begin; k < end; ++k) std::vector<uint8_t>().swap(receivers[k].support_means);
     return rays;
 }
 
@@ -975,12 +975,12 @@ SolverSettings SolverSettings::preset(const std::string& name) {
     s.final_gather = true;
     s.final_spatial_factor = 2;
     s.final_integration_factor = 1;
-    s.distant_cell_means = true;
+    s.distant_support_means = true;
     if (name == "draft") {
         s.spatial_coeffs = 8;
         // At 8 coefficients a sunlit room's walls went 0.73-0.83 -> 0.68-0.76 of Mitsuba's with
         // them (at 12, 0.83-0.98 -> 0.995-1.04; the cause not traced): left off here.
-        s.distant_cell_means = false;
+        s.distant_support_means = false;
         s.angular_resolution = 2.0;
         s.angular_coeffs_max = 12;
         s.hemisphere_nodes_theta = 8;
@@ -1932,7 +1932,7 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
         // supports where its edges cross them; without one they are the result, seen, and keep
         // point samples.)
         rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-            if (settings.final_gather) gather.direct_over_cell(r, j, out, n);
+            if (settings.final_gather) gather.direct_over_support(r, j, out, n);
             else gather.direct(r, j, out, n);
             if (!scene.has_world()) return;
             std::vector<Vec3> world(r.sides * r.per_node);

@@ -153,7 +153,7 @@ def test_unclamped_knots_correct_their_end_coefficients_from_inside():
 
 
 def test_kept_samples_stay_and_the_rest_sharpen_as_without():
-    # Marked nodes (a sun's light as a mean over a node's support, SolverSettings.distant_cell_means)
+    # Marked nodes (a sun's light as a mean over a node's support, SolverSettings.distant_support_means)
     # keep their samples as coefficients; along the axis every other coefficient is what it is
     # without marks (a correction reads the samples, not its neighbours' corrections). One mark
     # per spatial node of the first two axes, u slowest; its channels share it.

@@ -122,11 +122,11 @@ def test_the_coarse_floor_carries_the_patchs_light_at_preview():
     # about its edges: the coarse floor, which the final gather reads, kept or lost light as the
     # nodes fell, and the room it lights with it: the walls and ceiling 0.868-0.943 of Mitsuba's.
     # Taken as means weighed by each node's basis function where a sun's edge crosses its
-    # support (distant_cell_means, on at preview), the coarse floor keeps the patch's integral:
+    # support (distant_support_means, on at preview), the coarse floor keeps the patch's integral:
     # 0.958-1.047. The floor itself (its finals, point samples as they are seen) 0.878 -> 0.904:
     # at 24 and 48 coefficients 0.965 and 0.997 (not resolved, issue 15).
     total, objects, _ = compare("preview")
-    _, before, _ = compare("preview", distant_cell_means=False)
+    _, before, _ = compare("preview", distant_support_means=False)
     spread = np.sqrt(np.mean([(objects[n][0] - 1) ** 2 for n in ROOM]))
     spread_before = np.sqrt(np.mean([(before[n][0] - 1) ** 2 for n in ROOM]))
     print(f"the room's means off Mitsuba's by {100 * spread_before:.1f}% -> {100 * spread:.1f}% (RMS)")

@@ -78,9 +78,9 @@ struct Receiver {
     size_t per_node = 1;              // angular nodes per spatial node (1 if diffuse)
     std::vector<TensorSpline> Le, L, Ltmp;  // cumulative, incremental, temporary; per side
     std::shared_ptr<const std::vector<KnotVector>> axes;  // of a solved side's splines, which share them
-    // While a phase gathers (SolverSettings::distant_cell_means), per spatial node whether its
+    // While a phase gathers (SolverSettings::distant_support_means), per spatial node whether its
     // fit is left unsharpened: a mean over its support, or beside one (set by the node's own thread).
-    mutable std::vector<uint8_t> cell_means;
+    mutable std::vector<uint8_t> support_means;
 
     using Splines = std::vector<TensorSpline> Receiver::*;
     size_t values() const { return sides * nodes.size() * per_node; }
@@ -158,9 +158,9 @@ public:
     // values into out, side-major then angular node.
     void direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     // The same with the lights at infinity as their mean weighed by node j's basis function where
-    // one of their shadow edges crosses its support (SolverSettings::distant_cell_means; marks
-    // r.cell_means): five evaluations of their light a node, up to 41 where an edge crosses.
-    void direct_over_cell(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
+    // one of their shadow edges crosses its support (SolverSettings::distant_support_means; marks
+    // r.support_means): five evaluations of their light a node, up to 41 where an edge crosses.
+    void direct_over_support(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     static constexpr double kEdgeContrast = 0.3;
     // Light arriving from the other surfaces' splines `which` at node j of r, scattered, and
     // with `with_world` the world's light along the rays no occluder stops (the final gather:

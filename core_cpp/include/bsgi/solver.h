@@ -69,7 +69,7 @@ struct SolverSettings {
     // sunlit room's walls 6-13% dark at preview). Only where a final gather reads them: the
     // finals, which are seen, keep point samples (as means over cells they blurred an open
     // box's sun shadows, 6.5% -> 8.1% at preview). On in the preview, final and reference presets.
-    bool distant_cell_means = false;
+    bool distant_support_means = false;
     // Each gathered spline's samples at its spatial Schoenberg nodes become the limited quadratic
     // correction of Schoenberg's fit (sharpen.h): under a peak of light Schoenberg's spline is low
     // by h^2 |f''| / 8, which the bounces add up; sharpened, quadratics are reproduced where the
