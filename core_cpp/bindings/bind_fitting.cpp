@@ -117,7 +117,7 @@ void bind_fitting(py::module_& m) {
         "In place along `axis`: coefficients that are samples of f at `nodes` (default: the axis's Schoenberg "
         "nodes) become the limited quadratic correction of Schoenberg's fit (sharpen.h): quadratics reproduced "
         "where f is smooth, no correction where its curvature changes sign (an edge). `keep`: per spatial node "
-        "(the first two axes, u slowest), 1 where the coefficients stay their samples (cell means).");
+        "(the first two axes, u slowest), 1 where the coefficients stay their samples (means over a node's support).");
 }
 
 }  // namespace bsgi::bindings

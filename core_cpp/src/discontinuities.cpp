@@ -212,7 +212,7 @@ std::vector<DistantSource> bright_world_sources(const std::vector<std::pair<Vec3
             spread = std::max(spread, std::acos(cos_angle));
         }
         if (share >= DiscontinuityFinder::kMinShare * total)
-            out.push_back({"the world's bright part", centre, 2 * spread});
+            out.push_back({centre, 2 * spread});
     }
     return out;
 }

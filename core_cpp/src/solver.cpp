@@ -491,7 +491,7 @@ std::vector<std::array<int, 2>> detail_of_scene(const Gatherer& gather, const Sc
 // ending there takes the left limit, the one starting there the right limit. A jump standing
 // for a narrow penumbra (`bands`) has them just outside the band, at most halfway across the
 // span beside it: inside it they took the penumbra's middle for both sides.
-std::vector<double> nodes_beside_jumps(const KnotVector& k, const std::vector<DiscontinuityLine>& bands = {}) {
+std::vector<double> nodes_beside_jumps(const KnotVector& k, const std::vector<DiscontinuityLine>& bands) {
     std::vector<double> nodes = k.schoenberg_nodes();
     for (size_t i = 0; i + 1 < nodes.size(); ++i)
         if (nodes[i] == nodes[i + 1] && k.degree() > 0) {
@@ -641,6 +641,22 @@ bool lobe_resolved(const Receiver& r, const KnotVector& angular) {
     return (angular.num_coeffs() - angular.degree()) * lobe_in_disc(*r.bsdf) >= 2 * 2 * r.map.radius();
 }
 
+// The nodes whose samples stay as they are when a receiver's fit is sharpened: those the work
+// took as means over their support (Receiver::support_means) and the nodes beside them, whose
+// corrections would read a mean as a point value. Empty where there is none.
+std::vector<uint8_t> kept_unsharpened(const Receiver& r) {
+    if (std::find(r.support_means.begin(), r.support_means.end(), 1) == r.support_means.end()) return {};
+    const size_t nu = r.nodes.axis(0).size(), nv = r.nodes.axis(1).size();
+    std::vector<uint8_t> keep(r.support_means.size(), 0);
+    for (size_t i = 0; i < nu; ++i)
+        for (size_t j = 0; j < nv; ++j) {
+            if (!r.support_means[i * nv + j]) continue;
+            for (size_t a = i > 0 ? i - 1 : 0; a <= std::min(i + 1, nu - 1); ++a)
+                for (size_t c = j > 0 ? j - 1 : 0; c <= std::min(j + 1, nv - 1); ++c) keep[a * nv + c] = 1;
+        }
+    return keep;
+}
+
 // Runs `work(receiver, node, values)` for every node of receivers [begin, end) on all threads
 // and writes the values into the receivers' spline set `target`.
 template <typename Work>
@@ -650,9 +666,6 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
     const RunningCount nodes(end - begin, [&](size_t k) {
         return skip.empty() || !skip[begin + k] ? receivers[begin + k].nodes.size() : size_t(0);
     });
-    // Marked by the work where it takes a node's sun as a mean over its support (Gatherer::direct_over_support).
-    if (settings.distant_support_means)
-        for (size_t k = begin; k < end; ++k) receivers[k].support_means.assign(receivers[k].nodes.size(), 0);
     std::atomic<size_t> rays{0};
     parallel_for(nodes.total(), 4, settings.threads, [&](size_t b, size_t e) {
         size_t local_rays = 0;
@@ -674,20 +687,7 @@ size_t gather_all(std::vector<Receiver>& receivers, size_t begin, size_t end, Re
             for (size_t k = begin + b; k < begin + e; ++k) {
                 if (!skip.empty() && skip[k]) continue;
                 Receiver& r = receivers[k];
-                if (std::find(r.support_means.begin(), r.support_means.end(), 1) != r.support_means.end()) {
-                    // The samples beside such a mean keep theirs too (their corrections read it
-                    // as a point value).
-                    const size_t nu = r.nodes.axis(0).size(), nv = r.nodes.axis(1).size();
-                    std::vector<uint8_t> keep(r.support_means.size(), 0);
-                    for (size_t i = 0; i < nu; ++i)
-                        for (size_t j = 0; j < nv; ++j)
-                            if (r.support_means[i * nv + j])
-                                for (size_t a = i > 0 ? i - 1 : 0; a <= std::min(i + 1, nu - 1); ++a)
-                                    for (size_t c = j > 0 ? j - 1 : 0; c <= std::min(j + 1, nv - 1); ++c) keep[a * nv + c] = 1;
-                    r.support_means.swap(keep);
-                } else {
-                    std::vector<uint8_t>().swap(r.support_means);
-                }
+                r.support_means = kept_unsharpened(r);
                 const std::vector<double>* nodes[2] = {&r.nodes.axis(0), &r.nodes.axis(1)};
                 for (int side = 0; side < r.sides; ++side) {
                     if (!r.solves(side)) continue;
@@ -732,7 +732,7 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
     std::optional<DiscontinuityFinder> finder;
     if (settings.discontinuity_knots) {
         std::vector<DistantSource> distant = bright_world_sources(gather.world_bright());
-        for (const DistantLight& light : scene.distant_lights()) distant.push_back({light.name, light.direction, light.angle});
+        for (const DistantLight& light : scene.distant_lights()) distant.push_back({light.direction, light.angle});
         finder.emplace(scene, std::move(distant), &gather.caster());
     }
     if (adaptive || finder) {
@@ -1929,10 +1929,13 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
     if (phase == Phase::Direct) {
         // Gather from every emitter (and the world) into L.
         // (Receivers a final gather will read carry a sun's light as means over their nodes'
-        // supports where its edges cross them; without one they are the result, seen, and keep
-        // point samples.)
+        // supports where its edges cross them, marked for gather_all's sharpening; without one
+        // they are the result, seen, and keep point samples.)
+        const bool means = settings.final_gather && settings.distant_support_means;
+        if (means)
+            for (size_t k = begin; k < end; ++k) targets[k].support_means.assign(targets[k].nodes.size(), 0);
         rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-            if (settings.final_gather) gather.direct_over_support(r, j, out, n);
+            if (means) gather.direct_over_support(r, j, out, n);
             else gather.direct(r, j, out, n);
             if (!scene.has_world()) return;
             std::vector<Vec3> world(r.sides * r.per_node);

@@ -39,7 +39,6 @@ struct ReceiverDiscontinuities {
 // A light at infinity as a disc of directions: a distant light (Blender's sun), or the world
 // map's bright directions around one centre (an HDRI's or a sky's sun).
 struct DistantSource {
-    std::string name;
     Vec3 direction;    // unit, towards the light
     double angle = 0;  // the disc's angular diameter
 };

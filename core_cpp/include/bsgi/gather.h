@@ -78,8 +78,9 @@ struct Receiver {
     size_t per_node = 1;              // angular nodes per spatial node (1 if diffuse)
     std::vector<TensorSpline> Le, L, Ltmp;  // cumulative, incremental, temporary; per side
     std::shared_ptr<const std::vector<KnotVector>> axes;  // of a solved side's splines, which share them
-    // While a phase gathers (SolverSettings::distant_support_means), per spatial node whether its
-    // fit is left unsharpened: a mean over its support, or beside one (set by the node's own thread).
+    // While the direct phase gathers (SolverSettings::distant_support_means), per spatial node
+    // whether its light is a mean over its support (set by the node's own thread); gather_all
+    // leaves those and the nodes beside them unsharpened, then frees it.
     mutable std::vector<uint8_t> support_means;
 
     using Splines = std::vector<TensorSpline> Receiver::*;
