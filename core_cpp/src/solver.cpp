@@ -7,7 +7,9 @@
 #include <cmath>
 #include <numeric>
 #include <optional>
+#include <set>
 #include <sstream>
+#include <unordered_map>
 
 #include "bsgi/discontinuities.h"
 #include "bsgi/gather.h"
@@ -215,12 +217,11 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     return p;
 }
 
-// A spline set of a receiver: its RGB double coefficients, and per side a TensorSpline (with its
-// kernels' lanes) and the heap blocks of its coefficients and strides (a small surface's splines
-// are more object than coefficients).
+// A spline set of a receiver: its RGB coefficients, and per side a TensorSpline (in the set's
+// vector, one heap block) and its coefficients' block header. Its layout is shared (layout_bytes).
 size_t set_bytes(const Plan& p, Precision precision = Precision::Float64) {
     const size_t value = precision == Precision::Float32 ? sizeof(float) : sizeof(double);
-    return p.coefficients() * 3 * value + size_t(p.sides) * (sizeof(TensorSpline) + 64);
+    return p.coefficients() * 3 * value + size_t(p.sides) * (sizeof(TensorSpline) + 16) + 16;
 }
 
 // A receiver's nodes: their grid (SpatialNodes, two heap blocks) and the nodes moved out from
@@ -228,18 +229,39 @@ size_t set_bytes(const Plan& p, Precision precision = Precision::Float64) {
 // furnished interior's receivers, measured at 300 and 2,000 objects with 3 x 3 to 12 x 12 nodes.
 size_t node_bytes(const Plan& p) { return size_t(p.nu + p.nv) * sizeof(double) + 32 + size_t(p.nu) * p.nv * 12; }
 
-// A receiver besides its spline sets and nodes: the object, the axes its splines share (in a
-// shared vector) and a glossy one's angular node directions.
-size_t receiver_bytes(const Plan& p, const SolverSettings& s) {
-    size_t bytes = sizeof(Receiver) + 64 + KnotVector::bytes(p.nu, s.spatial_degree) + KnotVector::bytes(p.nv, s.spatial_degree);
-    if (p.kind != Representation::Diffuse)
-        bytes += 2 * KnotVector::bytes(p.na, s.angular_degree) + size_t(p.na) * p.na * sizeof(Vec3) + 16;
+// A receiver besides its spline sets, nodes and layout: the object and a glossy one's angular
+// node directions.
+size_t receiver_bytes(const Plan& p) {
+    size_t bytes = sizeof(Receiver) + 64;
+    if (p.kind == Representation::Glossy) bytes += size_t(p.na) * p.na * sizeof(Vec3) + 16;
     return bytes;
 }
 
-size_t plan_bytes(const Plan& p, const SolverSettings& s) {
+// A receiver's spline layout (shared by receivers of equal knots, LayoutInterner): the layout
+// and its strides, the axes' vector and the knot vectors, each heap block with its header.
+size_t layout_bytes(const Plan& p, const SolverSettings& s) {
+    const bool glossy = p.kind == Representation::Glossy;
+    size_t bytes = sizeof(SplineLayout) + 32 + (glossy ? 4 : 2) * sizeof(size_t) + 16 + 2 * 32 +
+                   KnotVector::bytes(p.nu, s.spatial_degree) + KnotVector::bytes(p.nv, s.spatial_degree);
+    if (glossy) bytes += 2 * KnotVector::bytes(p.na, s.angular_degree);
+    return bytes;
+}
+
+// The layouts of these plans' receivers: one per distinct knots. Without adaptive or
+// discontinuity knots a plan's knots follow from its counts; with them, each its own.
+size_t layouts_bytes(const std::vector<Plan>& plans, const SolverSettings& s) {
+    const bool by_counts = !s.adaptive_knots && !s.discontinuity_knots;
+    std::set<std::array<int, 3>> seen;
+    size_t bytes = 0;
+    for (const Plan& p : plans)
+        if (!by_counts || seen.insert({p.nu, p.nv, p.kind == Representation::Glossy ? p.na : 0}).second)
+            bytes += layout_bytes(p, s);
+    return bytes;
+}
+
+size_t plan_bytes(const Plan& p) {
     // Three spline sets (Le, L, Ltmp), the nodes and the receiver.
-    return 3 * set_bytes(p) + node_bytes(p) + receiver_bytes(p, s);
+    return 3 * set_bytes(p) + node_bytes(p) + receiver_bytes(p);
 }
 
 // `detail`: per scene surface, the coefficients its direct light asks for (empty: none probed).
@@ -507,9 +529,41 @@ std::vector<double> nodes_beside_jumps(const KnotVector& k, const std::vector<Di
     return nodes;
 }
 
+// The spline layouts of a set of receivers, one per distinct set of axes: receivers of equal
+// knots (the small surfaces of a scene at a few coefficients each) share one layout and its
+// knot vectors, whose span tables hold more than such a surface's coefficients (a kilobyte and a
+// half at 8 x 8). By the knots' exact values.
+class LayoutInterner {
+public:
+    std::shared_ptr<const SplineLayout> operator()(std::vector<KnotVector> axes) {
+        size_t hash = axes.size();
+        auto mix = [&](size_t h) { hash ^= h + 0x9e3779b97f4a7c15ull + (hash << 6) + (hash >> 2); };
+        for (const KnotVector& a : axes) {
+            mix(std::hash<int>()(a.degree()));
+            for (double t : a.knots()) mix(std::hash<double>()(t));
+        }
+        auto same = [&](const SplineLayout& l) {
+            const auto& b = *l.axes();
+            if (b.size() != axes.size()) return false;
+            for (size_t k = 0; k < b.size(); ++k)
+                if (b[k].degree() != axes[k].degree() || b[k].is_periodic() != axes[k].is_periodic() || b[k].knots() != axes[k].knots())
+                    return false;
+            return true;
+        };
+        auto& bucket = layouts_[hash];
+        for (const auto& l : bucket)
+            if (same(*l)) return l;
+        bucket.push_back(std::make_shared<const SplineLayout>(std::make_shared<const std::vector<KnotVector>>(std::move(axes)), 3));
+        return bucket.back();
+    }
+
+private:
+    std::unordered_map<size_t, std::vector<std::shared_ptr<const SplineLayout>>> layouts_;
+};
+
 // `bounces`: the receiver gathers bounces (L, Ltmp); a final gather's receiver holds Le only.
 Receiver make_receiver(const Scene& scene, const Plan& p, const SpatialKnots& knots, const SolverSettings& s,
-                       bool bounces) {
+                       bool bounces, LayoutInterner& layouts) {
     const KnotVector &ku = knots.u, &kv = knots.v;
     Receiver r;
     r.surface = p.surface;
@@ -538,23 +592,22 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const SpatialKnots& kn
         r.per_node = r.directions.size();
     }
     // A side not solved keeps a single zero coefficient (degree 0), which every lookup reads as 0.
-    // The spline sets share their axes (a knot vector of a dozen coefficients holds about a
-    // kilobyte with its span polynomials: copies a receiver cost what its coefficients do), and
-    // all unsolved sides one set of them.
+    // The spline sets share their layout, and all unsolved sides one.
     auto unsolved = [](size_t dims) {
-        return std::make_shared<const std::vector<KnotVector>>(dims, KnotVector::clamped_uniform(1, 0, 0.0, 1.0));
+        return std::make_shared<const SplineLayout>(
+            std::make_shared<const std::vector<KnotVector>>(dims, KnotVector::clamped_uniform(1, 0, 0.0, 1.0)), 3);
     };
-    static const std::shared_ptr<const std::vector<KnotVector>> none_2d = unsolved(2), none_4d = unsolved(4);
-    const auto solved = std::make_shared<const std::vector<KnotVector>>(std::move(axes));
-    const auto& none = solved->size() == 4 ? none_4d : none_2d;
+    static const std::shared_ptr<const SplineLayout> none_2d = unsolved(2), none_4d = unsolved(4);
+    const std::shared_ptr<const SplineLayout> solved = layouts(std::move(axes));
+    const auto& none = solved->dims() == 4 ? none_4d : none_2d;
     for (int side = 0; side < r.sides; ++side) {
-        const auto& a = r.live[side] ? solved : none;
-        r.Le.emplace_back(a, 3);
+        const auto& layout = r.live[side] ? solved : none;
+        r.Le.emplace_back(layout);
         if (!bounces) continue;
-        r.L.emplace_back(a, 3);
-        r.Ltmp.emplace_back(a, 3);
+        r.L.emplace_back(layout);
+        r.Ltmp.emplace_back(layout);
     }
-    r.axes = solved;
+    r.axes = solved->axes();
     r.nodes = SpatialNodes(nodes_beside_jumps(ku, knots.bands[0]), nodes_beside_jumps(kv, knots.bands[1]));
     return r;
 }
@@ -749,8 +802,9 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
     }
     std::vector<Receiver> receivers;
     receivers.reserve(plans.size());  // no copies of the nodes while growing
+    LayoutInterner layouts;
     for (size_t k = 0; k < plans.size(); ++k) {
-        receivers.push_back(make_receiver(scene, plans[k], knots[k], settings, bounces));
+        receivers.push_back(make_receiver(scene, plans[k], knots[k], settings, bounces, layouts));
         receivers.back().index = int(k);
     }
     for (size_t k = 0; k < plans.size(); ++k)
@@ -1079,17 +1133,18 @@ size_t fixed_bytes(const Scene& scene) {
 // (their sets and nodes), which follow the bounces' increments.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
-    size_t coarse = 0, resident = 0, rows = 0, fine = 0, correction = 0, fine_nodes = 0;
+    size_t coarse = 0, resident = layouts_bytes(plans, settings), rows = 0, fine = 0, correction = 0,
+           fine_nodes = layouts_bytes(final_plans, settings);
     for (const Plan& p : plans) {
         coarse += set_bytes(p);
-        resident += plan_bytes(p, settings);
+        resident += plan_bytes(p);
         // Form-factor rows: at most one term per ray and basis function, 12 bytes each.
         if (settings.form_factors && p.kind == Representation::Diffuse)
             rows += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
                     (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
     for (const Plan& p : final_plans)
-        fine += set_bytes(p), correction += set_bytes(p, Precision::Float32), fine_nodes += node_bytes(p) + receiver_bytes(p, settings);
+        fine += set_bytes(p), correction += set_bytes(p, Precision::Float32), fine_nodes += node_bytes(p) + receiver_bytes(p);
     // The local solve gathers each phase from the splines that hold its input (a runner's packed
     // copy of it is not counted). A bounce holds its packed output; with settle_factor, the pairs
     // of increments of receivers that may settle as well (at most a set).
@@ -1429,12 +1484,12 @@ struct SolveSteps::State {
         if (bytes <= settings.memory_budget_mb * 1024 * 1024) return;
         const Plan* largest = nullptr;
         for (const Plan& p : of)
-            if (!largest || plan_bytes(p, settings) > plan_bytes(*largest, settings)) largest = &p;
+            if (!largest || plan_bytes(p) > plan_bytes(*largest)) largest = &p;
         std::ostringstream msg;
         msg << "solve needs about " << bytes / (1024 * 1024) << " MB, over the budget of " << settings.memory_budget_mb << " MB";
         if (largest)
             msg << "; the largest is surface '" << scene[largest->surface].surface->name() << "' with "
-                << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest, settings) / (1024 * 1024) << " MB: "
+                << largest->coefficients() << " RGB coefficients (" << plan_bytes(*largest) / (1024 * 1024) << " MB: "
                 << largest->reason << ")";
         throw std::runtime_error(msg.str());
     }
@@ -2003,7 +2058,7 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
     for (size_t k = begin; k < end; ++k) {
         Receiver& r = targets[k];
         r.L.clear();
-        for (const TensorSpline& le : r.Le) r.L.emplace_back(le.shared_axes(), 3, Precision::Float32);
+        for (const TensorSpline& le : r.Le) r.L.emplace_back(le.layout(), Precision::Float32);
     }
     rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
         const double full = final_density(scene, settings, r.surface);

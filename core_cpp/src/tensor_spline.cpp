@@ -94,25 +94,22 @@ size_t TensorSpline::coefficient_bytes(const std::vector<KnotVector>& axes, int 
 TensorSpline::TensorSpline(std::vector<KnotVector> axes, int channels, Precision precision)
     : TensorSpline(std::make_shared<const std::vector<KnotVector>>(std::move(axes)), channels, precision) {}
 
-TensorSpline::TensorSpline(std::shared_ptr<const std::vector<KnotVector>> axes, int channels, Precision precision)
-    : axes_(std::move(axes)), channels_(channels), precision_(precision) {
-    if (!axes_ || axes_->empty() || axes_->size() > kMaxDims)
-        throw std::invalid_argument("tensor spline: needs 1.." + std::to_string(kMaxDims) + " dimensions, got " +
+SplineLayout::SplineLayout(std::shared_ptr<const std::vector<KnotVector>> axes, int channels)
+    : axes_(std::move(axes)), channels_(channels) {
+    if (!axes_ || axes_->empty() || axes_->size() > size_t(TensorSpline::kMaxDims))
+        throw std::invalid_argument("tensor spline: needs 1.." + std::to_string(TensorSpline::kMaxDims) + " dimensions, got " +
                                     std::to_string(axes_ ? axes_->size() : 0));
     if (channels_ < 1) throw std::invalid_argument("tensor spline: needs at least one channel");
-    check_memory_budget("tensor spline coefficients", extents(*axes_, channels_), element_bytes(precision_));
-    strides_.assign(axes_->size(), size_t(channels_));
-    for (int i = dims() - 2; i >= 0; --i) strides_[i] = strides_[i + 1] * (*axes_)[i + 1].num_coeffs();
-    const size_t n = strides_[0] * (*axes_)[0].num_coeffs();
-    if (precision_ == Precision::Float32) coeffs32_.assign(n + kFloat32Padding, 0.0f);
-    else coeffs_.assign(n, 0.0);
-    set_lanes();
-}
-
-void TensorSpline::set_lanes() {
-    if (!has_fast_kernel()) return;
+    const int D = dims();
+    strides_.assign(size_t(D), size_t(channels_));
+    for (int i = D - 2; i >= 0; --i) strides_[i] = strides_[i + 1] * (*axes_)[i + 1].num_coeffs();
+    values_ = strides_[0] * (*axes_)[0].num_coeffs();
+    // The lanes of the specialised kernels: open axes of one degree, at most four.
+    const int degree = (*axes_)[0].degree();
     bool uniform = true;
-    for (int k = 0; k < dims(); ++k) {
+    for (const auto& a : *axes_)
+        if (a.is_periodic() || a.degree() != degree || D > 4) return;
+    for (int k = 0; k < D; ++k) {
         const KnotVector& a = (*axes_)[k];
         uniform = uniform && a.uniform_spans();
         lanes_.lo[k] = a.domain_begin(), lanes_.hi[k] = a.domain_end();
@@ -121,12 +118,25 @@ void TensorSpline::set_lanes() {
         lanes_.poly[k] = a.span_polynomial(a.degree()), lanes_.knots[k] = a.knots().data();
         lanes_.inv_width[k] = a.span_inverse_widths(), lanes_.stride[k] = strides_[k];
     }
-    point_kernel_ = detail::find_point_kernel(dims(), (*axes_)[0].degree() + 1, channels_, precision_ == Precision::Float32,
-                                              uniform);
+    for (int f32 = 0; f32 < 2; ++f32)
+        if (detail::find_kernel(D, degree + 1, channels_, f32, false, false))
+            point_kernel_[f32] = detail::find_point_kernel(D, degree + 1, channels_, f32, uniform);
 }
 
-std::vector<size_t> TensorSpline::shape() const { return extents(*axes_, channels_); }
-size_t TensorSpline::num_values() const { return strides_[0] * (*axes_)[0].num_coeffs(); }
+TensorSpline::TensorSpline(std::shared_ptr<const std::vector<KnotVector>> axes, int channels, Precision precision)
+    : TensorSpline(std::make_shared<const SplineLayout>(std::move(axes), channels), precision) {}
+
+TensorSpline::TensorSpline(std::shared_ptr<const SplineLayout> layout, Precision precision)
+    : layout_(std::move(layout)), precision_(precision) {
+    if (!layout_) throw std::invalid_argument("tensor spline: no layout");
+    check_memory_budget("tensor spline coefficients", extents(axes(), channels()), element_bytes(precision_));
+    const size_t n = layout_->num_values();
+    if (precision_ == Precision::Float32) coeffs32_.assign(n + kFloat32Padding, 0.0f);
+    else coeffs_.assign(n, 0.0);
+}
+
+std::vector<size_t> TensorSpline::shape() const { return extents(axes(), channels()); }
+size_t TensorSpline::num_values() const { return layout_->num_values(); }
 size_t TensorSpline::bytes() const { return num_values() * element_bytes(precision_); }
 
 std::vector<double>& TensorSpline::coeffs() {
@@ -144,7 +154,7 @@ const void* TensorSpline::data() const {
 }
 
 TensorSpline TensorSpline::with_precision(Precision precision) const {
-    TensorSpline s(axes_, channels_, precision);
+    TensorSpline s(layout_, precision);
     if (precision == Precision::Float32) {
         if (precision_ == Precision::Float32) s.coeffs32_ = coeffs32_;
         else
@@ -158,9 +168,9 @@ TensorSpline TensorSpline::with_precision(Precision precision) const {
 }
 
 bool TensorSpline::has_fast_kernel() const {
-    for (const auto& a : *axes_)
-        if (a.is_periodic() || a.degree() != (*axes_)[0].degree()) return false;
-    return detail::find_kernel(dims(), (*axes_)[0].degree() + 1, channels_, precision_ == Precision::Float32, false, false) != nullptr;
+    for (const auto& a : axes())
+        if (a.is_periodic() || a.degree() != axes()[0].degree()) return false;
+    return detail::find_kernel(dims(), axes()[0].degree() + 1, channels(), precision_ == Precision::Float32, false, false) != nullptr;
 }
 
 // Points b .. e of a 4D batch in the order of their knot cell on the first three axes (a counting
@@ -175,9 +185,9 @@ void TensorSpline::evaluate_in_cell_order(detail::Kernel kernel, detail::Kernel 
     };
     static thread_local Scratch sc;
     const size_t m = e - b;
-    const int C = channels_;
+    const int C = channels();
     const bool directions = args.dirs != nullptr;
-    const KnotVector &a0 = (*axes_)[0], &a1 = (*axes_)[1], &a2 = (*axes_)[2];
+    const KnotVector &a0 = axes()[0], &a1 = axes()[1], &a2 = axes()[2];
     const size_t n1 = size_t(a1.last_span() - a1.degree() + 1), n2 = size_t(a2.last_span() - a2.degree() + 1);
     const size_t cells = size_t(a0.last_span() - a0.degree() + 1) * n1 * n2;
     sc.cell.resize(m);
@@ -233,19 +243,19 @@ void TensorSpline::evaluate_with(const Loader& loader, size_t count, double* out
     detail::Kernel kernel = nullptr;
     bool uniform = true;
     if (has_fast_kernel()) {
-        for (const auto& a : *axes_) uniform = uniform && a.uniform_spans();
-        kernel = detail::find_kernel(dims(), (*axes_)[0].degree() + 1, channels_, precision_ == Precision::Float32, directions,
+        for (const auto& a : axes()) uniform = uniform && a.uniform_spans();
+        kernel = detail::find_kernel(dims(), axes()[0].degree() + 1, channels(), precision_ == Precision::Float32, directions,
                                      uniform);
     }
     if (kernel && dims() == 4 && bytes() > kCellOrderBytes && count >= kCellChunk) {
-        detail::KernelArgs args{&lanes_, data(), nullptr, nullptr, nullptr, map};
+        detail::KernelArgs args{&layout_->lanes(), data(), nullptr, nullptr, nullptr, map};
         loader.bind(args);
-        const detail::Kernel params_kernel = detail::find_kernel(4, (*axes_)[0].degree() + 1, channels_,
+        const detail::Kernel params_kernel = detail::find_kernel(4, axes()[0].degree() + 1, channels(),
                                                                  precision_ == Precision::Float32, false, uniform);
         parallel_for(count, kCellChunk, threads,
                      [&](size_t b, size_t e) { evaluate_in_cell_order(kernel, params_kernel, args, b, e, out); });
     } else if (kernel) {
-        detail::KernelArgs args{&lanes_, data(), nullptr, nullptr, nullptr, map};
+        detail::KernelArgs args{&layout_->lanes(), data(), nullptr, nullptr, nullptr, map};
         loader.bind(args);
         parallel_for(count, kChunk, threads, [&](size_t b, size_t e) { kernel(args, b, e, out); });
     } else if (precision_ == Precision::Float32) {
@@ -282,8 +292,8 @@ struct DirectionLoader {
 void TensorSpline::evaluate(const double* x, double* out) const {
     // One point (the solver's gathering calls this per ray): the kernel chosen at construction,
     // no threads, nothing allocated.
-    if (point_kernel_) {
-        point_kernel_(lanes_, data(), x, out);
+    if (const detail::PointKernel kernel = layout_->point_kernel(precision_ == Precision::Float32)) {
+        kernel(layout_->lanes(), data(), x, out);
         return;
     }
     const ParamLoader load{x, dims()};
@@ -306,12 +316,12 @@ void TensorSpline::evaluate_directions(const double* uv, const double* dirs, siz
 // out[c] = sum over all coefficients of a[i_0 .. i_{D-1}, c] * prod_k weights[k][i_k], contracting
 // the last axis first so that the work is about one pass over the coefficients.
 void TensorSpline::contract(const std::vector<std::vector<double>>& weights, double* out) const {
-    const int C = channels_;
+    const int C = channels();
     std::vector<double> cur;
     if (precision_ == Precision::Float32) cur.assign(coeffs32_.begin(), coeffs32_.begin() + num_values());
     else cur = coeffs_;
     for (int k = dims() - 1; k >= 0; --k) {
-        const size_t n = size_t((*axes_)[k].num_coeffs()), outer = cur.size() / (n * C);
+        const size_t n = size_t(axes()[k].num_coeffs()), outer = cur.size() / (n * C);
         std::vector<double> next(outer * C, 0.0);
         for (size_t o = 0; o < outer; ++o)
             for (size_t i = 0; i < n; ++i)
@@ -323,14 +333,14 @@ void TensorSpline::contract(const std::vector<std::vector<double>>& weights, dou
 
 void TensorSpline::integral(double* out) const {
     std::vector<std::vector<double>> w;
-    for (const auto& a : *axes_)
+    for (const auto& a : axes())
         w.push_back(a.clamped() || a.is_periodic() ? a.basis_integrals() : a.basis_integrals_over(a.domain_begin(), a.domain_end()));
     contract(w, out);
 }
 
 void TensorSpline::integral_over(const double* lo, const double* hi, double* out) const {
     std::vector<std::vector<double>> w;
-    for (int k = 0; k < dims(); ++k) w.push_back((*axes_)[k].basis_integrals_over(lo[k], hi[k]));
+    for (int k = 0; k < dims(); ++k) w.push_back(axes()[k].basis_integrals_over(lo[k], hi[k]));
     contract(w, out);
 }
 

@@ -53,12 +53,11 @@ def _measure(objects: int, sides: str, preset: str = "draft") -> dict:
 @pytest.mark.parametrize("sides", ["two-sided", "front-only"])
 def test_estimate_within_25_percent_of_measured_peak_at_three_sizes(sides):
     # Measured 2026-12-05 at 10, 30, 100 objects (243, 363, 819 surfaces), estimate / added peak,
-    # since the receivers are counted as they are built (their shared knot vectors, nodes and
-    # object; was a flat 8 kB each) and the error estimate by its records (was: scatter tables at
-    # twice the density, which it never builds): two-sided 1.14, 1.12, 1.11; front sides only
-    # 1.11, 1.11, 1.08 (on 4 December 1.13, 0.89, 0.83 and 0.99, 0.88, 0.81; a 10-object solve's
-    # peak varies by 15% between runs). At 2,000 objects (preview, coeffs_from_size, front
-    # sides) 0.95. Issue 16 asks for 25%.
+    # with the splines' layouts shared (by receivers of equal knots; TensorSpline 384 -> 72
+    # bytes), the probe apart (the sides probed beforehand): two-sided 1.12, 1.12,
+    # 1.17; front sides only 1.05, 1.11, 1.07 (before the shared layouts 1.14, 1.12, 1.11 and 1.11,
+    # 1.11, 1.08; a 10-object solve's peak varies by 15% between runs). At 2,000 objects (preview,
+    # coeffs_from_size, front sides) 1.05 (0.93 before). Issue 16 asks for 25%.
     for objects in (10, 30, 100):
         m = _measure(objects, sides)
         ratio = m["estimate"] / m["added"]
@@ -69,8 +68,8 @@ def test_estimate_within_25_percent_of_measured_peak_at_three_sizes(sides):
 @pytest.mark.slow
 @pytest.mark.skipif(not pathlib.Path("/proc/self/clear_refs").exists(), reason="needs Linux's VmHWM reset")
 def test_estimate_of_the_preview_with_its_regather_within_25_percent_at_three_sizes():
-    # Measured 2026-12-05 (front sides only, one bounce): 1.00, 1.01, 1.01 at 10, 30 and 100
-    # objects (two-sided 1.00, 1.00, 1.03).
+    # Measured 2026-12-05 (front sides only, one bounce): 1.00, 1.00, 1.01 at 10, 30 and 100
+    # objects with the shared layouts (1.00, 1.01, 1.01 before).
     for objects in (10, 30, 100):
         m = _measure(objects, "front-only", "preview")
         ratio = m["estimate"] / m["added"]

@@ -41,6 +41,36 @@ using PointKernel = void (*)(const SplineLanes&, const void* coeffs, const doubl
 // Float64 agrees with exact arithmetic to a few units of 1e-16 relative.
 enum class Precision { Float64, Float32 };
 
+// What evaluating a spline reads besides its coefficients, fixed by its axes and channels: the
+// strides, the kernels' lanes (pointers into the axes, which it owns) and the point kernels.
+// Splines made from one layout share it (a receiver's spline sets and sides, and the solver's
+// receivers of equal knots): held by each spline it was 384 bytes, more than a small surface's
+// coefficients.
+class SplineLayout {
+public:
+    // Throws std::invalid_argument for no axes, more than TensorSpline::kMaxDims or channels < 1.
+    SplineLayout(std::shared_ptr<const std::vector<KnotVector>> axes, int channels);
+    SplineLayout(const SplineLayout&) = delete;  // the lanes point into the axes it holds
+    SplineLayout& operator=(const SplineLayout&) = delete;
+
+    const std::shared_ptr<const std::vector<KnotVector>>& axes() const { return axes_; }
+    int channels() const { return channels_; }
+    int dims() const { return static_cast<int>(axes_->size()); }
+    size_t stride(int axis) const { return strides_[axis]; }
+    size_t num_values() const { return values_; }
+    const detail::SplineLanes& lanes() const { return lanes_; }
+    // The specialised kernel for one point at this storage, if any.
+    detail::PointKernel point_kernel(bool float32) const { return point_kernel_[float32]; }
+
+private:
+    std::shared_ptr<const std::vector<KnotVector>> axes_;
+    int channels_;
+    std::vector<size_t> strides_;
+    size_t values_ = 0;
+    detail::SplineLanes lanes_{};
+    detail::PointKernel point_kernel_[2] = {nullptr, nullptr};  // float64, float32
+};
+
 class TensorSpline {
 public:
     static constexpr int kMaxDims = 8;
@@ -53,14 +83,18 @@ public:
     // knot vectors and their span tables take more memory than its coefficients.
     TensorSpline(std::shared_ptr<const std::vector<KnotVector>> axes, int channels,
                  Precision precision = Precision::Float64);
+    // Splines of one layout share it (and its axes).
+    explicit TensorSpline(std::shared_ptr<const SplineLayout> layout, Precision precision = Precision::Float64);
 
-    int dims() const { return static_cast<int>(axes_->size()); }
-    int channels() const { return channels_; }
+    int dims() const { return layout_->dims(); }
+    int channels() const { return layout_->channels(); }
     Precision precision() const { return precision_; }
-    const std::vector<KnotVector>& axes() const { return *axes_; }
+    const std::vector<KnotVector>& axes() const { return *layout_->axes(); }
     // The axes as shared: a spline made from them shares them too.
-    const std::shared_ptr<const std::vector<KnotVector>>& shared_axes() const { return axes_; }
-    const KnotVector& axis(int i) const { return (*axes_)[i]; }
+    const std::shared_ptr<const std::vector<KnotVector>>& shared_axes() const { return layout_->axes(); }
+    // The layout as shared: a spline made from it shares it (and the axes).
+    const std::shared_ptr<const SplineLayout>& layout() const { return layout_; }
+    const KnotVector& axis(int i) const { return (*layout_->axes())[i]; }
     std::vector<size_t> shape() const;  // (n_0, ..., n_{D-1}, channels)
     size_t num_values() const;          // product of shape()
     size_t bytes() const;               // of the coefficients
@@ -107,11 +141,10 @@ public:
     bool has_fast_kernel() const;
 
     // Strides of the axes, in values (coefficients x channels).
-    size_t stride(int axis) const { return strides_[axis]; }
+    size_t stride(int axis) const { return layout_->stride(axis); }
 
 private:
     const void* data() const;
-    void set_lanes();
     void evaluate_in_cell_order(detail::Kernel kernel, detail::Kernel params_kernel, const detail::KernelArgs& args,
                                 size_t b, size_t e, double* out) const;
     template <typename Loader>
@@ -119,14 +152,10 @@ private:
                        const HemisphereMap* map) const;
     void contract(const std::vector<std::vector<double>>& weights, double* out) const;
 
-    std::shared_ptr<const std::vector<KnotVector>> axes_;  // immutable, shared by copies
-    int channels_;
+    std::shared_ptr<const SplineLayout> layout_;  // immutable, shared by copies
     Precision precision_;
-    std::vector<size_t> strides_;
     std::vector<double> coeffs_;
     std::vector<float> coeffs32_;
-    detail::SplineLanes lanes_{};                // of the specialised kernels, if any
-    detail::PointKernel point_kernel_ = nullptr;  // the specialised kernel for one point, if any
 };
 
 }  // namespace bsgi
