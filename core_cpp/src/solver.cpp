@@ -218,10 +218,12 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
 }
 
 // A spline set of a receiver: its RGB coefficients, and per side a TensorSpline (in the set's
-// vector, one heap block) and its coefficients' block header. Its layout is shared (layout_bytes).
+// vector, one heap block) and its coefficients' block header (and a float32 one's padding). Its
+// layout is shared (layout_bytes).
 size_t set_bytes(const Plan& p, Precision precision = Precision::Float64) {
-    const size_t value = precision == Precision::Float32 ? sizeof(float) : sizeof(double);
-    return p.coefficients() * 3 * value + size_t(p.sides) * (sizeof(TensorSpline) + 16) + 16;
+    const bool f32 = precision == Precision::Float32;
+    return p.coefficients() * 3 * (f32 ? sizeof(float) : sizeof(double)) +
+           size_t(p.sides) * (sizeof(TensorSpline) + 16 + (f32 ? TensorSpline::kFloat32Padding * sizeof(float) : 0)) + 16;
 }
 
 // A receiver's nodes: their grid (SpatialNodes, two heap blocks) and the nodes moved out from
@@ -561,7 +563,10 @@ private:
     std::unordered_map<size_t, std::vector<std::shared_ptr<const SplineLayout>>> layouts_;
 };
 
-// `bounces`: the receiver gathers bounces (L, Ltmp); a final gather's receiver holds Le only.
+// `bounces`: the receiver gathers bounces (L, Ltmp) into a float64 Le. A final gather's receiver
+// holds its Le only, in float32: the precision of the images it is baked into, at half the
+// finals' memory (the bounces' sums and convergence stay in float64); the solution has it in
+// float64 again.
 Receiver make_receiver(const Scene& scene, const Plan& p, const SpatialKnots& knots, const SolverSettings& s,
                        bool bounces, LayoutInterner& layouts) {
     const KnotVector &ku = knots.u, &kv = knots.v;
@@ -602,7 +607,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const SpatialKnots& kn
     const auto& none = solved->dims() == 4 ? none_4d : none_2d;
     for (int side = 0; side < r.sides; ++side) {
         const auto& layout = r.live[side] ? solved : none;
-        r.Le.emplace_back(layout);
+        r.Le.emplace_back(layout, bounces ? Precision::Float64 : Precision::Float32);
         if (!bounces) continue;
         r.L.emplace_back(layout);
         r.Ltmp.emplace_back(layout);
@@ -1133,7 +1138,7 @@ size_t fixed_bytes(const Scene& scene) {
 // (their sets and nodes), which follow the bounces' increments.
 size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const std::vector<Plan>& plans,
                       const std::vector<Plan>& final_plans) {
-    size_t coarse = 0, resident = layouts_bytes(plans, settings), rows = 0, fine = 0, correction = 0,
+    size_t coarse = 0, resident = layouts_bytes(plans, settings), rows = 0, fine = 0, fine64 = 0, packed = 0,
            fine_nodes = layouts_bytes(final_plans, settings);
     for (const Plan& p : plans) {
         coarse += set_bytes(p);
@@ -1143,21 +1148,23 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
             rows += size_t(p.live[0] + p.live[1]) * p.nu * p.nv * settings.hemisphere_nodes_theta * settings.hemisphere_nodes_phi *
                     (settings.spatial_degree + 1) * (settings.spatial_degree + 1) * sizeof(TransportTerm);
     }
+    // The finals' Le and a regather's correction are float32 sets (make_receiver).
     for (const Plan& p : final_plans)
-        fine += set_bytes(p), correction += set_bytes(p, Precision::Float32), fine_nodes += node_bytes(p) + receiver_bytes(p);
+        fine += set_bytes(p, Precision::Float32), fine64 += set_bytes(p), packed += p.coefficients() * 3 * sizeof(double),
+            fine_nodes += node_bytes(p) + receiver_bytes(p);
     // The local solve gathers each phase from the splines that hold its input (a runner's packed
     // copy of it is not counted). A bounce holds its packed output; with settle_factor, the pairs
     // of increments of receivers that may settle as well (at most a set).
     const size_t bounce = rows + (settings.settle_factor > 0 ? 2 : 1) * coarse;
-    // The final gather holds the finals' set, a regather the correction (float32) as well, and
-    // the first pass's light packed where a third pass needs it; the bounces' increments (two coarse
+    // The final gather holds the finals' set, a regather the correction as well, and the first
+    // pass's light packed (float64) where a third pass needs it; the bounces' increments (two coarse
     // sets) and rows are freed by then, but the heap keeps what it cannot give back (a small
     // surface's splines are small blocks) and the finals, larger a surface, reuse only part of
     // it: counted as one set freed (measured on the interior at 10 to 100 objects: none freed
     // overestimates 10 objects by 25%, both underestimates 100 by 28%).
     const size_t final = final_plans.empty() ? 0
-                                             : fine + (settings.final_passes > 1 ? correction : 0) +
-                                                   (settings.final_passes > 2 ? fine : 0) + fine_nodes;
+                                             : fine + (settings.final_passes > 1 ? fine : 0) +
+                                                   (settings.final_passes > 2 ? packed : 0) + fine_nodes;
     const size_t freed = final_plans.empty() ? 0 : coarse;
     // Each thread keeps the scatter tables of its last few view-dependent receivers, at most at
     // the final gather's density. (The error estimate's gatherer at twice that density gathers a
@@ -1173,7 +1180,8 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
         table = std::max(table, ScatterTable::bytes(size_t(transmits ? p.sides : 1) * p.na * p.na, incoming,
                                                     nodes_along(settings.bsdf_samples, density)));
     }
-    resident += size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
+    const size_t tables = size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
+    resident += tables;
     // The error estimate reads the result (the finals, if any; the correction is freed) and
     // keeps per result receiver its checks' record (a count and kCheckFields doubles a check),
     // and while gathering them the checks' points, then their input errors.
@@ -1183,8 +1191,11 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
         records += (1 + (kCheckFields + 3 + 1) * checks) * sizeof(double) + 48;
     }
     const size_t estimate = settings.estimate_error ? records + (final_plans.empty() ? 0 : fine + fine_nodes) : 0;
-    return fixed_bytes(scene) + resident +
-           std::max(bounce, std::max(final, estimate) - std::min(freed, std::max(final, estimate)));
+    // At the end the finals become the solution's splines, in float64, with the coarse receivers
+    // freed.
+    const size_t output = final_plans.empty() ? 0 : tables + fine64 + fine_nodes;
+    return fixed_bytes(scene) + std::max(output, resident + std::max(bounce, std::max(final, estimate) -
+                                                                              std::min(freed, std::max(final, estimate))));
 }
 
 }  // namespace
@@ -1241,16 +1252,24 @@ std::vector<double> pack(const std::vector<Receiver>& receivers, size_t begin, s
     return flat;
 }
 
-// to += from, coefficient by coefficient, on every side of receivers [begin, end).
+// to += from, coefficient by coefficient, on every side of receivers [begin, end) (a float32 sum
+// rounded once a coefficient).
 void add_onto(std::vector<Receiver>& receivers, size_t begin, size_t end, Receiver::Splines to, Receiver::Splines from) {
     for (size_t k = begin; k < end; ++k)
         for (int side = 0; side < receivers[k].sides; ++side) {
-            auto& sum = (receivers[k].*to)[side].coeffs();
+            TensorSpline& sum = (receivers[k].*to)[side];
             const TensorSpline& term = (receivers[k].*from)[side];
-            if (term.precision() == Precision::Float32)
-                for (size_t c = 0; c < sum.size(); ++c) sum[c] += term.coeffs_f32()[c];
-            else
-                for (size_t c = 0; c < sum.size(); ++c) sum[c] += term.coeffs()[c];
+            const size_t n = sum.num_values();
+            const float* t32 = term.precision() == Precision::Float32 ? term.coeffs_f32() : nullptr;
+            const double* t64 = t32 ? nullptr : term.coeffs().data();
+            auto at = [&](size_t c) { return t32 ? double(t32[c]) : t64[c]; };
+            if (sum.precision() == Precision::Float32) {
+                float* c32 = sum.coeffs_f32();
+                for (size_t c = 0; c < n; ++c) c32[c] = float(double(c32[c]) + at(c));
+            } else {
+                double* c64 = sum.coeffs().data();
+                for (size_t c = 0; c < n; ++c) c64[c] += at(c);
+            }
         }
 }
 
@@ -1264,8 +1283,14 @@ void unpack(const double* flat, size_t count, std::vector<Receiver>& receivers, 
     const double* from = flat;
     for (size_t k = begin; k < end; ++k)
         for (TensorSpline& side : receivers[k].*which) {
-            if (skip.empty() || !skip[k]) std::copy(from, from + side.coeffs().size(), side.coeffs().begin());
-            from += side.coeffs().size();
+            const size_t n = side.num_values();
+            if (!skip.empty() && skip[k]) {
+            } else if (side.precision() == Precision::Float32) {
+                std::transform(from, from + n, side.coeffs_f32(), [](double x) { return float(x); });
+            } else {
+                std::copy(from, from + n, side.coeffs().begin());
+            }
+            from += n;
         }
 }
 
@@ -2259,12 +2284,21 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     // direction: constants are reproduced exactly by the partition of unity) + the cumulative
     // reflected radiance.
     solution.radiance.resize(scene.size());
+    // The coarse receivers are done with once the finals are the result: room for the finals in
+    // float64, one receiver at a time.
+    if (settings.final_gather) std::vector<Receiver>().swap(receivers);
     for (size_t k = 0; k < result.size(); ++k) {
         Receiver& r = result[k];
         if (r.is_partner) continue;  // consumed with its diffuse part
+        auto to_float64 = [](Receiver& part) {
+            for (TensorSpline& side : part.Le)
+                if (side.precision() == Precision::Float32) side = side.with_precision(Precision::Float64);
+        };
+        to_float64(r);
+        if (r.partner) to_float64(result[r.partner->index]);
         for (const Receiver* part = &r; part; part = part->is_partner ? nullptr : part->partner)
             for (int side = 0; side < part->sides; ++side)
-                if (part->solves(side)) solution.stats.coefficients += part->Le[side].coeffs().size() / 3;
+                if (part->solves(side)) solution.stats.coefficients += part->Le[side].num_values() / 3;
         const Material& m = scene[r.surface].material;
         std::shared_ptr<const Texture> emission = m.emission_texture;
         if (!emission && (m.albedo_texture || m.specular_texture) && m.emits())  // kept out of the textured spline: one texel

@@ -38,10 +38,12 @@ UV = np.vstack([np.random.default_rng(3).uniform(0, 1, (100, 2)), [[0, 0], [1, 1
 
 @pytest.mark.parametrize("preset", ["draft", "preview", "final"])
 def test_open_floor_reflects_albedo_times_world(preset):
-    # Every ray escapes: (rho / pi) * pi * L_world exactly, whatever the node count.
+    # Every ray escapes: (rho / pi) * pi * L_world exactly, whatever the node count, up to the
+    # rounding of the final gather's coefficients to float32 (the bake's precision): at most 2^-24
+    # relative (measured 0.52 * 2^-24 at every preset).
     sol = bsgi.solve(floor_scene(), bsgi.SolverSettings.preset(preset))
     got = sol.radiance[0].evaluate(UV)
-    assert np.allclose(got, ALBEDO * WORLD, rtol=1e-9)
+    assert np.allclose(got, ALBEDO * WORLD, rtol=2.0**-24, atol=0)
 
 
 def test_floor_under_a_ceiling_matches_the_unblocked_solid_angle():
