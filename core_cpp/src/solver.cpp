@@ -1359,10 +1359,15 @@ template <typename Hidden, typename Distant>
 std::vector<CheckPoint> check_points(const Receiver& r, size_t n, Hidden&& hidden, Distant&& distant) {
     const size_t m = 16 * n;
     const Vec3 normal{0, 0, r.solves(0) || !r.solves(1) ? 1.0 : -1.0};
+    const int side = normal.z > 0 ? 0 : 1;
+    // Taken out only where they reach a candidate (most of a furnished room lies in shade): a
+    // shadow ray a candidate until one is lit.
+    bool lit = false;
+    for (size_t i = 0; i < m && !lit; ++i) lit = distant(check_point(i)[0], check_point(i)[1], side) > 0;
     auto f = [&](double u, double v) {
         u = std::clamp(u, 0.0, 1.0), v = std::clamp(v, 0.0, 1.0);
         const Vec3 L = r.radiance(&Receiver::Le, u, v, normal);
-        return L.x + L.y + L.z - distant(u, v, normal.z > 0 ? 0 : 1);
+        return L.x + L.y + L.z - (lit ? distant(u, v, side) : 0.0);
     };
     // The local knot spacing (adaptive knots cluster at shadow edges).
     const TensorSpline& spline = r.Le[r.solves(0) || !r.solves(1) ? 0 : 1];
