@@ -212,10 +212,10 @@ void Gatherer::direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) cons
     direct_at(r, node_point(r, j), LightParts::All, out, rays);
 }
 
-double Gatherer::distant_light_at(const Receiver& r, const SurfacePoint& p, int side, size_t& rays) const {
+double Gatherer::distant_light_at(const Receiver& r, double u, double v, int side, size_t& rays) const {
     if (distant_.empty() || r.per_node != 1 || side >= r.sides) return 0;
     Vec3 out[2];
-    direct_at(r, p, LightParts::Distant, out, rays);
+    direct_at(r, scene_[r.surface].surface->evaluate(u, v), LightParts::Distant, out, rays);
     return out[side].x + out[side].y + out[side].z;
 }
 

@@ -1291,11 +1291,11 @@ void unpack(const double* flat, size_t count, std::vector<Receiver>& receivers, 
     for (size_t k = begin; k < end; ++k)
         for (TensorSpline& side : receivers[k].*which) {
             const size_t n = side.num_values();
-            if (!skip.empty() && skip[k]) {
-            } else if (side.precision() == Precision::Float32) {
-                std::transform(from, from + n, side.coeffs_f32(), [](double x) { return float(x); });
-            } else {
-                std::copy(from, from + n, side.coeffs().begin());
+            if (skip.empty() || !skip[k]) {
+                if (side.precision() == Precision::Float32)
+                    std::transform(from, from + n, side.coeffs_f32(), [](double x) { return float(x); });
+                else
+                    std::copy(from, from + n, side.coeffs().begin());
             }
             from += n;
         }
@@ -1363,7 +1363,10 @@ std::vector<CheckPoint> check_points(const Receiver& r, size_t n, Hidden&& hidde
     // Taken out only where they reach a candidate (most of a furnished room lies in shade): a
     // shadow ray a candidate until one is lit.
     bool lit = false;
-    for (size_t i = 0; i < m && !lit; ++i) lit = distant(check_point(i)[0], check_point(i)[1], side) > 0;
+    for (size_t i = 0; i < m && !lit; ++i) {
+        const auto [u, v] = check_point(i);
+        lit = distant(u, v, side) > 0;
+    }
     auto f = [&](double u, double v) {
         u = std::clamp(u, 0.0, 1.0), v = std::clamp(v, 0.0, 1.0);
         const Vec3 L = r.radiance(&Receiver::Le, u, v, normal);
@@ -1383,7 +1386,6 @@ std::vector<CheckPoint> check_points(const Receiver& r, size_t n, Hidden&& hidde
         if (hidden(u, v)) continue;
         const double c = f(u, v), hu = spacing(0, u), hv = spacing(1, v);
         const double d2 = std::abs(f(u - hu, v) - 2 * c + f(u + hu, v)) + std::abs(f(u, v - hv) - 2 * c + f(u, v + hv));
-
         mean += score[i] = d2;
         ++visible;
     }
@@ -1733,7 +1735,6 @@ struct SolveSteps::State {
         std::vector<double> records(at(end - begin), 0.0);
         std::vector<std::vector<CheckPoint>> points(end - begin);
         std::atomic<size_t> candidate_rays{0};
-        const bool distant = gather->has_distant();
         parallel_for(end - begin, 1, settings.threads, [&](size_t b, size_t e) {
             size_t local = 0;
             for (size_t k = b; k < e; ++k) {
@@ -1744,9 +1745,7 @@ struct SolveSteps::State {
                 points[k] = check_points(r, checks_of(r), [&](double u, double v) {
                     const SurfacePoint p = surface.evaluate(u, v);
                     return behind(p.p, p.frame.z, p.frame.z * side, local);
-                }, [&](double u, double v, int s) {
-                    return distant ? gather->distant_light_at(r, surface.evaluate(u, v), s, local) : 0.0;
-                });
+                }, [&](double u, double v, int s) { return gather->distant_light_at(r, u, v, s, local); });
                 records[at(k)] = double(points[k].size());
             }
             candidate_rays += local;

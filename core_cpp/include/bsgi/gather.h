@@ -163,10 +163,9 @@ public:
     // r.support_means): five evaluations of their light a node, up to 41 where an edge crosses.
     void direct_over_support(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     // The light of the lights at infinity (a sun, the world map's bright part) that a diffuse r
-    // reflects at p on `side`, its channels summed: 0 without such lights or for a glossy r (and
-    // no ray cast).
-    double distant_light_at(const Receiver& r, const SurfacePoint& p, int side, size_t& rays) const;
-    bool has_distant() const { return !distant_.empty(); }
+    // reflects at (u, v) of its surface on `side`, its channels summed: 0 without such lights or
+    // for a glossy r (and no ray cast, no point evaluated).
+    double distant_light_at(const Receiver& r, double u, double v, int side, size_t& rays) const;
     static constexpr double kEdgeContrast = 0.3;
     // Light arriving from the other surfaces' splines `which` at node j of r, scattered, and
     // with `with_world` the world's light along the rays no occluder stops (the final gather:
