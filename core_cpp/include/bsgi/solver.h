@@ -159,10 +159,15 @@ struct SolverSettings {
     // surfaces, along directions between the angular nodes) against the spline there; at half
     // of them the error of the others' splines the last gather read (their final less their
     // coarse splines, gathered, scaled by the order each surface's own checks show), at a
-    // quarter the gather at doubled integration nodes; plus the bounces' tail. Off: the reports'
-    // estimated_error is NaN.
+    // quarter the gather at doubled integration nodes, against which the spline's own error is
+    // taken; plus the bounces' tail. Off: the reports' estimated_error is NaN.
     bool estimate_error = true;
+    // More checks, a steadier estimate: a surface's error sits in thin bands (contact lines,
+    // shadow edges) that few checks hit or miss by chance (the final preset takes 128).
     int error_checks = 48;
+    // Where the checks' low-discrepancy sequence starts: another seed, another set of checks
+    // (the estimate's own sampling noise shows across seeds).
+    int error_checks_seed = 0;
 
     // Refinement driven by the error estimate, done by bsgi.solve (Python, around this solve, so
     // that it also runs on a Ray cluster): while a surface's estimated error is over
