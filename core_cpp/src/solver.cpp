@@ -1079,10 +1079,10 @@ SolverSettings SolverSettings::preset(const std::string& name) {
         s.angular_resolution = 4.0;
         s.emitter_shadow_depth = 5;
         s.tolerance = 1e-3;
-        // Where a surface's error is a few percent, much of it in thin bands beside contact
-        // lines and shadow edges: at 48 checks the estimate of the validation scenes' surfaces
-        // varied by a factor of 1.6 (the standard deviation of its log2 over seeds 0.4); at
-        // 128 by 1.25 (0.3), for 3-11% of the solve's rays (1-4% at 48).
+        // A surface's error of a few percent sits much of it in thin bands beside contact lines
+        // and shadow edges, which a set of checks hits or misses by chance: the validation
+        // scenes' objects' estimates varied between sets by a standard deviation of log2 of 0.37
+        // (median) at 48 checks, 0.25 at 128, which cost 3-11% of the solve's rays (1-4% at 48).
         s.error_checks = 128;
         if (name == "reference") {
             // Final's bounces, and a final gather that resolves shadow edges and contact lines

@@ -82,14 +82,15 @@ struct SurfaceReport {
     std::string reason;
     // Relative RMS error of the radiance leaving the surface (RGB, over its visible points,
     // uniform in (u, v), and cosine-distributed directions) against its mean radiance: the
-    // spline against the gathered radiance where no node sits, the error of the splines the
-    // gather read, the integration error (doubled nodes) and the bounces not taken, added in
-    // quadrature (SolverSettings::estimate_error). NaN where not estimated (emitters, panes) and
+    // spline's own error (against the gathered radiance where no node sits), the error of the
+    // splines the gather read and the bounces not taken, added in quadrature
+    // (SolverSettings::estimate_error). A sample: another error_checks_seed, another estimate. NaN where not estimated (emitters, panes) and
     // where no viewer sees the surface (every check point's directions meet the back of an opaque
     // surface: a book's face pressed against a shelf); 0 where it is seen and gets no light.
     double estimated_error = std::nan("");
-    // Its parts: the fit of the surface's own spline, the splines the gather read, the
-    // integration, the bounces' tail (what refining the surface's own knots can lower is the first).
+    // Its parts, in quadrature: the fit of the surface's own spline, the splines the gather read,
+    // the integration (of the spline's own error, what doubled integration nodes change), the
+    // bounces' tail (what refining the surface's own knots can lower is the first).
     std::array<double, 4> error_parts{std::nan(""), std::nan(""), std::nan(""), std::nan("")};
 };
 
