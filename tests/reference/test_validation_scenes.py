@@ -185,6 +185,25 @@ def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_er
     assert r["rel_rmse"] <= min(TARGET["thin_occluder"], 2 * 0.0048), r["rel_rmse"]
 
 
+# The same refinement on the two scenes the final preset leaves furthest from the issue's targets
+# (validate.py measure --scene S --preset final --overrides '{"refine_to_error": 0.01}'; relative
+# RMSE, worst object's mean ratio, measured): open_box 3.40% -> 1.36% (the GGX target, 2%, met; 118 s
+# CPU against 12 s), leaning_board 2.61% -> 1.51% (not its 1%: the board, 1.6%, is estimated at 0.4%,
+# the bounces' bias in the wedge behind it, which no part of the estimate measures; 3.3 s against
+# 0.7 s). (table_spheres 1.72% -> 1.58% for 253 s against 22 s; ceiling_light's surfaces all meet
+# the target at final.)
+REFINED = {"open_box": (0.0136, 1.0014), "leaning_board": (0.0151, 1.0045)}
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+@pytest.mark.parametrize("scene", sorted(REFINED))
+def test_refinement_to_one_percent_where_final_is_furthest(scene):
+    r, base = final_with(scene, {"refine_to_error": 0.01}, "final, refined to 1%")
+    error, ratio = REFINED[scene]
+    assert r["rel_rmse"] <= 1.5 * error and r["rel_rmse"] < 0.7 * base["rel_rmse"], (r["rel_rmse"], base["rel_rmse"])
+    assert abs(r["worst_surface_ratio"] - 1) <= 0.01, r["surfaces"]
+
 # More regather passes (the final preset's four against two) carry the finals' light a bounce
 # further each into leaning_board's wedge behind the board, which the coarse bounces lit through
 # the board's blurred ends (validate.py measure --scene leaning_board --preset final [--overrides
