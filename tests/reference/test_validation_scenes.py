@@ -187,10 +187,10 @@ def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_er
 
 # The same refinement on the two scenes the final preset leaves furthest from the issue's targets
 # (validate.py measure --scene S --preset final --overrides '{"refine_to_error": 0.01}'; relative
-# RMSE, worst object's mean ratio, measured): open_box 3.40% -> 1.36% (the GGX target, 2%, met; 118 s
+# RMSE, worst object's mean ratio, measured): open_box 3.40% -> 1.36% (the GGX target, 2%, met; 99 s
 # CPU against 12 s), leaning_board 2.61% -> 1.51% (not its 1%: the board, 1.6%, is estimated at 0.4%,
-# the bounces' bias in the wedge behind it, which no part of the estimate measures; 3.3 s against
-# 0.7 s). (table_spheres 1.72% -> 1.58% for 253 s against 22 s; ceiling_light's surfaces all meet
+# the bounces' bias in the wedge behind it, which no part of the estimate measures; 3.0 s against
+# 0.7 s). (table_spheres 1.72% -> 1.58% for 246 s against 23 s; ceiling_light's surfaces all meet
 # the target at final.)
 REFINED = {"open_box": (0.0136, 1.0014), "leaning_board": (0.0151, 1.0045)}
 
