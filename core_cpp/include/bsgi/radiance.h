@@ -84,9 +84,10 @@ struct SurfaceReport {
     // uniform in (u, v), and cosine-distributed directions) against its mean radiance: the
     // spline's own error (against the gathered radiance where no node sits), the error of the
     // splines the gather read and the bounces not taken, added in quadrature
-    // (SolverSettings::estimate_error). A sample: another error_checks_seed, another estimate. NaN where not estimated (emitters, panes) and
-    // where no viewer sees the surface (every check point's directions meet the back of an opaque
-    // surface: a book's face pressed against a shelf); 0 where it is seen and gets no light.
+    // (SolverSettings::estimate_error); a sample (another error_checks_seed, another estimate).
+    // NaN where not estimated (emitters, panes) and where no viewer sees the surface (every check
+    // point's directions meet the back of an opaque surface: a book's face pressed against a
+    // shelf); 0 where it is seen and gets no light.
     double estimated_error = std::nan("");
     // Its parts, in quadrature: the fit of the surface's own spline, the splines the gather read,
     // the integration (of the spline's own error, what doubled integration nodes change), the
