@@ -26,6 +26,11 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// The error estimate's checks a receiver at most, and the candidates it chooses each from
+// (check_points).
+constexpr int kMaxErrorChecks = 4096;
+constexpr size_t kCandidatesPerCheck = 16;
+
 void validate(const SolverSettings& s) {
     auto need = [](bool ok, const char* what) {
         if (!ok) throw std::invalid_argument(std::string("solver settings: ") + what);
@@ -65,7 +70,8 @@ void validate(const SolverSettings& s) {
     need(s.final_spatial_factor <= 16 && s.final_integration_factor <= 16, "final gather factors must be at most 16");
     need(s.final_passes >= 1 && s.final_passes <= 4, "final_passes must be from 1 to 4");
     need(s.memory_budget_mb > 0, "memory_budget_mb must be > 0");
-    need(s.error_checks >= 1 && s.error_checks <= 4096, "error_checks must be in 1..4096");
+    need(s.error_checks >= 1 && s.error_checks <= kMaxErrorChecks, "error_checks must be in 1..4096");
+    static_assert(kMaxErrorChecks == 4096, "the message above names the bound");
     need(s.error_checks_seed >= 0 && s.error_checks_seed <= 65535, "error_checks_seed must be in 0..65535");
     need(s.refine_to_error >= 0 && s.refine_passes >= 0 && s.refine_seconds >= 0, "refine_to_error, refine_passes and refine_seconds must be >= 0");
     need(s.refine_factor > 1 && s.refine_factor <= 4, "refine_factor must be in (1, 4]");
@@ -1364,7 +1370,7 @@ struct CheckPoint {
 // stride longer than any receiver's candidates (SolverSettings::error_checks_seed).
 template <typename Hidden, typename Distant>
 std::vector<CheckPoint> check_points(const Receiver& r, size_t n, size_t seed, Hidden&& hidden, Distant&& distant) {
-    const size_t m = 16 * n, first = seed * 16 * 4096;
+    const size_t m = kCandidatesPerCheck * n, first = seed * kCandidatesPerCheck * kMaxErrorChecks;
     auto candidate = [first](size_t i) { return check_point(first + i); };
     const Vec3 normal{0, 0, r.solves(0) || !r.solves(1) ? 1.0 : -1.0};
     const int side = normal.z > 0 ? 0 : 1;

@@ -192,7 +192,7 @@ def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_er
 # the bounces' bias in the wedge behind it, which no part of the estimate measures; 3.0 s against
 # 0.7 s). (table_spheres 1.72% -> 1.58% for 246 s against 23 s; ceiling_light's surfaces all meet
 # the target at final.)
-REFINED = {"open_box": (0.0136, 1.0014), "leaning_board": (0.0151, 1.0045)}
+REFINED = {"open_box": (0.0136, 0.9964), "leaning_board": (0.0151, 1.0045)}  # the block, the board
 
 
 @pytest.mark.slow
@@ -202,7 +202,8 @@ def test_refinement_to_one_percent_where_final_is_furthest(scene):
     r, base = final_with(scene, {"refine_to_error": 0.01}, "final, refined to 1%")
     error, ratio = REFINED[scene]
     assert r["rel_rmse"] <= 1.5 * error and r["rel_rmse"] < 0.7 * base["rel_rmse"], (r["rel_rmse"], base["rel_rmse"])
-    assert abs(r["worst_surface_ratio"] - 1) <= 0.01, r["surfaces"]
+    assert abs(r["worst_surface_ratio"] - 1) <= min(0.01, 2 * abs(ratio - 1)), r["surfaces"]
+
 
 # More regather passes (the final preset's four against two) carry the finals' light a bounce
 # further each into leaning_board's wedge behind the board, which the coarse bounces lit through
