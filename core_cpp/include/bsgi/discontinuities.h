@@ -72,6 +72,9 @@ public:
     static constexpr int kMaxEdges = 64;
     // Emitter x occluder edge pairs examined per receiver, nearest occluders first beyond it.
     static constexpr size_t kMaxPairs = 200000;
+    // Contact lines' bands (the lift over the tangent of the wedge's angle, find()) stop growing
+    // at wedges narrower than 0.6 degrees: a crevice, dark on both sides of its nodes.
+    static constexpr double kMaxContactCot = 100;
 
     static constexpr double kClusterAngle = 0.1;  // radians (5.7 degrees: a sun and its aureole)
     static constexpr double kMinShare = 0.01;
