@@ -612,12 +612,8 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const SpatialKnots& kn
     };
     static const std::shared_ptr<const SplineLayout> none_2d = unsolved(2), none_4d = unsolved(4);
     const std::shared_ptr<const SplineLayout> solved = layouts(std::move(axes));
-    if (!bounces) {  // the solution's float64 splines, checked before the final gather rather than after
-        std::vector<size_t> extents;
-        for (const KnotVector& a : *solved->axes()) extents.push_back(size_t(a.num_coeffs()));
-        extents.push_back(3);
-        check_memory_budget("tensor spline coefficients", extents, sizeof(double));
-    }
+    // The solution's float64 splines, checked before the final gather rather than after.
+    if (!bounces) TensorSpline::check_memory_budget(*solved->axes(), 3);
     const auto& none = solved->dims() == 4 ? none_4d : none_2d;
     for (int side = 0; side < r.sides; ++side) {
         const auto& layout = r.live[side] ? solved : none;

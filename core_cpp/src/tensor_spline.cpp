@@ -91,6 +91,10 @@ size_t TensorSpline::coefficient_bytes(const std::vector<KnotVector>& axes, int 
     return array_bytes(extents(axes, channels), element_bytes(precision));
 }
 
+void TensorSpline::check_memory_budget(const std::vector<KnotVector>& axes, int channels, Precision precision) {
+    bsgi::check_memory_budget("tensor spline coefficients", extents(axes, channels), element_bytes(precision));
+}
+
 TensorSpline::TensorSpline(std::vector<KnotVector> axes, int channels, Precision precision)
     : TensorSpline(std::make_shared<const std::vector<KnotVector>>(std::move(axes)), channels, precision) {}
 
@@ -109,6 +113,7 @@ SplineLayout::SplineLayout(std::shared_ptr<const std::vector<KnotVector>> axes, 
     bool uniform = true;
     for (const auto& a : *axes_)
         if (a.is_periodic() || a.degree() != degree || D > 4) return;
+    has_lanes_ = true;
     for (int k = 0; k < D; ++k) {
         const KnotVector& a = (*axes_)[k];
         uniform = uniform && a.uniform_spans();
@@ -129,7 +134,7 @@ TensorSpline::TensorSpline(std::shared_ptr<const std::vector<KnotVector>> axes, 
 TensorSpline::TensorSpline(std::shared_ptr<const SplineLayout> layout, Precision precision)
     : layout_(std::move(layout)), precision_(precision) {
     if (!layout_) throw std::invalid_argument("tensor spline: no layout");
-    check_memory_budget("tensor spline coefficients", extents(axes(), channels()), element_bytes(precision_));
+    check_memory_budget(axes(), channels(), precision_);
     const size_t n = layout_->num_values();
     if (precision_ == Precision::Float32) coeffs32_.assign(n + kFloat32Padding, 0.0f);
     else coeffs_.assign(n, 0.0);
@@ -168,9 +173,7 @@ TensorSpline TensorSpline::with_precision(Precision precision) const {
 }
 
 bool TensorSpline::has_fast_kernel() const {
-    for (const auto& a : axes())
-        if (a.is_periodic() || a.degree() != axes()[0].degree()) return false;
-    return detail::find_kernel(dims(), axes()[0].degree() + 1, channels(), precision_ == Precision::Float32, false, false) != nullptr;
+    return layout_->has_lanes() && detail::find_kernel(dims(), axes()[0].degree() + 1, channels(), precision_ == Precision::Float32, false, false) != nullptr;
 }
 
 // Points b .. e of a 4D batch in the order of their knot cell on the first three axes (a counting

@@ -139,13 +139,16 @@ def test_error_estimate_within_a_factor_of_two_per_object(scene):
 
 
 # The reference preset (final's bounces; a final gather with discontinuity knots, 4x the spatial
-# coefficients per direction, 2x the integration nodes) on the two diffuse scenes, where it meets
+# coefficients per direction, 2x the integration nodes) on the three diffuse scenes, where it meets
 # the target (validate.py measure --preset reference): relative RMSE, worst object's ratio.
-# ceiling_light's error is at its reference's noise (0.32%): bounded at twice that. The GGX scenes
+# ceiling_light's error is at its reference's noise (0.32%): bounded at twice that. leaning_board
+# met it once the nodes beside its board's foot stayed inside the wedge (1.8% -> 0.83%; the
+# floor's nodes there had gathered the lit room's light from above the board). The GGX scenes
 # (open_box 1.90%, table_spheres 1.62%, 3-5 minutes of CPU each) are measured by the same command
 # and not solved here.
-MEASURED_REFERENCE = {"thin_occluder": (0.0039, 1.0013),  # the floor
-                      "ceiling_light": (0.0034, 1.0002)}
+MEASURED_REFERENCE = {"thin_occluder": (0.0036, 0.9995),  # the large wall
+                      "ceiling_light": (0.0034, 0.9996),  # the ceiling
+                      "leaning_board": (0.0083, 1.0060)}  # the board
 
 
 @pytest.mark.slow

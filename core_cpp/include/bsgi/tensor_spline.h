@@ -59,6 +59,9 @@ public:
     size_t stride(int axis) const { return strides_[axis]; }
     size_t num_values() const { return values_; }
     const detail::SplineLanes& lanes() const { return lanes_; }
+    // Whether the axes are what the specialised kernels take (open, of one degree, at most four):
+    // the lanes are filled.
+    bool has_lanes() const { return has_lanes_; }
     // The specialised kernel for one point at this storage, if any.
     detail::PointKernel point_kernel(bool float32) const { return point_kernel_[float32]; }
 
@@ -68,6 +71,7 @@ private:
     std::vector<size_t> strides_;
     size_t values_ = 0;
     detail::SplineLanes lanes_{};
+    bool has_lanes_ = false;
     detail::PointKernel point_kernel_[2] = {nullptr, nullptr};  // float64, float32
 };
 
@@ -134,6 +138,10 @@ public:
 
     // Bytes the coefficients of such a spline would take: checked before allocating.
     static size_t coefficient_bytes(const std::vector<KnotVector>& axes, int channels,
+                                    Precision precision = Precision::Float64);
+    // Throws MemoryBudgetExceeded (memory_budget.h) where such a spline's coefficients would be
+    // over the budget, as constructing it would, without allocating.
+    static void check_memory_budget(const std::vector<KnotVector>& axes, int channels,
                                     Precision precision = Precision::Float64);
 
     // Whether evaluate_batch uses a compiled kernel specialised for this shape (else the generic
