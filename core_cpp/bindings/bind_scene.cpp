@@ -364,6 +364,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("final_spatial_factor", &SolverSettings::final_spatial_factor)
         .def_readwrite("final_integration_factor", &SolverSettings::final_integration_factor)
         .def_readwrite("final_passes", &SolverSettings::final_passes)
+        .def_readwrite("final_correction_bounces", &SolverSettings::final_correction_bounces)
         .def_readwrite("two_sided", &SolverSettings::two_sided)
         .def_readwrite("estimate_error", &SolverSettings::estimate_error)
         .def_readwrite("error_checks", &SolverSettings::error_checks)

@@ -118,23 +118,25 @@ def test_every_scene_member_that_changes_it_is_kept():
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
-@pytest.mark.parametrize("final_passes, late_bounces_after", [(1, 0), (2, 1), (4, 1)])
-def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounces_after):
-    scene, s = room(), settings(final_passes=final_passes, final_spatial_factor=2, late_bounces_after=late_bounces_after)
+@pytest.mark.parametrize("final_passes, late_bounces_after, corrections", [(1, 0, 0), (2, 1, 0), (4, 1, 0), (4, 1, 3)])
+def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounces_after, corrections):
+    scene, s = room(), settings(final_passes=final_passes, final_spatial_factor=2, late_bounces_after=late_bounces_after,
+                                final_correction_bounces=corrections)
     local = bsgi.solve(scene, s)
     kinds = {r["representation"].split(",")[0] for r in local.reports}
     assert {"diffuse 2D", "glossy 4D", "decomposed 2D + 4D (38)"} <= kinds
     executor = bsgi.RayExecutor(workers=2)
     assert_same_coefficients(local, bsgi.solve(scene, s, executor=executor))
     # Each phase sent once: the direct light (nothing), three bounces (L), the final gather (Le),
-    # a regather (the finals' Le) each further pass, and the error estimate's two passes (the
-    # finals' and the coarse Le, then also the first pass's records).
-    assert len(executor.bytes_sent) == 6 + final_passes and executor.bytes_sent[0] == 0
+    # a regather (the finals' Le) each further pass (after the coarse correction's late bounces),
+    # and the error estimate's two passes (the finals' and the coarse Le, then also the first
+    # pass's records).
+    assert len(executor.bytes_sent) == 6 + final_passes + corrections and executor.bytes_sent[0] == 0
     assert executor.bytes_sent[-1] > executor.bytes_sent[-2] > executor.bytes_sent[1]
     # Each phase's times (bench/ray_phases.py prints them): in order, a group's seconds each.
     bounces = ["bounce", "late bounce", "late bounce"] if late_bounces_after else ["bounce"] * 3
-    assert [p[0] for p in executor.phase_times] == ["direct", *bounces, "final", *["regather"] * (final_passes - 1),
-                                                    "estimate checks", "estimate input"]
+    assert [p[0] for p in executor.phase_times] == ["direct", *bounces, "final", *["late bounce"] * corrections,
+                                                    *["regather"] * (final_passes - 1), "estimate checks", "estimate input"]
     assert all(began < ended and len(seconds) >= 2 for _, began, ended, seconds in executor.phase_times), executor.phase_times
 
 

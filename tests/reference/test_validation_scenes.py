@@ -208,18 +208,20 @@ def test_refinement_to_one_percent_where_final_is_furthest(scene):
     assert abs(r["worst_surface_ratio"] - 1) <= min(0.01, 2 * abs(ratio - 1)), r["surfaces"]
 
 
-# More regather passes (the final preset's four against two) carry the finals' light a bounce
-# further each into leaning_board's wedge behind the board, which the coarse bounces lit through
-# the board's blurred ends (validate.py measure --scene leaning_board --preset final [--overrides
-# '{"final_passes": 2}']): the board's mean 1.0140 -> 1.0063 (three passes: 1.0110), the scene
-# 2.78% -> 2.66%.
+# The coarse bounces light leaning_board's wedge behind the board through the board's blurred
+# ends. The regathers carry the finals' light a bounce further each into it (the board's mean,
+# both sides, 1.0140 with two passes, 1.0110 with three, 1.0064 with the final preset's four); the
+# coarse correction (final_correction_bounces, 8 at final) carries the coarse light's error over
+# all the bounces at once before the second: 1.0016 (validate.py measure --scene leaning_board
+# --preset final [--overrides '{"final_correction_bounces": 0}']); inside the wedge the floor and
+# wall 1.12x Mitsuba's without it, 1.00x with it.
 @pytest.mark.slow
 @pytest.mark.blender
-def test_more_regather_passes_carry_the_fine_light_into_a_wedge():
-    two, r = final_with("leaning_board", {"final_passes": 2}, "final, two passes")
-    before, after = two["surfaces"]["Board"]["ratio"] - 1, r["surfaces"]["Board"]["ratio"] - 1
-    assert 0 <= after <= 0.6 * before, (before, after)
-    assert r["rel_rmse"] < two["rel_rmse"]
+def test_the_coarse_correction_carries_the_fine_light_into_a_wedge():
+    regathers, r = final_with("leaning_board", {"final_correction_bounces": 0}, "final, regathers alone")
+    before, after = regathers["surfaces"]["Board"]["ratio"] - 1, r["surfaces"]["Board"]["ratio"] - 1
+    assert 0 <= after <= 0.5 * before, (before, after)  # measured 0.0016 against 0.0064
+    assert r["rel_rmse"] <= regathers["rel_rmse"]
 
 
 @pytest.mark.slow

@@ -148,6 +148,13 @@ struct SolverSettings {
     // again from the latest finals (F_k+1 = F_1 + G(F_k - C)), carrying the finer light a bounce
     // further into a cavity lit through a narrow opening.
     int final_passes = 1;
+    // Coarse bounces that carry the coarse light's error before the second final gather (a
+    // two-grid correction): the first final gather less the coarse light, F_1 - C, is C's
+    // residual at the fine level; its error (I - K)^-1 (F_1 - C) is that residual plus its
+    // bounces, taken here on the coarse receivers (K_c). The regather then reads F_1 + E instead
+    // of F_1, E the bounces' sum: what the coarse iteration let through a blurred opening into a
+    // cavity leaves it at once, not a bounce a pass. 0: none (the regathers alone).
+    int final_correction_bounces = 0;
 
     // Cycles shades both sides of an opaque surface with the same BSDF: the back side reflects
     // light arriving from below, mirrored. Sides no light reaches get no spline (sides.h). Off:
