@@ -24,14 +24,16 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 # (3 December, with the sharpened fit and the hemisphere rule's Gauss nodes; before: 3.76%,
 # 4.13%, 0.81%, 2.25%; thin_occluder then 1.88% until the final preset's discontinuity knots,
 # open_box 3.56% and table_spheres 2.76% until the glossy splines' angular axes were sharpened;
-# with two final passes instead of four 3.51%, 1.85%, 0.42%, 1.21%, 2.78%.)
-MEASURED = {"open_box": (0.0340, 0.9962),  # the ceiling
-            "table_spheres": (0.0172, 0.9974),  # the GGX sphere
-            "ceiling_light": (0.0042, 1.0005),  # the floor
-            "thin_occluder": (0.0118, 0.9977),  # the small wall
+# with two final passes instead of four 3.51%, 1.85%, 0.42%, 1.21%, 2.78%; without the coarse
+# correction, 5 December, 3.40%, 1.72%, 0.42%, 1.18%, 2.61%, leaning_board's board 1.0064.)
+MEASURED = {"open_box": (0.0337, 0.9957),  # the ceiling
+            "table_spheres": (0.0171, 0.9969),  # the GGX sphere
+            "ceiling_light": (0.0042, 1.0006),  # the floor
+            "thin_occluder": (0.0118, 0.9975),  # the small wall
             # (added 3 December: the board's back bright, the wedge behind it lit through the
-            # coarse bounces' blurred shadow edges at its open ends; README, validation section)
-            "leaning_board": (0.0261, 1.0064)}  # the board (2.66% until the nodes beside a narrow penumbra's jump left it)
+            # coarse bounces' blurred shadow edges at its open ends, until the coarse correction;
+            # README, validation section)
+            "leaning_board": (0.0259, 1.0016)}  # the board (2.66% until the nodes beside a narrow penumbra's jump left it)
 # The issue's targets: 1% on diffuse scenes, 2% where a GGX surface of alpha >= 0.3 is seen.
 TARGET = {"open_box": 0.02, "table_spheres": 0.02, "ceiling_light": 0.01, "thin_occluder": 0.01, "leaning_board": 0.01}
 
@@ -143,12 +145,13 @@ def test_error_estimate_within_a_factor_of_two_per_object(scene):
 # the issue's target (validate.py measure --preset reference): relative RMSE, worst object's ratio.
 # ceiling_light's error is at its reference's noise (0.32%): bounded at twice that. leaning_board
 # met it once the nodes beside its board's foot stayed inside the wedge (1.8% -> 0.83%; the
-# floor's nodes there had gathered the lit room's light from above the board). The GGX scenes
+# floor's nodes there had gathered the lit room's light from above the board), 0.76% with the
+# coarse correction. The GGX scenes
 # (open_box 1.90%, table_spheres 1.62%, 3-5 minutes of CPU each) are measured by the same command
 # and not solved here.
 MEASURED_REFERENCE = {"thin_occluder": (0.0036, 0.9995),  # the large wall
                       "ceiling_light": (0.0034, 0.9996),  # the ceiling
-                      "leaning_board": (0.0083, 1.0060)}  # the board
+                      "leaning_board": (0.0076, 1.0011)}  # the board
 
 
 @pytest.mark.slow
@@ -190,12 +193,11 @@ def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_er
 
 # The same refinement on the two scenes the final preset leaves furthest from the issue's targets
 # (validate.py measure --scene S --preset final --overrides '{"refine_to_error": 0.01}'; relative
-# RMSE, worst object's mean ratio, measured): open_box 3.40% -> 1.36% (the GGX target, 2%, met; 99 s
-# CPU against 12 s), leaning_board 2.61% -> 1.51% (not its 1%: the board, 1.6%, is estimated at 0.4%,
-# the bounces' bias in the wedge behind it, which no part of the estimate measures; 3.0 s against
-# 0.7 s). (table_spheres 1.72% -> 1.58% for 246 s against 23 s; ceiling_light's surfaces all meet
-# the target at final.)
-REFINED = {"open_box": (0.0136, 0.9964), "leaning_board": (0.0151, 1.0045)}  # the block, the board
+# RMSE, worst object's mean ratio, measured): open_box 3.37% -> 1.38% (the GGX target, 2%, met),
+# leaning_board 2.59% -> 0.71% (its 1% met; 1.51% until the contact lines' bands: the refined
+# floor's 72 final coefficients a direction put its node beside the board's foot above the board).
+# (table_spheres 1.71% -> 1.48%; ceiling_light's surfaces all meet the target at final.)
+REFINED = {"open_box": (0.0138, 0.9963), "leaning_board": (0.0071, 0.9987)}  # the block, the narrow wall
 
 
 @pytest.mark.slow
@@ -205,6 +207,7 @@ def test_refinement_to_one_percent_where_final_is_furthest(scene):
     r, base = final_with(scene, {"refine_to_error": 0.01}, "final, refined to 1%")
     error, ratio = REFINED[scene]
     assert r["rel_rmse"] <= 1.5 * error and r["rel_rmse"] < 0.7 * base["rel_rmse"], (r["rel_rmse"], base["rel_rmse"])
+    assert r["rel_rmse"] <= TARGET[scene], r["rel_rmse"]
     assert abs(r["worst_surface_ratio"] - 1) <= min(0.01, 2 * abs(ratio - 1)), r["surfaces"]
 
 
