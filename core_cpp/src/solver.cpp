@@ -1156,10 +1156,14 @@ size_t fixed_bytes(const Scene& scene) {
 // Samples per axis of the coarse light's residual over a node's cell (the coarse correction).
 constexpr int kResidualSamples = 4;
 
-// The stages of the final gather's coarse correction: its residual's restriction, then its bounces.
-int correction_stages(const SolverSettings& s) {
-    return s.final_gather && s.final_passes > 1 && s.final_correction_bounces > 0 ? 1 + s.final_correction_bounces : 0;
+// The coarse correction's bounces: at most the solve's (the residual of bounces cut short holds
+// the next one, which the correction must not carry further).
+int correction_bounces(const SolverSettings& s) {
+    return s.final_gather && s.final_passes > 1 ? std::min(s.final_correction_bounces, s.max_bounces) : 0;
 }
+
+// The stages of the final gather's coarse correction: its residual's restriction, then its bounces.
+int correction_stages(const SolverSettings& s) { return correction_bounces(s) > 0 ? 1 + correction_bounces(s) : 0; }
 
 // The bytes a local solve of these plans (and final plans) allocates after the sides probe, at
 // its peak: fixed_bytes, the receivers (three spline sets and the nodes), and then the larger of
@@ -2319,7 +2323,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
                         out[side * r.per_node + a] = sum / double(m * m);
                     }
             });
-            for (int bounce = 1; bounce <= settings.final_correction_bounces; ++bounce) {
+            for (int bounce = 1; bounce <= correction_bounces(settings); ++bounce) {
                 progress.begin_stage("final gather 2: the coarse light's error, bounce " + std::to_string(bounce), stage + bounce,
                                      stages, node_count(receivers));
                 unpack(phase(Phase::LateBounce, [&] { return pack(receivers, 0, all, &Receiver::L); }), receivers, 0, all,

@@ -153,7 +153,8 @@ struct SolverSettings {
     // residual at the fine level; its error (I - K)^-1 (F_1 - C) is that residual plus its
     // bounces, taken here on the coarse receivers (K_c). The regather then reads F_1 + E instead
     // of F_1, E the bounces' sum: what the coarse iteration let through a blurred opening into a
-    // cavity leaves it at once, not a bounce a pass. 0: none (the regathers alone).
+    // cavity leaves it at once, not a bounce a pass. 0: none (the regathers alone); at most
+    // max_bounces are taken.
     int final_correction_bounces = 0;
 
     // Cycles shades both sides of an opaque surface with the same BSDF: the back side reflects
