@@ -302,12 +302,19 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
         if (x.k == 0 || x.k == 1) out.lines[x.k].push_back({x.position, order, band, x.length});
         out.oblique += x.k == 2;
     };
+    // The rays leave the receiver lifted off it (RayCaster::spawn): a node closer to a jump than
+    // `lifts` times that lift gathers the other side's light. The band in each parameter that
+    // keeps the nodes four times as far (none without a caster).
+    auto lift_band = [&](double lifts) -> std::array<double, 2> {
+        if (!caster_) return {0, 0};
+        const double half = 4 * caster_->offset() * lifts;
+        return {2 * half / length(A.du), 2 * half / length(A.dv)};
+    };
     // Contact lines: an occluder's feature edge on the receiver's plane with a face leaving it.
-    // A node beside one gathers from a point lifted off the receiver (RayCaster::spawn): within
-    // lift / tan(wedge angle) of the line that point lies beyond the leaving face, on the other
-    // side's light (a board leaning at 60 degrees on a floor: the node beside its foot at 1/1000
-    // of a span, 0.01 mm at 64 coefficients, saw the lit room from inside the wedge). The line
-    // is a jump with a band of four times that, which the nodes keep out of.
+    // A node beside one is lift / tan(wedge angle) from the leaving face: closer, its lifted
+    // point lies beyond the face, on the other side's light (a board leaning at 60 degrees on a
+    // floor: the node beside its foot at 1/1000 of a span, 0.01 mm at 64 coefficients, saw the
+    // lit room from inside the wedge). The line is a jump with a lift band.
     for (size_t o = 0; o < scene.size(); ++o) {
         const Poly& P = polys_[o];
         if (int(o) == surface || !scene[o].occluder || P.edges.empty()) continue;
@@ -324,8 +331,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             }
             if (!leaves) continue;
             const Segment line = line_of(a, b);
-            const double half = caster_ ? 4 * caster_->offset() * std::max(1.0, std::min(cot, kMaxContactCot)) : 0;
-            record(line, 0, line.k == 0 || line.k == 1 ? 2 * half / length(line.k == 0 ? A.du : A.dv) : 0);
+            record(line, 0, line.k == 0 || line.k == 1 ? lift_band(std::max(1.0, std::min(cot, kMaxContactCot)))[line.k] : 0);
         }
     }
     // Occluders that can stand between the receiver and an emitter, nearest first.
@@ -485,15 +491,10 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             }
             return double(bounding) / samples;
         };
-        // The shadow rays leave the receiver lifted off it (RayCaster::spawn), which moves a sun's
-        // shadow edge by the lift times the tangent of its incidence: nodes beside a jump closer
-        // than that took the other side's light (adaptive knots put spans of millimetres there).
-        // Four times that, as a band in each parameter, keeps them out.
-        std::array<double, 2> lifted_band{0, 0};
-        if (caster_) {
-            const double shift = 4 * caster_->offset() * std::sqrt(std::max(0.0, 1 - dn * dn)) / std::abs(dn);
-            lifted_band = {2 * shift / length(A.du), 2 * shift / length(A.dv)};
-        }
+        // The shadow rays' lift moves a sun's shadow edge by the lift times the tangent of its
+        // incidence: nodes beside a jump closer than that took the other side's light (adaptive
+        // knots put spans of millimetres there).
+        const std::array<double, 2> lifted_band = lift_band(std::sqrt(std::max(0.0, 1 - dn * dn)) / std::abs(dn));
         // The edge's shadow along `dir` as (u, v) segment ends, clipped: false if it has none.
         auto shadow = [&](const Vec3& a, const Vec3& b, const Vec3& dir, std::array<double, 2>& pa,
                           std::array<double, 2>& pb) {

@@ -108,10 +108,11 @@ def test_floor_beside_a_leaning_board_takes_each_side_of_its_foot():
     rng = np.random.default_rng(3)
     x = rng.uniform(-0.5, 0.5, 4000)
     gap = np.exp(rng.uniform(np.log(1e-4), np.log(1e-2), 4000))  # 0.1 mm to 1 cm from the foot
+    polygon = board()
     for side, sign in (("wedge", 1), ("room", -1)):
         xy = np.column_stack([x, sign * gap])
         got = solution.radiance[0].evaluate((xy + 1) / 2)
-        want = np.array([ALBEDO / np.pi * (np.pi - polygon_irradiance(p, [0, 0, 1], board())) * WORLD
+        want = np.array([ALBEDO / np.pi * (np.pi - polygon_irradiance(p, [0, 0, 1], polygon)) * WORLD
                          for p in np.column_stack([xy, np.zeros(len(xy))])])
         rel = np.sqrt(np.mean((got / want - 1) ** 2))
         print(f"\n{side} side of the foot, 0.1 mm to 1 cm: RMS relative error {rel:.4f}, "
