@@ -338,9 +338,22 @@ void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Rec
     }, out, rays);
 }
 
+double InputScales::at(int surface, double u, double v) const {
+    auto cell = [](double x, int& i) {  // the lower cell centre's index and the weight of the next
+        const double t = std::clamp(x * kCells - 0.5, 0.0, double(kCells - 1));
+        i = std::min(int(t), kCells - 2);
+        return t - i;
+    };
+    int iu, iv;
+    const double fu = cell(u, iu), fv = cell(v, iv);
+    const double* s = &values_[size_t(surface) * kCells * kCells];
+    auto value = [&](int a, int b) { return s[b * kCells + a]; };
+    return (1 - fv) * ((1 - fu) * value(iu, iv) + fu * value(iu + 1, iv)) + fv * ((1 - fu) * value(iu, iv + 1) + fu * value(iu + 1, iv + 1));
+}
+
 bool Gatherer::indirect_change(const Receiver& r, size_t j, const std::vector<const Receiver*>& now_of,
                                const std::vector<const Receiver*>& before_of, double density, double lobe_width, Vec3* out,
-                               size_t& rays, const std::vector<double>* scale_of) const {
+                               size_t& rays, const InputScales* scale_of) const {
     const double solid_angle = ray_solid_angle(density);
     bool glossy = false;
     hemisphere(r, j, density, [&](const SurfaceHit& hit, const Vec3& dir) -> Vec3 {
@@ -349,7 +362,7 @@ bool Gatherer::indirect_change(const Receiver& r, size_t j, const std::vector<co
         Vec3 change{0, 0, 0};
         if (now) change += seen_radiance(*now, &Receiver::Le, hit, dir, solid_angle), glossy |= now->kind != Representation::Diffuse && now->bsdf->lobe_width() < lobe_width;
         if (before) change -= seen_radiance(*before, &Receiver::Le, hit, dir, solid_angle);
-        return scale_of ? change * (*scale_of)[hit.surface] : change;
+        return scale_of ? change * scale_of->at(hit.surface, hit.u, hit.v) : change;
     }, out, rays);
     return glossy;
 }

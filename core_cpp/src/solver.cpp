@@ -1227,7 +1227,9 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
         const size_t checks = error_checks_of(size_t(p.nu) * p.nv, settings);
         records += (1 + (kCheckFields + 3 + 1) * checks) * sizeof(double) + 48;
     }
-    const size_t estimate = settings.estimate_error ? records + (final_plans.empty() ? 0 : fine + fine_nodes) : 0;
+    // With a final gather, the input pass's scales too (InputScales, per scene surface).
+    const size_t scales = scene.size() * InputScales::kCells * InputScales::kCells * sizeof(double);
+    const size_t estimate = settings.estimate_error ? records + (final_plans.empty() ? 0 : fine + fine_nodes + 2 * scales) : 0;
     // At the end the finals become the solution's splines, in float64, with the coarse receivers
     // freed.
     const size_t output = final_plans.empty() ? 0 : tables + fine64 + fine_nodes;
@@ -1838,24 +1840,38 @@ struct SolveSteps::State {
     }
 
     // Per scene surface, how its finals' difference from its coarse splines scales to the
-    // error of what a gather read from it, from the first pass's records of all receivers.
-    // A fraction r of the coarse error remains (measured at its checks, against the gather), so
-    // what the coarse splines err is the difference between the two over 1 - r, what the finals
-    // err that over 1/r - 1 (Richardson, with the order measured rather than assumed). r is
-    // taken as at most 1/2 (first order, as at a contact shadow): nearer 1 the difference is noise.
+    // error of what a gather read from it, over its parameter square (kInputScaleCells per axis,
+    // bilinear between the cells' centres; InputScales), from the first pass's records of all
+    // receivers. A fraction r of the coarse error remains (measured at its checks, against the
+    // gather), so what the coarse splines err is the difference between the two over 1 - r,
+    // what the finals err that over 1/r - 1 (Richardson, with the order measured rather than
+    // assumed). r is taken as at most 1/2 (first order, as at a contact shadow): nearer 1 the
+    // difference is noise. r is local, a Gaussian-weighted ratio over the checks around each
+    // cell: where a discontinuity's knots follow a contact line the finals are close to exact
+    // and their difference from the blurred coarse splines is large, while far from it both err
+    // alike (leaning_board's box, beside the floor's contact lines, was estimated at 5 times
+    // its error with one r per surface).
     std::vector<double> input_scales(const std::vector<double>& records) {
         const std::vector<Receiver>& result = estimated();
         const bool regathered = settings.final_gather && settings.final_passes > 1;
-        std::vector<double> scale(scene.size(), 1.0);
+        constexpr size_t cells = InputScales::kCells * InputScales::kCells;
+        constexpr double sigma = 1.0 / InputScales::kCells;
+        std::vector<double> scale(scene.size() * cells, 1.0);
         for (size_t k = 0; k < result.size(); ++k) {
             if (result[k].is_partner) continue;
-            double fine = 0, coarse = 0;
-            for (size_t i = 0; i < checks_in(k); ++i) {
-                const double* c = &records[record_at(k) + 1 + i * kCheckFields];
-                fine += c[Fit], coarse += c[CoarseFit];
+            for (size_t cell = 0; cell < cells; ++cell) {
+                const double cu = (cell % InputScales::kCells + 0.5) / InputScales::kCells;
+                const double cv = (cell / InputScales::kCells + 0.5) / InputScales::kCells;
+                double fine = 0, coarse = 0;
+                for (size_t i = 0; i < checks_in(k); ++i) {
+                    const double* c = &records[record_at(k) + 1 + i * kCheckFields];
+                    const double du = c[U] - cu, dv = c[V] - cv;
+                    const double w = std::exp(-(du * du + dv * dv) / (2 * sigma * sigma));
+                    fine += w * c[Fit], coarse += w * c[CoarseFit];
+                }
+                const double r = coarse > 0 ? std::min(std::sqrt(fine / coarse), 0.5) : 0.5;
+                scale[result[k].surface * cells + cell] = regathered ? r / (1 - r) : 1 / (1 - r);
             }
-            const double r = coarse > 0 ? std::min(std::sqrt(fine / coarse), 0.5) : 0.5;
-            scale[result[k].surface] = regathered ? r / (1 - r) : 1 / (1 - r);
         }
         return scale;
     }
@@ -1868,7 +1884,7 @@ struct SolveSteps::State {
                                         Progress& progress, size_t& rays) {
         const std::vector<Receiver>& result = estimated();
         const std::vector<const Receiver*> result_of = index_by_surface(scene, result);
-        const std::vector<double> input_scale(scale, scale + scene.size());
+        const InputScales input_scale(scale, scene.size());
         const RunningCount& count = checks();
         std::vector<double> inputs(count.first(end) - count.first(begin), 0.0);
         for_each_check(begin, end, progress, rays, [&](size_t k, size_t i, const Receiver& r, size_t& local) {
@@ -1954,11 +1970,12 @@ struct SolveSteps::State {
         size_t extra = 0, records = 0;
         if (phase == SolveSteps::Phase::EstimateInput) {
             const double count = input.size ? input.data[input.size - 1] : -1.0;
-            if (!(count >= 0 && count + 1 + double(scene.size()) <= double(input.size) && count == std::floor(count)))
+            if (!(count >= 0 && count + 1 + double(scene.size() * InputScales::kCells * InputScales::kCells) <= double(input.size) &&
+                  count == std::floor(count)))
                 throw std::invalid_argument("solve step: the error estimate's input pass ends with the count of its records, given " +
                                             std::to_string(count));
             records = size_t(count);
-            extra = scene.size() + records + 1;
+            extra = scene.size() * InputScales::kCells * InputScales::kCells + records + 1;
         }
         finals_from_input(input, extra, "the error estimate's pass", progress);
         std::vector<Receiver>& result = estimated();
@@ -1978,7 +1995,7 @@ struct SolveSteps::State {
         }
         if (phase == SolveSteps::Phase::EstimateChecks) return estimate_checks(begin, end, progress, rays);
         const double* scale = input.data + result_size + coarse_size;
-        return estimate_inputs(begin, end, scale, scale + scene.size(), progress, rays);
+        return estimate_inputs(begin, end, scale, scale + scene.size() * InputScales::kCells * InputScales::kCells, progress, rays);
     }
 
     // The rows of the transport operator of receivers [begin, end) that use them, cast once.

@@ -94,8 +94,9 @@ def test_issue_target(scene, request):
 # reference's noise, as the geometric mean over four sets of checks (SolverSettings.error_checks_seed:
 # an object's error sits in thin bands beside contact lines and shadow edges that one set of checks
 # hits or misses by chance), but these known misses (measured geometric means):
-KNOWN_ESTIMATE_MISSES = {("leaning_board", "Box"): 5.0,  # the input term (the floor's contact lines)
-                         ("open_box", "Block"): 2.2}  # its input term too, and its faces' own error
+# (open_box's block was one, at 2.2, while the input term took one order of convergence per
+# surface; with the order local to where the gather's rays land, InputScales, 1.73.)
+KNOWN_ESTIMATE_MISSES = {("leaning_board", "Box"): 5.2}  # the input term (the floor's contact lines)
 # (At one set of 48 checks with the integration error added to the spline's misfit of the phase's
 # gather, six objects missed: open_box's floor 0.36, table_spheres' diffuse sphere 2.79 and table
 # 2.34, leaning_board's box 8.5 and floor 3.2; over four sets their means were 0.73, 2.48, 1.82,

@@ -147,6 +147,18 @@ Vec3 directional_albedo(const Bsdf& b);
 // the world map's bright part), or both.
 enum class LightParts { Emitters, Distant, All };
 
+// A weight per scene surface over its parameter square: kCells x kCells values per surface (v
+// major), taken bilinearly between the cells' centres (the error estimate's input scales).
+class InputScales {
+public:
+    static constexpr int kCells = 8;
+    InputScales(const double* values, size_t surfaces) : values_(values, values + surfaces * kCells * kCells) {}
+    double at(int surface, double u, double v) const;
+
+private:
+    std::vector<double> values_;
+};
+
 class Gatherer {
 public:
     Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster);
@@ -177,10 +189,11 @@ public:
     // less those of `before_of` (a second final gather's correction; the world cancels).
     // Returns whether a ray met a glossy surface whose lobe is narrower than `lobe_width`
     // (Bsdf::lobe_width: its reflections' change is view-dependent and sharp). With `scale_of`,
-    // each surface's change is weighted by its entry (the error estimate's input).
+    // each surface's change is weighted by its scale where the ray meets it (the error
+    // estimate's input).
     bool indirect_change(const Receiver& r, size_t j, const std::vector<const Receiver*>& now_of,
                          const std::vector<const Receiver*>& before_of, double density, double lobe_width, Vec3* out,
-                         size_t& rays, const std::vector<double>* scale_of = nullptr) const;
+                         size_t& rays, const InputScales* scale_of = nullptr) const;
     // The world's light at node j of r, scattered: the hemispherical integral (26)-(32) over
     // the directions no occluder stops, of the constant world or of the world map's smooth
     // remainder (its bright part is among the distant samples of direct()). Same layout as direct().
