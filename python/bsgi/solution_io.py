@@ -9,6 +9,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import _core
+from .rebuildable import settings_fields, settings_from
 
 FORMAT = "bsgi-solution-1"
 
@@ -35,16 +36,9 @@ def spline_from_arrays(arrays) -> _core.TensorSpline:
     return spline
 
 
-def settings_to_dict(settings: _core.SolverSettings) -> dict:
-    return {k: getattr(settings, k) for k in dir(settings) if not k.startswith("_") and not callable(getattr(settings, k))}
-
-
 def settings_from_dict(values: dict) -> _core.SolverSettings:
-    settings = _core.SolverSettings()
-    for k, v in values.items():
-        if hasattr(settings, k):
-            setattr(settings, k, v)
-    return settings
+    """A file's settings: the fields this version has (a file of another version may name others)."""
+    return settings_from({k: v for k, v in values.items() if hasattr(_core.SolverSettings, k)})
 
 
 @dataclass
@@ -93,7 +87,7 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
             image = getattr(surface, texture) if surface else None
             if image is not None:
                 arrays[f"surface{i}/{texture}"] = image
-    meta = {"format": FORMAT, "names": list(names), "settings": settings_to_dict(settings),
+    meta = {"format": FORMAT, "names": list(names), "settings": settings_fields(settings),
             "stats": dict(stats or {}), "solved": [k is not None for k in kinds], "kinds": kinds, "disc_radii": radii,
             "two_sided_emission": two_sided}
     with open(path, "wb") as f:
