@@ -346,7 +346,7 @@ double InputScales::at(int surface, double u, double v) const {
     };
     int iu, iv;
     const double fu = cell(u, iu), fv = cell(v, iv);
-    const double* s = &values_[size_t(surface) * kCells * kCells];
+    const double* s = &values_[values_for(size_t(surface))];
     auto value = [&](int a, int b) { return s[b * kCells + a]; };
     return (1 - fv) * ((1 - fu) * value(iu, iv) + fu * value(iu + 1, iv)) + fv * ((1 - fu) * value(iu, iv + 1) + fu * value(iu + 1, iv + 1));
 }

@@ -1231,7 +1231,7 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
         records += (1 + (kCheckFields + 3 + 1) * checks) * sizeof(double) + 48;
     }
     // With a final gather, the input pass's scales too (InputScales, per scene surface).
-    const size_t scales = scene.size() * InputScales::kCells * InputScales::kCells * sizeof(double);
+    const size_t scales = InputScales::values_for(scene.size()) * sizeof(double);
     const size_t estimate = settings.estimate_error ? records + (final_plans.empty() ? 0 : fine + fine_nodes + 2 * scales) : 0;
     // At the end the finals become the solution's splines, in float64, with the coarse receivers
     // freed.
@@ -1843,7 +1843,7 @@ struct SolveSteps::State {
     }
 
     // Per scene surface, how its finals' difference from its coarse splines scales to the
-    // error of what a gather read from it, over its parameter square (kInputScaleCells per axis,
+    // error of what a gather read from it, over its parameter square (InputScales::kCells per axis,
     // bilinear between the cells' centres; InputScales), from the first pass's records of all
     // receivers. A fraction r of the coarse error remains (measured at its checks, against the
     // gather), so what the coarse splines err is the difference between the two over 1 - r,
@@ -1857,9 +1857,9 @@ struct SolveSteps::State {
     std::vector<double> input_scales(const std::vector<double>& records) {
         const std::vector<Receiver>& result = estimated();
         const bool regathered = settings.final_gather && settings.final_passes > 1;
-        constexpr size_t cells = InputScales::kCells * InputScales::kCells;
+        constexpr size_t cells = InputScales::values_for(1);
         constexpr double sigma = 1.0 / InputScales::kCells;
-        std::vector<double> scale(scene.size() * cells, 1.0);
+        std::vector<double> scale(InputScales::values_for(scene.size()), 1.0);
         for (size_t k = 0; k < result.size(); ++k) {
             if (result[k].is_partner) continue;
             for (size_t cell = 0; cell < cells; ++cell) {
@@ -1971,14 +1971,14 @@ struct SolveSteps::State {
         // count (the records' length follows from the finals, which may be planned from the
         // coarse Le before them).
         size_t extra = 0, records = 0;
+        const size_t scales = InputScales::values_for(scene.size());
         if (phase == SolveSteps::Phase::EstimateInput) {
             const double count = input.size ? input.data[input.size - 1] : -1.0;
-            if (!(count >= 0 && count + 1 + double(scene.size() * InputScales::kCells * InputScales::kCells) <= double(input.size) &&
-                  count == std::floor(count)))
+            if (!(count >= 0 && count + 1 + double(scales) <= double(input.size) && count == std::floor(count)))
                 throw std::invalid_argument("solve step: the error estimate's input pass ends with the count of its records, given " +
                                             std::to_string(count));
             records = size_t(count);
-            extra = scene.size() * InputScales::kCells * InputScales::kCells + records + 1;
+            extra = scales + records + 1;
         }
         finals_from_input(input, extra, "the error estimate's pass", progress);
         std::vector<Receiver>& result = estimated();
@@ -1998,7 +1998,7 @@ struct SolveSteps::State {
         }
         if (phase == SolveSteps::Phase::EstimateChecks) return estimate_checks(begin, end, progress, rays);
         const double* scale = input.data + result_size + coarse_size;
-        return estimate_inputs(begin, end, scale, scale + scene.size() * InputScales::kCells * InputScales::kCells, progress, rays);
+        return estimate_inputs(begin, end, scale, scale + scales, progress, rays);
     }
 
     // The rows of the transport operator of receivers [begin, end) that use them, cast once.

@@ -152,7 +152,9 @@ enum class LightParts { Emitters, Distant, All };
 class InputScales {
 public:
     static constexpr int kCells = 8;
-    InputScales(const double* values, size_t surfaces) : values_(values, values + surfaces * kCells * kCells) {}
+    // The values for `surfaces` scene surfaces, kCells x kCells each.
+    static constexpr size_t values_for(size_t surfaces) { return surfaces * kCells * kCells; }
+    InputScales(const double* values, size_t surfaces) : values_(values, values + values_for(surfaces)) {}
     double at(int surface, double u, double v) const;
 
 private:
