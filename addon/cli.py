@@ -63,6 +63,9 @@ def main(argv=None) -> int:
                         help="refine surfaces whose estimated relative error is above ERROR (e.g. 0.02) and solve "
                              "again (default: the scene's setting; 0: off)")
     parser.add_argument("--refine-passes", type=int, metavar="N", help="at most N solves after the first when refining")
+    parser.add_argument("--refine-budget", type=float, metavar="FACTOR",
+                        help="the solves after the first trace at most FACTOR times the first's rays, the surfaces "
+                        "with the highest estimates refined first (0: no limit)")
     parser.add_argument("--adaptive-coefficients", type=float, metavar="TOLERANCE",
                         help="spatial coefficients from each surface's size and its light's detail, within TOLERANCE "
                         "of its brightest light (e.g. 0.005; 0: the preset's everywhere)")
@@ -99,6 +102,8 @@ def main(argv=None) -> int:
         context.scene.bsgi.refine_to_error = args.refine_to_error
     if args.refine_passes is not None:
         context.scene.bsgi.refine_passes = args.refine_passes
+    if args.refine_budget is not None:
+        context.scene.bsgi.refine_cost = args.refine_budget
     if args.adaptive_coefficients is not None:
         context.scene.bsgi.detail_tolerance = args.adaptive_coefficients
 

@@ -142,7 +142,7 @@ def refinement_summary(solution: bsgi.Solution):
     r = getattr(solution, "refinement", None)
     if r is None:
         return None
-    return {"passes": r["passes"], "stopped": r["stopped"], "rays": r["rays"],
+    return {"passes": r["passes"], "stopped": r["stopped"], "trimmed": [t["budget"] for t in r["trimmed"]], "rays": r["rays"],
             "refined": sum(s["refined"] > 0 for s in r["surfaces"]),
             "over_target": [s["name"] for s in r["surfaces"] if s["status"] != "met"]}
 
@@ -189,7 +189,8 @@ def summary_text(rep: dict) -> str:
     if refinement:
         text += f"; refinement: {refinement['refined']} surfaces refined in {refinement['passes']} more solves"
         if refinement["over_target"]:
-            why = f", stopped by the {refinement['stopped']} budget" if refinement["stopped"] else ""
+            why = (f", stopped by the {refinement['stopped']} budget" if refinement["stopped"] else
+                   f", the worst refined first within the {refinement['trimmed'][-1]} budget" if refinement["trimmed"] else "")
             text += f" ({len(refinement['over_target'])} still over the target{why})"
     approximated = rep.get("approximations", [])
     if approximated:

@@ -67,6 +67,11 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     refine_passes: IntProperty(
         name="Refine Passes", default=2, min=0, max=8,
         description="At most this many solves after the first while surfaces are over Refine to Error")
+    refine_cost: FloatProperty(
+        name="Refine Budget", default=0.0, min=0.0, max=100.0, precision=1,
+        description="The solves after the first may trace at most this many times the first's rays; where refining "
+        "every surface over Refine to Error would overrun it, those with the highest estimated errors are refined "
+        "first. 0: no limit")
     detail_tolerance: FloatProperty(
         name="Adaptive Coefficients", default=0.0, min=0.0, max=0.1, precision=3,
         description="Give each surface spatial coefficients from its size and the detail of its light, planned "
@@ -103,6 +108,7 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
             s.coeffs_from_size, s.detail_tolerance = True, self.detail_tolerance
         s.refine_to_error = self.refine_to_error
         s.refine_passes = self.refine_passes
+        s.refine_cost = self.refine_cost
         return s
 
     def preset_settings(self) -> bsgi.SolverSettings:

@@ -22,6 +22,7 @@ def draw_controls(layout, scene, obj=None):
     sub = row.row(align=True)
     sub.enabled = settings.refine_to_error > 0
     sub.prop(settings, "refine_passes", text="Passes")
+    sub.prop(settings, "refine_cost", text="Budget")
     layout.prop(settings, "detail_tolerance")
     layout.prop(settings, "chart_min_faces")
     layout.prop(settings, "texture_texels")

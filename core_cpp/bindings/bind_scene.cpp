@@ -373,6 +373,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("refine_passes", &SolverSettings::refine_passes)
         .def_readwrite("refine_factor", &SolverSettings::refine_factor)
         .def_readwrite("refine_seconds", &SolverSettings::refine_seconds)
+        .def_readwrite("refine_cost", &SolverSettings::refine_cost)
         .def_readwrite("threads", &SolverSettings::threads)
         .def_readwrite("memory_budget_mb", &SolverSettings::memory_budget_mb)
         .def("__repr__", [](const SolverSettings& s) {

@@ -74,7 +74,8 @@ void validate(const SolverSettings& s) {
     need(s.error_checks >= 1 && s.error_checks <= kMaxErrorChecks, "error_checks must be in 1..4096");
     static_assert(kMaxErrorChecks == 4096, "the message above names the bound");
     need(s.error_checks_seed >= 0 && s.error_checks_seed <= 65535, "error_checks_seed must be in 0..65535");
-    need(s.refine_to_error >= 0 && s.refine_passes >= 0 && s.refine_seconds >= 0, "refine_to_error, refine_passes and refine_seconds must be >= 0");
+    need(s.refine_to_error >= 0 && s.refine_passes >= 0 && s.refine_seconds >= 0 && s.refine_cost >= 0,
+         "refine_to_error, refine_passes, refine_seconds and refine_cost must be >= 0");
     need(s.refine_factor > 1 && s.refine_factor <= 4, "refine_factor must be in (1, 4]");
 }
 

@@ -7,9 +7,15 @@ coefficients per direction (Scene.set_spatial_coeffs); mostly the final gather's
 gets twice the integration nodes per axis there (Scene.set_integration_factor, four times that
 surface's final-gather rays). Then the scene is solved again, until every surface meets the
 target or a budget stops it: refine_passes solves beyond the first, the memory estimate of the
-refined scene against memory_budget_mb, and (if > 0) refine_seconds for all passes, the next
-pass's time predicted from the last one's and the growth of the coefficients (a surface's
-integration counted as four times its coefficients: an upper bound). The other parts (the splines
+refined scene against memory_budget_mb, (if > 0) refine_seconds for all passes and (if > 0)
+refine_cost, the rays of the passes after the first against the first's. The next pass's time and
+rays are predicted from the last one's and the growth of the coefficients (a surface's integration
+counted as four times its coefficients: an upper bound). Where a pass refining every surface over
+the target would overrun a budget, the surfaces with the highest estimates are refined, as many as
+the budgets allow (the longest such prefix, found by bisection: each budget grows with each
+surface added); only where not even the worst one fits does refinement stop. The rays and the
+memory estimate are the same wherever the solve runs, so refinement under them is too (the time
+is not). The other parts (the splines
 the gather read, the bounces' tail) do not fall with the surface's own refinement (the first
 falls with its neighbours'). A surface whose estimate did not fall by a tenth after its
 refinement is not refined again (the estimate's noise, or an error the refinement cannot reach).
@@ -18,9 +24,9 @@ The loop is here, around a whole solve, so that it works wherever the solve runs
 Ray cluster): each pass is a solve from scratch; the scene's options are restored afterwards.
 Which sides of each surface are solved does not change with its coefficients: they are probed
 once, for every pass and every memory estimate.
-The solution carries ``refinement``: the passes, why refinement stopped, the rays and seconds of
-all passes, and per receiving surface its final estimate, coefficients, integration factor and
-status.
+The solution carries ``refinement``: the passes, why refinement stopped, the passes a budget
+trimmed, the rays and seconds of all passes, and per receiving surface its final estimate,
+coefficients, integration factor and status.
 """
 from __future__ import annotations
 
@@ -73,6 +79,24 @@ def coefficient_count(report: dict) -> int:
     return math.prod(report["shape"])
 
 
+def growth(change: dict, report: dict, settings: _core.SolverSettings) -> float:
+    """A refined surface's share of a solve's time and rays, against its last pass's: its
+    coefficients' growth, and four times that with twice the integration nodes per axis (an upper
+    bound: its bounces do not gather with them)."""
+    spatial = change.get("spatial_coeffs", 0) / coarse_coeffs(report, settings)
+    return max(spatial, 1.0) ** 2 * (INTEGRATION_STEP ** 2 if "integration_factor" in change else 1)
+
+
+def predicted_ratio(reports: dict, chosen: dict, settings: _core.SolverSettings) -> float:
+    """The next pass's time (and rays) against the last one's, refining `chosen` (scene index ->
+    change) among the receiving surfaces' `reports` (scene index -> report): the coefficients'
+    growth, each surface's weighted by its coefficients."""
+    old = sum(coefficient_count(r) for r in reports.values())
+    new = sum(coefficient_count(r) * (growth(chosen[i], r, settings) if i in chosen else 1.0)
+              for i, r in reports.items())
+    return new / old
+
+
 def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
                   solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None) -> _core.Solution:
     """Solves with solve_once(sides) and again with refined surfaces, as the module says (``sides``
@@ -94,42 +118,62 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             if "integration_factor" in change:
                 scene.set_integration_factor(i, change["integration_factor"])
 
+    def overrun(chosen: dict, reports: dict, last_seconds: float, last_rays: int) -> Optional[str]:
+        """The budget a pass refining `chosen` would overrun, or None."""
+        ratio = predicted_ratio(reports, chosen, settings)
+        if settings.refine_cost > 0 and rays + estimate_rays - first_rays + last_rays * ratio > settings.refine_cost * first_rays:
+            return "cost"
+        if settings.refine_seconds > 0 and time.perf_counter() - start + last_seconds * ratio > settings.refine_seconds:
+            return "time"
+        before = {i: {"spatial_coeffs": scene.spatial_coeffs(i), "integration_factor": scene.integration_factor(i)}
+                  for i in chosen}
+        apply(chosen)
+        try:
+            if _core.estimate_solve_bytes(scene, settings, sides) > settings.memory_budget_mb * 1024 * 1024:
+                return "memory"
+        finally:
+            apply(before)
+        return None
+
+    trimmed = []  # per pass a budget trimmed: its number, the budget, the surfaces it left out
     try:
         pass_start = time.perf_counter()
         if sides is None:
             sides = _core.probe_sides(scene, settings)[0]
         solution = solve_once(sides)
         passes = 0
+        first_rays = solution.stats["rays"] + solution.stats["estimate_rays"]
         while True:
             last_seconds = time.perf_counter() - pass_start
+            last_rays = solution.stats["rays"] + solution.stats["estimate_rays"]
             rays += solution.stats["rays"]
             estimate_rays += solution.stats["estimate_rays"]
-            index = receivers(solution)
-            reports = solution.reports[:len(index)]
-            over = {i: r for i, r in zip(index, reports) if r["estimated_error"] > target and i not in no_gain}
+            reports = dict(zip(receivers(solution), solution.reports))
+            over = {i: r for i, r in reports.items() if r["estimated_error"] > target and i not in no_gain}
             changes = {i: c for i, r in over.items() if (c := refinements(scene, i, r, settings))}
             if not changes:
                 break
             if passes >= settings.refine_passes:
                 stopped = "passes"
                 break
-            before = {i: {"spatial_coeffs": scene.spatial_coeffs(i), "integration_factor": scene.integration_factor(i)}
-                      for i in changes}
-            apply(changes)
-            if _core.estimate_solve_bytes(scene, settings, sides) > settings.memory_budget_mb * 1024 * 1024:
-                stopped = "memory"
-            elif settings.refine_seconds > 0:
-                old = sum(coefficient_count(r) for r in reports)
-                growth = {}
-                for i, c in changes.items():
-                    spatial = c.get("spatial_coeffs", 0) / coarse_coeffs(over[i], settings)
-                    growth[i] = max(spatial, 1.0) ** 2 * (INTEGRATION_STEP ** 2 if "integration_factor" in c else 1)
-                new = sum(coefficient_count(r) * growth.get(i, 1.0) for i, r in zip(index, reports))
-                if time.perf_counter() - start + last_seconds * new / old > settings.refine_seconds:
-                    stopped = "time"
-            if stopped:
-                apply(before)
+            # The worst first (ties by scene index, so that every run chooses alike).
+            order = sorted(changes, key=lambda i: (-over[i]["estimated_error"], i))
+            overruns = {0: None}  # prefix length -> the budget it overruns
+            overruns[len(order)] = overrun(changes, reports, last_seconds, last_rays)
+            fitting, lacking = 0, len(order)  # the longest prefix that fits, the shortest that does not
+            if overruns[lacking] is None:
+                fitting = lacking
+            while lacking - fitting > 1:
+                middle = (fitting + lacking) // 2
+                overruns[middle] = overrun({i: changes[i] for i in order[:middle]}, reports, last_seconds, last_rays)
+                fitting, lacking = (middle, lacking) if overruns[middle] is None else (fitting, middle)
+            if fitting == 0:
+                stopped = overruns[lacking]
                 break
+            if fitting < len(order):
+                trimmed.append({"pass": passes + 1, "budget": overruns[lacking], "left_out": len(order) - fitting})
+            changes = {i: changes[i] for i in order[:fitting]}
+            apply(changes)
             previous = {i: over[i]["estimated_error"] for i in changes}
             pass_start = time.perf_counter()
             solution = solve_once(sides)
@@ -156,7 +200,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
         surfaces.append({"name": r["name"], "index": i, "estimated_error": error, "shape": list(r["shape"]),
                          "integration_factor": last_factor[i], "error_parts": dict(r["error_parts"]),
                          "refined": refined.get(i, 0), "status": status})
-    solution.refinement = {"target": target, "passes": passes, "stopped": stopped, "rays": rays,
+    solution.refinement = {"target": target, "passes": passes, "stopped": stopped, "trimmed": trimmed, "rays": rays,
                            "estimate_rays": estimate_rays, "seconds": time.perf_counter() - start,
                            "surfaces": surfaces}
     return solution

@@ -42,9 +42,11 @@ def test_python_m_entry_refines_to_an_error_target(context, tmp_path):
     source = tmp_path / "scene.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(source))
     run = run_module(source, "--out", tmp_path / "solved.blend", "--preset", "draft", "--refine-to-error", "0.0001",
-                     "--refine-passes", "1")
+                     "--refine-passes", "1", "--refine-budget", "50")
     assert run.returncode == 0, run.stdout + run.stderr
     assert "surfaces refined in 1 more solves" in run.stdout, run.stdout
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "solved.blend"))
+    assert bpy.context.scene.bsgi.refine_cost == pytest.approx(50)  # what the solve ran with, saved
 
 
 def test_python_m_entry_solves_with_adaptive_coefficients(context, tmp_path):

@@ -366,6 +366,12 @@ def test_refine_to_error_solves_again_and_reports_it(context):
     assert rep["refinement"]["passes"] == 1 and rep["refinement"]["stopped"] == "passes"
     assert rep["refinement"]["refined"] >= 1 and "Floor: face 0" in rep["refinement"]["over_target"]
     assert " surfaces refined in 1 more solves (2 still over the target, stopped by the passes budget)" in pipeline.summary_text(rep)
+    assert rep["refinement"]["trimmed"] == []
+    # A pass the cost budget trimmed (tests/core/test_refine.py solves one) reads so in the status bar.
+    trimmed = dict(rep, refinement=dict(rep["refinement"], stopped=None, trimmed=["cost"]))
+    assert "(2 still over the target, the worst refined first within the cost budget)" in pipeline.summary_text(trimmed)
+    settings.refine_cost = 2.5
+    assert settings.solver_settings().refine_cost == pytest.approx(2.5)
 
 
 def test_object_panel_and_options_are_registered(context):

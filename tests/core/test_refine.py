@@ -160,22 +160,63 @@ def test_the_time_budget_stops_refinement():
     assert r["passes"] == 0 and r["stopped"] == "time" and r["surfaces"][0]["shape"] == [6, 6]
 
 
+def two_shadows_scene():
+    """Two copies of the shadow scene 10 m apart, the second's occluder higher (a softer shadow,
+    which six coefficients blur less): two floors over any small target, the first the worse."""
+    scene = shadow_scene()
+    shift = np.array([10.0, 0, 0])
+    softer = np.array(OCCLUDER) + [0, 0, 0.5]
+    scene.add_bilinear_patch("floor 2", np.array(FLOOR) + shift, albedo=[ALBEDO] * 3, emission=[0] * 3)
+    scene.add_bilinear_patch("lamp 2", np.array(LIGHT) + shift, albedo=[0] * 3, emission=[1] * 3, receiver=False,
+                             occluder=False)
+    scene.add_bilinear_patch("occluder 2", softer + shift, albedo=[0] * 3, emission=[0] * 3)
+    return scene
+
+
+def test_a_cost_budget_refines_the_worst_surface_first_and_keeps_the_rays_within_it():
+    # Four receivers of 6 x 6 coefficients (the black occluders too): refining one floor (twice
+    # its coefficients per direction, four times its share) is predicted at 7/4 of the first
+    # solve's rays, both at 10/4: a budget of twice the first solve takes the worse one.
+    scene = two_shadows_scene()
+    plain = bsgi.solve(scene, coarse_settings())
+    estimates = {r["name"]: r["estimated_error"] for r in plain.reports if r["name"].startswith("floor")}
+    first_rays = plain.stats["rays"] + plain.stats["estimate_rays"]
+    solution = bsgi.solve(scene, coarse_settings(refine_to_error=1e-4, refine_passes=1, refine_cost=2))
+    r = solution.refinement
+    floors = {s["name"]: s for s in r["surfaces"] if s["name"].startswith("floor")}
+    print(f"\nestimates {estimates}; refined {[(n, s['refined'], s['shape']) for n, s in floors.items()]}, "
+          f"rays {r['rays'] + r['estimate_rays']} against the first solve's {first_rays}; trimmed {r['trimmed']}")
+    assert estimates["floor"] > estimates["floor 2"] > 1e-4
+    assert floors["floor"]["refined"] == 1 and floors["floor"]["shape"] == [12, 12]
+    assert floors["floor 2"]["refined"] == 0 and floors["floor 2"]["status"] == "over target"
+    assert r["passes"] == 1 and r["stopped"] == "passes" and r["trimmed"] == [{"pass": 1, "budget": "cost", "left_out": 1}]
+    # The prediction bounds what the pass traced.
+    assert first_rays < r["rays"] + r["estimate_rays"] <= (1 + 2) * first_rays
+    # Without the budget both are refined; with one under a single floor's, neither is.
+    both = bsgi.solve(scene, coarse_settings(refine_to_error=1e-4, refine_passes=1)).refinement
+    assert [s["refined"] for s in both["surfaces"] if s["name"].startswith("floor")] == [1, 1] and both["trimmed"] == []
+    none = bsgi.solve(scene, coarse_settings(refine_to_error=1e-4, refine_passes=1, refine_cost=1.5)).refinement
+    assert none["passes"] == 0 and none["stopped"] == "cost"
+
+
 def test_refinement_needs_the_error_estimate():
     with pytest.raises(ValueError, match="estimate_error"):
         bsgi.solve(shadow_scene(), coarse_settings(refine_to_error=0.02, estimate_error=False))
 
 
 @pytest.mark.slow  # starts Ray workers
-@pytest.mark.parametrize("case", ["coefficients", "integration"])
+@pytest.mark.parametrize("case", ["coefficients", "integration", "cost budget"])
 def test_refinement_on_ray_equals_the_local_refinement(ray_cluster, case):
     if case == "coefficients":
         scene, s = shadow_scene(), coarse_settings(refine_to_error=0.02, refine_passes=2, spatial_coeffs=5, threads=1)
+    elif case == "cost budget":  # the rays decide which surfaces a trimmed pass refines, wherever it runs
+        scene, s = two_shadows_scene(), coarse_settings(refine_to_error=1e-4, refine_passes=1, refine_cost=2, threads=1)
     else:  # the workers' scenes carry the integration factor
         scene, s = integration_scene(), few_nodes_settings(refine_to_error=0.02, refine_passes=1, threads=1)
     local = bsgi.solve(scene, s)
     remote = bsgi.solve(scene, s, executor=bsgi.RayExecutor(workers=2))
     assert local.refinement["passes"] >= 1
-    for key in ("passes", "stopped", "rays"):
+    for key in ("passes", "stopped", "trimmed", "rays"):
         assert remote.refinement[key] == local.refinement[key]
     for a, b in zip(local.refinement["surfaces"], remote.refinement["surfaces"]):
         assert (a["shape"], a["integration_factor"], a["refined"], a["status"]) == \

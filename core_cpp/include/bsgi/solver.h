@@ -182,11 +182,14 @@ struct SolverSettings {
     // refine_to_error (relative; 0: off) and mostly its own spline's fit (error_parts), it gets
     // refine_factor times its spatial coefficients
     // per direction and the scene is solved again, at most refine_passes times, while the memory
-    // estimate fits memory_budget_mb and (if > 0) the passes' time stays within refine_seconds.
+    // estimate fits memory_budget_mb and (if > 0) the passes' time stays within refine_seconds
+    // and their rays within refine_cost times the first solve's. Where a pass would overrun a
+    // budget, the surfaces with the highest estimates are refined, as many as it allows.
     double refine_to_error = 0;
     int refine_passes = 2;
     double refine_factor = 1.5;
     double refine_seconds = 0;
+    double refine_cost = 0;
 
     int threads = 0;  // 0: all hardware threads
     double memory_budget_mb = 4096;
