@@ -1049,9 +1049,6 @@ SolverSettings SolverSettings::preset(const std::string& name) {
     s.distant_support_means = true;
     if (name == "draft") {
         s.spatial_coeffs = 8;
-        // At 8 coefficients a sunlit room's walls went 0.73-0.83 -> 0.68-0.76 of Mitsuba's with
-        // them (at 12, 0.83-0.98 -> 0.995-1.04; the cause not traced): left off here.
-        s.distant_support_means = false;
         s.angular_resolution = 2.0;
         s.angular_coeffs_max = 12;
         s.hemisphere_nodes_theta = 8;
@@ -2104,7 +2101,7 @@ std::vector<double> SolveSteps::gather_from(Phase phase, size_t begin, size_t en
         if (means)
             for (size_t k = begin; k < end; ++k) targets[k].support_means.assign(targets[k].nodes.size(), 0);
         rays += gather_all(targets, begin, end, &Receiver::L, settings, progress, [&](const Receiver& r, size_t j, Vec3* out, size_t& n) {
-            if (means) gather.direct_over_support(r, j, out, n);
+            if (means) gather.direct_over_support(r, j, s.receiver_of, out, n);
             else gather.direct(r, j, out, n);
             if (!scene.has_world()) return;
             std::vector<Vec3> world(r.sides * r.per_node);

@@ -174,8 +174,11 @@ public:
     void direct(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
     // The same with the lights at infinity as their mean weighed by node j's basis function where
     // one of their shadow edges crosses its support (SolverSettings::distant_support_means; marks
-    // r.support_means): five evaluations of their light a node, up to 41 where an edge crosses.
-    void direct_over_support(const Receiver& r, size_t j, Vec3* out, size_t& rays) const;
+    // r.support_means): 17 evaluations of their light a node (its own, 16 over its support),
+    // 256 more where an edge crosses, the support's points no viewer sees left out (enclosed,
+    // by receiver_of).
+    void direct_over_support(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of, Vec3* out,
+                             size_t& rays) const;
     // The light of the lights at infinity (a sun, the world map's bright part) that a diffuse r
     // reflects at (u, v) of its surface on `side`, its channels summed: 0 without such lights or
     // for a glossy r (and no ray cast, no point evaluated).

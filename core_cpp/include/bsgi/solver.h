@@ -61,14 +61,15 @@ struct SolverSettings {
     bool discontinuity_knots = false;
     // The coarse receivers' light from lights at infinity (a sun: Blender's, a world map's) at a
     // node as its mean weighed by the node's basis function B_i(u) B_k(v) where one of the
-    // light's shadow edges crosses its support (points halfway to the support's ends differ by
+    // light's shadow edges crosses its support (the light at 4 x 4 points over it differs by
     // more than Gatherer::kEdgeContrast of the brightest), not sharpened, nor are the samples
-    // beside it. Such means keep the light's integral (sum c_i int B_i = int f). A sun's edges
+    // beside it; the support's points no viewer sees (under a block) left out. Such means keep
+    // the light's integral over the parts seen (sum c_i int B_i = int f). A sun's edges
     // are sharper than any span: sampled at points, a patch of sun keeps or loses light as the
     // nodes fall about its edges, and the final gather carries that to the room it lights (a
     // sunlit room's walls 6-13% dark at preview). Only where a final gather reads them: the
     // finals, which are seen, keep point samples (as means over cells they blurred an open
-    // box's sun shadows, 6.5% -> 8.1% at preview). On in the preview, final and reference presets.
+    // box's sun shadows, 6.5% -> 8.1% at preview). On in every preset.
     bool distant_support_means = false;
     // Each gathered spline's samples at its spatial Schoenberg nodes become the limited quadratic
     // correction of Schoenberg's fit (sharpen.h): under a peak of light Schoenberg's spline is low
