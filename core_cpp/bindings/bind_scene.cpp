@@ -531,6 +531,7 @@ void bind_scene(py::module_& m) {
             d["transport_terms"] = s.stats.transport_terms;
             d["seconds_estimate"] = s.stats.seconds_estimate;
             d["estimate_rays"] = s.stats.estimate_rays;
+            d["final_rays"] = s.stats.final_rays;
             d["settled_nodes"] = s.stats.settled_nodes;
             return d;
         });

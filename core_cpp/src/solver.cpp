@@ -2205,10 +2205,16 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
     // do not gather (0 nodes for `run`).
     auto phase = [&](Phase p, const auto& input, const std::vector<size_t>& settled = {}) {
         std::vector<size_t> n = nodes(p, progress);
-        if (!run) return gather_from(p, 0, n.size(), nullptr, progress, rays, settled);
-        for (size_t k : settled) n[k] = 0;
-        std::vector<double> out = run(p, input(), n, rays);
-        progress.throw_if_cancelled();
+        const size_t before = rays;
+        std::vector<double> out;
+        if (!run) {
+            out = gather_from(p, 0, n.size(), nullptr, progress, rays, settled);
+        } else {
+            for (size_t k : settled) n[k] = 0;
+            out = run(p, input(), n, rays);
+            progress.throw_if_cancelled();
+        }
+        if (p == Phase::Final || p == Phase::Regather) solution.stats.final_rays += rays - before;
         return out;
     };
 

@@ -8,9 +8,10 @@ gets twice the integration nodes per axis there (Scene.set_integration_factor, f
 surface's final-gather rays). Then the scene is solved again, until every surface meets the
 target or a budget stops it: refine_passes solves beyond the first, the memory estimate of the
 refined scene against memory_budget_mb, (if > 0) refine_seconds for all passes and (if > 0)
-refine_cost, the rays of the passes after the first against the first's. The next pass's time and
-rays are predicted from the last one's and the growth of the coefficients (a surface's integration
-counted as four times its coefficients: an upper bound). Where a pass refining every surface over
+refine_cost, the rays of the passes after the first against the first's. The next pass's rays are
+predicted from the last one's (predicted_rays: each surface's share grown by its coefficients'
+growth, its final gathers' and estimate's share by four more with twice the integration nodes),
+its time as the last one's in proportion. Where a pass refining every surface over
 the target would overrun a budget, the surfaces with the highest estimates are refined, as many as
 the budgets allow (the longest such prefix, found by bisection: each budget grows with each
 surface added); only where not even the worst one fits does refinement stop. The rays and the
@@ -25,7 +26,7 @@ Ray cluster): each pass is a solve from scratch; the scene's options are restore
 Which sides of each surface are solved does not change with its coefficients: they are probed
 once, for every pass and every memory estimate.
 The solution carries ``refinement``: the passes, why refinement stopped, the passes a budget
-trimmed, the rays and seconds of all passes, and per receiving surface its final estimate,
+trimmed, each pass's rays and (after the first) their prediction, the rays and seconds of all passes, and per receiving surface its final estimate,
 coefficients, integration factor and status.
 """
 from __future__ import annotations
@@ -79,22 +80,31 @@ def coefficient_count(report: dict) -> int:
     return math.prod(report["shape"])
 
 
-def growth(change: dict, report: dict, settings: _core.SolverSettings) -> float:
-    """A refined surface's share of a solve's time and rays, against its last pass's: its
-    coefficients' growth, and four times that with twice the integration nodes per axis (an upper
-    bound: its bounces do not gather with them)."""
-    spatial = change.get("spatial_coeffs", 0) / coarse_coeffs(report, settings)
-    return max(spatial, 1.0) ** 2 * (INTEGRATION_STEP ** 2 if "integration_factor" in change else 1)
+def spatial_growth(change: dict, report: dict, settings: _core.SolverSettings) -> float:
+    """A refined surface's coefficients (and nodes) against its last pass's."""
+    return max(change.get("spatial_coeffs", 0) / coarse_coeffs(report, settings), 1.0) ** 2
 
 
-def predicted_ratio(reports: dict, chosen: dict, settings: _core.SolverSettings) -> float:
-    """The next pass's time (and rays) against the last one's, refining `chosen` (scene index ->
-    change) among the receiving surfaces' `reports` (scene index -> report): the coefficients'
-    growth, each surface's weighted by its coefficients."""
-    old = sum(coefficient_count(r) for r in reports.values())
-    new = sum(coefficient_count(r) * (growth(chosen[i], r, settings) if i in chosen else 1.0)
-              for i, r in reports.items())
-    return new / old
+def predicted_rays(scene: _core.Scene, stats: dict, reports: dict, chosen: dict, settings: _core.SolverSettings) -> float:
+    """The next pass's rays (the error estimate's with them) refining `chosen` (scene index ->
+    change) among the receiving surfaces' `reports` (scene index -> report), from the last pass's
+    `stats`: the final gathers' rays and the estimate's shared among the surfaces by coefficients
+    times integration nodes (a surface's integration factor squared), the others (direct light,
+    bounces, the coarse correction) by coefficients; a surface's shares grown by its coefficients'
+    growth, and its final gathers' and estimate's by four more where its integration nodes per
+    axis double."""
+    final = stats["final_rays"] + stats["estimate_rays"]
+    other = stats["rays"] - stats["final_rays"]
+    count = {i: coefficient_count(r) for i, r in reports.items()}
+    weight = {i: count[i] * scene.integration_factor(i) ** 2 for i in reports}
+    total_count, total_weight = sum(count.values()), sum(weight.values())
+    rays = 0.0
+    for i, r in reports.items():
+        change = chosen.get(i, {})
+        grow = spatial_growth(change, r, settings)
+        integration = INTEGRATION_STEP ** 2 if "integration_factor" in change else 1
+        rays += other * count[i] / total_count * grow + final * weight[i] / total_weight * grow * integration
+    return rays
 
 
 def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
@@ -118,12 +128,13 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             if "integration_factor" in change:
                 scene.set_integration_factor(i, change["integration_factor"])
 
-    def overrun(chosen: dict, reports: dict, last_seconds: float, last_rays: int) -> Optional[str]:
+    def overrun(chosen: dict, reports: dict, last_seconds: float, stats: dict) -> Optional[str]:
         """The budget a pass refining `chosen` would overrun, or None."""
-        ratio = predicted_ratio(reports, chosen, settings)
-        if settings.refine_cost > 0 and rays + estimate_rays - first_rays + last_rays * ratio > settings.refine_cost * first_rays:
+        expected = predicted_rays(scene, stats, reports, chosen, settings)
+        if settings.refine_cost > 0 and rays + estimate_rays - first_rays + expected > settings.refine_cost * first_rays:
             return "cost"
-        if settings.refine_seconds > 0 and time.perf_counter() - start + last_seconds * ratio > settings.refine_seconds:
+        seconds = last_seconds * expected / (stats["rays"] + stats["estimate_rays"])
+        if settings.refine_seconds > 0 and time.perf_counter() - start + seconds > settings.refine_seconds:
             return "time"
         before = {i: {"spatial_coeffs": scene.spatial_coeffs(i), "integration_factor": scene.integration_factor(i)}
                   for i in chosen}
@@ -136,6 +147,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
         return None
 
     trimmed = []  # per pass a budget trimmed: its number, the budget, the surfaces it left out
+    traced, predicted = [], []  # per pass its rays (the estimate's with them); per pass after the first, as predicted
     try:
         pass_start = time.perf_counter()
         if sides is None:
@@ -145,9 +157,9 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
         first_rays = solution.stats["rays"] + solution.stats["estimate_rays"]
         while True:
             last_seconds = time.perf_counter() - pass_start
-            last_rays = solution.stats["rays"] + solution.stats["estimate_rays"]
             rays += solution.stats["rays"]
             estimate_rays += solution.stats["estimate_rays"]
+            traced.append(solution.stats["rays"] + solution.stats["estimate_rays"])
             reports = dict(zip(receivers(solution), solution.reports))
             over = {i: r for i, r in reports.items() if r["estimated_error"] > target and i not in no_gain}
             changes = {i: c for i, r in over.items() if (c := refinements(scene, i, r, settings))}
@@ -159,13 +171,13 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             # The worst first (ties by scene index, so that every run chooses alike).
             order = sorted(changes, key=lambda i: (-over[i]["estimated_error"], i))
             overruns = {0: None}  # prefix length -> the budget it overruns
-            overruns[len(order)] = overrun(changes, reports, last_seconds, last_rays)
+            overruns[len(order)] = overrun(changes, reports, last_seconds, solution.stats)
             fitting, lacking = 0, len(order)  # the longest prefix that fits, the shortest that does not
             if overruns[lacking] is None:
                 fitting = lacking
             while lacking - fitting > 1:
                 middle = (fitting + lacking) // 2
-                overruns[middle] = overrun({i: changes[i] for i in order[:middle]}, reports, last_seconds, last_rays)
+                overruns[middle] = overrun({i: changes[i] for i in order[:middle]}, reports, last_seconds, solution.stats)
                 fitting, lacking = (middle, lacking) if overruns[middle] is None else (fitting, middle)
             if fitting == 0:
                 stopped = overruns[lacking]
@@ -173,6 +185,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             if fitting < len(order):
                 trimmed.append({"pass": passes + 1, "budget": overruns[lacking], "left_out": len(order) - fitting})
             changes = {i: changes[i] for i in order[:fitting]}
+            predicted.append(predicted_rays(scene, solution.stats, reports, changes, settings))
             apply(changes)
             previous = {i: over[i]["estimated_error"] for i in changes}
             pass_start = time.perf_counter()
@@ -200,7 +213,8 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
         surfaces.append({"name": r["name"], "index": i, "estimated_error": error, "shape": list(r["shape"]),
                          "integration_factor": last_factor[i], "error_parts": dict(r["error_parts"]),
                          "refined": refined.get(i, 0), "status": status})
-    solution.refinement = {"target": target, "passes": passes, "stopped": stopped, "trimmed": trimmed, "rays": rays,
+    solution.refinement = {"target": target, "passes": passes, "stopped": stopped, "trimmed": trimmed,
+                           "pass_rays": traced, "predicted_rays": predicted, "rays": rays,
                            "estimate_rays": estimate_rays, "seconds": time.perf_counter() - start,
                            "surfaces": surfaces}
     return solution

@@ -211,6 +211,9 @@ struct SolveStats {
     size_t transport_terms = 0;  // entries of the form-factor operator, if used
     double seconds_estimate = 0;  // of the per-surface error estimate (not in the phases' times)
     size_t estimate_rays = 0;     // rays of the error estimate (not in `rays`)
+    // Of `rays`, the final gathers' at the finals' nodes (not the coarse correction's bounces):
+    // what a surface's integration nodes multiply (bsgi.refine's prediction of a pass).
+    size_t final_rays = 0;
     size_t settled_nodes = 0;     // nodes of settled receivers, summed over the bounces they did not gather
 };
 
