@@ -11,23 +11,23 @@ refined scene against memory_budget_mb, (if > 0) refine_seconds for all passes a
 refine_cost, the rays of the passes after the first against the first's. The next pass's rays are
 predicted from the last one's (predicted_rays: each surface's share grown by its coefficients'
 growth, its final gathers' and estimate's share by four more with twice the integration nodes),
-its time as the last one's in proportion. Where a pass refining every surface over
-the target would overrun a budget, the surfaces with the highest estimates are refined, as many as
-the budgets allow (the longest such prefix, found by bisection: each budget grows with each
-surface added); only where not even the worst one fits does refinement stop. The rays and the
-memory estimate are the same wherever the solve runs, so refinement under them is too (the time
-is not). The other parts (the splines
-the gather read, the bounces' tail) do not fall with the surface's own refinement (the first
-falls with its neighbours'). A surface whose estimate did not fall by a tenth after its
-refinement is not refined again (the estimate's noise, or an error the refinement cannot reach).
+its time as the last one's in proportion. Where a pass refining every surface over the target
+would overrun a budget, the surfaces with the highest estimates are refined, as many as the
+budgets allow (the longest such prefix, found by bisection: each budget grows with each surface
+added); only where not even the worst one fits does refinement stop. The rays and the memory
+estimate are the same wherever the solve runs, so refinement under them is too (the time is
+not). The other parts (the splines the gather read, the bounces' tail) do not fall with the
+surface's own refinement (the first falls with its neighbours'). A surface whose estimate did not
+fall by a tenth after its refinement is not refined again (the estimate's noise, or an error the
+refinement cannot reach).
 
 The loop is here, around a whole solve, so that it works wherever the solve runs (here or on a
 Ray cluster): each pass is a solve from scratch; the scene's options are restored afterwards.
 Which sides of each surface are solved does not change with its coefficients: they are probed
 once, for every pass and every memory estimate.
 The solution carries ``refinement``: the passes, why refinement stopped, the passes a budget
-trimmed, each pass's rays and (after the first) their prediction, the rays and seconds of all passes, and per receiving surface its final estimate,
-coefficients, integration factor and status.
+trimmed, each pass's rays and (after the first) their prediction, the rays and seconds of all
+passes, and per receiving surface its final estimate, coefficients, integration factor and status.
 """
 from __future__ import annotations
 
