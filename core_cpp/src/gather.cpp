@@ -1,5 +1,3 @@
-
-
 #include "bsgi/gather.h"
 #include "bsgi/cosine_rule.h"
 #include "bsgi/radiance.h"
@@ -262,14 +260,6 @@ void Gatherer::direct_over_support(const Receiver& r, size_t j, const std::vecto
         for (size_t a = 0; a < n; ++a) b += x[a].x + x[a].y + x[a].z;
         return b;
     };
-    // Midpoints no viewer sees (under a block resting on the surface: unlit, as a shadow is)
-    // are left out of a mean: they darkened the seen floor beside the block, though no ray
-    // meets them.
-    auto hidden = [&](const SurfacePoint& x) {
-        for (int side = 0; side < r.sides; ++side)
-            if (r.solves(side) && enclosed(x, side, receiver_of, rays)) return true;
-        return false;
-    };
     // The light's mean over an m x m grid of cells over the support, weighed by the basis
     // function, sampled at (shift_u, shift_v) of each cell; its lowest and highest value (with
     // the node's) in lo, hi.
@@ -287,7 +277,10 @@ void Gatherer::direct_over_support(const Receiver& r, size_t j, const std::vecto
                 const SurfacePoint q = surface.evaluate(u, v);
                 direct_at(r, q, LightParts::Distant, at.data(), rays);
                 const double light = brightness(at);
-                if (light <= 0 && hidden(q)) continue;  // (a lit point is seen: the sun reaches it)
+                // Points no viewer sees (under a block resting on the surface: unlit, as a shadow
+                // is) are left out: they darkened the seen floor beside the block, though no ray
+                // meets them. (A lit point is seen: the sun reaches it.)
+                if (light <= 0 && hidden(r, q, receiver_of, rays)) continue;
                 lo = std::min(lo, light), hi = std::max(hi, light);
                 for (size_t c = 0; c < n; ++c) mean[c] += at[c] * w;
                 total += w;
@@ -421,6 +414,13 @@ bool Gatherer::enclosed(const SurfacePoint& p, int side, const std::vector<const
         if (h && h->solves(seen)) return false;
     }
     return true;
+}
+
+bool Gatherer::hidden(const Receiver& r, const SurfacePoint& p, const std::vector<const Receiver*>& receiver_of,
+                      size_t& rays) const {
+    for (int side = 0; side < r.sides; ++side)
+        if (r.solves(side) && enclosed(p, side, receiver_of, rays)) return true;
+    return false;
 }
 
 void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const {

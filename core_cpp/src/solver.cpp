@@ -643,13 +643,8 @@ void move_hidden_nodes(std::vector<Receiver>& receivers, const Scene& scene, con
         for (size_t k = begin; k < end; ++k) {
             Receiver& r = receivers[k];
             const Surface& surface = *scene[r.surface].surface;
-            // Hidden on one side is enough: the other side's light (an open floor's underside lit
-            // by the sky) has no edge there, and is sampled a little aside.
-            auto hidden = [&](const SurfacePoint& p) {
-                for (int side = 0; side < r.sides; ++side)
-                    if (r.solves(side) && gather.enclosed(p, side, receiver_of, local)) return true;
-                return false;
-            };
+            // (A node hidden on one side is sampled a little aside, on the contact line.)
+            auto hidden = [&](const SurfacePoint& p) { return gather.hidden(r, p, receiver_of, local); };
             const std::vector<double> us = (*r.axes)[0].schoenberg_nodes(), vs = (*r.axes)[1].schoenberg_nodes();
             std::vector<uint8_t> is_hidden(r.nodes.size());
             size_t count = 0;

@@ -212,6 +212,10 @@ public:
     // Whether every one of a few directions over `side`'s hemisphere at p ends on a side of a
     // surface that is neither solved nor emitting (the inside of a closed, unlit mesh).
     bool enclosed(const SurfacePoint& p, int side, const std::vector<const Receiver*>& receiver_of, size_t& rays) const;
+    // Whether p of r is enclosed on one of the sides r solves (under a block resting on it).
+    // One side is enough: the other side's light (an open floor's underside lit by the sky) has
+    // no edge there.
+    bool hidden(const Receiver& r, const SurfacePoint& p, const std::vector<const Receiver*>& receiver_of, size_t& rays) const;
     // Direct irradiance at a point on the given sides (for probing where the light has detail).
     Vec3 irradiance(int surface, const SurfacePoint& p, size_t& rays, std::array<bool, 2> sides = {true, false}) const;
     // The world map's bright part (a sun) as the directions its shadow rays take, each with the
