@@ -30,12 +30,23 @@ PRESETS = [
     ("PREVIEW", "Preview", "Balanced: 12 spatial coefficients per direction, the default integration nodes, "
      "0.3% tolerance; a few times slower than Draft", "NONE", 1),
     ("FINAL", "Final", "16 spatial coefficients with knots clustered at shadow edges and on contact lines, "
-     "finer glossy lobes, 0.1% tolerance; several times slower than Preview and more memory", "NONE", 2),
-    ("REFERENCE", "Reference", "Most accurate: Final's bounces, and a final gather with 4 times the coefficients "
-     "per direction and twice the integration nodes; 5-8 times slower than Final, and for glossy surfaces "
-     "much more memory", "NONE", 4),
+     "finer glossy lobes, 0.1% tolerance, then the surfaces whose estimated error is over 1% refined and solved "
+     "again (Refinement As the Quality); many times slower than Preview and more memory", "NONE", 2),
+    ("REFERENCE", "Reference", "Final's bounces, and in one solve a final gather with 4 times the coefficients "
+     "per direction and twice the integration nodes everywhere; 5-8 times slower than Final's first solve, and "
+     "for glossy surfaces much more memory", "NONE", 4),
     ("CUSTOM", "Custom", "The coefficients, degree, bounces, tolerance and nodes set below, without a final gather",
      "NONE", 3),
+]
+
+# Refinement driven by the error estimate (bsgi.refine): the quality's (Final refines, within a
+# budget; bsgi.SolverSettings.preset says how), none, or the user's target and budgets.
+REFINEMENTS = [
+    ("QUALITY", "As the Quality", "Final refines the surfaces whose estimated error is over 1% and solves again, "
+     "tracing at most 3 times the first solve's rays (the worst surfaces first): under 1% on diffuse scenes for "
+     "about 3 times the time; the other qualities solve once", "NONE", 0),
+    ("OFF", "Off", "One solve, whatever its estimated error", "NONE", 1),
+    ("TO_ERROR", "To Error", "Refine to the error, passes and budget below", "NONE", 2),
 ]
 
 
@@ -59,19 +70,24 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     hemisphere_nodes: IntProperty(
         name="Hemisphere Nodes", default=12, min=1, max=256,
         description="Integration nodes in the polar direction of the hemispherical gather (twice as many around)")
+    refinement: EnumProperty(
+        name="Refinement", items=REFINEMENTS, default="QUALITY",
+        description="Whether surfaces whose estimated error is high are refined and the scene solved again")
     refine_to_error: FloatProperty(
-        name="Refine to Error", default=0.0, min=0.0, max=1.0, precision=3,
-        description="After the solve, surfaces whose estimated relative error is above this get more spatial "
-        "coefficients (or, where the final gather's integration errs, more of its nodes) and the scene is solved "
-        "again (each pass costs a solve), up to Refine Passes times or the memory budget; 0: off")
+        name="Refine to Error", default=0.01, min=0.0, max=1.0, precision=3,
+        description="With Refinement To Error: after the solve, surfaces whose estimated relative error is above "
+        "this get more spatial coefficients (or, where the final gather's integration errs, more of its nodes) and "
+        "the scene is solved again (each pass costs a solve), up to Refine Passes times, the budget or the memory "
+        "budget; 0: off")
     refine_passes: IntProperty(
         name="Refine Passes", default=2, min=0, max=8,
-        description="At most this many solves after the first while surfaces are over Refine to Error")
+        description="With Refinement To Error: at most this many solves after the first while surfaces are over "
+        "Refine to Error")
     refine_cost: FloatProperty(
-        name="Refine Budget", default=0.0, min=0.0, max=100.0, precision=1,
-        description="The solves after the first may trace at most this many times the first's rays; where refining "
-        "every surface over Refine to Error would overrun it, those with the highest estimated errors are refined "
-        "first. 0: no limit")
+        name="Refine Budget", default=3.0, min=0.0, max=100.0, precision=1,
+        description="With Refinement To Error: the solves after the first may trace at most this many times the "
+        "first's rays; where refining every surface over Refine to Error would overrun it, those with the highest "
+        "estimated errors are refined first. 0: no limit")
     detail_tolerance: FloatProperty(
         name="Adaptive Coefficients", default=0.0, min=0.0, max=0.1, precision=3,
         description="Give each surface spatial coefficients from its size and the detail of its light, planned "
@@ -106,9 +122,10 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         s = self.preset_settings()
         if self.detail_tolerance > 0:
             s.coeffs_from_size, s.detail_tolerance = True, self.detail_tolerance
-        s.refine_to_error = self.refine_to_error
-        s.refine_passes = self.refine_passes
-        s.refine_cost = self.refine_cost
+        if self.refinement == "OFF":
+            s.refine_to_error = 0
+        elif self.refinement == "TO_ERROR":
+            s.refine_to_error, s.refine_passes, s.refine_cost = self.refine_to_error, self.refine_passes, self.refine_cost
         return s
 
     def preset_settings(self) -> bsgi.SolverSettings:

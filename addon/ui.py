@@ -17,12 +17,12 @@ def draw_controls(layout, scene, obj=None):
     col.prop(settings, "max_bounces")
     col.prop(settings, "tolerance")
     col.prop(settings, "hemisphere_nodes")
+    layout.prop(settings, "refinement")
     row = layout.row(align=True)
+    row.enabled = settings.refinement == "TO_ERROR"  # shown for reference, used only by To Error
     row.prop(settings, "refine_to_error")
-    sub = row.row(align=True)
-    sub.enabled = settings.refine_to_error > 0
-    sub.prop(settings, "refine_passes", text="Passes")
-    sub.prop(settings, "refine_cost", text="Budget")
+    row.prop(settings, "refine_passes", text="Passes")
+    row.prop(settings, "refine_cost", text="Budget")
     layout.prop(settings, "detail_tolerance")
     layout.prop(settings, "chart_min_faces")
     layout.prop(settings, "texture_texels")

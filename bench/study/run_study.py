@@ -3,7 +3,7 @@ baking, on every example scene. Writes bench/study/results.csv, one error-versus
 scene (bench/study/plots/) and bench/study/README.md (the tables, which the main README's preset
 table is generated from).
 
-    .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--blend FILE ...] [--out DIR]
+    .venv/bin/python bench/study/run_study.py [--quick] [--scene NAME ...] [--setting NAME ...] [--blend FILE ...] [--out DIR]
 
 Scenes: example_blends/*.blend (but the two interiors, NOT_STUDIED) and bench/study/scenes/*.blend
 (Cornell boxes with a glossy and a near-mirror back wall; named apart from the examples). Per scene:
@@ -114,7 +114,9 @@ def cycles_bakes(blend, pairs_npz, work, samples, resolution):
     return [(n, float(baked[f"seconds_{n}"]), float(baked[f"cpu_seconds_{n}"]), baked[f"radiance_{n}"]) for n in samples]
 
 
-def run_scene(blend, work, quick, cache, log):
+def run_scene(blend, work, quick, cache, log, only=None, earlier=()):
+    """The scene's rows; with `only` (setting names) just those settings' (no Cycles bakes unless
+    a "Cycles bake N samples" is named), the preview's time for the rules above from `earlier` rows."""
     name = blend.stem
     work.mkdir(parents=True, exist_ok=True)
     args = [sys.executable, str(HERE / "references.py"), str(blend), "--cache", str(cache)] + (["--quick"] if quick else [])
@@ -134,6 +136,8 @@ def run_scene(blend, work, quick, cache, log):
     valid = ~np.isin(data["object"], emitting_objects(describe(blend)))
 
     def solve(setting, knob, value, spec):
+        if only is not None and setting not in only:
+            return
         settings_json = work / "settings.json"
         settings_json.write_text(json.dumps(spec))
         out = work / "solve.npz"
@@ -155,13 +159,13 @@ def run_scene(blend, work, quick, cache, log):
             f"error {rel_rmse(ours, data['reference'], np.isfinite(ours).all(axis=1)):.4f}")
 
     for preset in QUICK["presets"] if quick else PRESETS:
-        preview = next((r["seconds"] for r, _ in rows if r["setting"] == "preview"), 0)
+        preview = next((float(r["seconds"]) for r in [r for r, _ in rows] + list(earlier) if r["setting"] == "preview"), 0)
         if preset == "final" and preview > FINAL_AFTER_PREVIEW_SECONDS:
             log(f"{name}: final preset skipped (preview took {preview:.0f} s; the final preset is several times slower)")
             continue
         solve(preset, "preset", preset, {"preset": preset})
     knobs = QUICK["knobs"] if quick else KNOBS
-    preview_cpu = next((r["cpu_seconds"] for r, _ in rows if r["setting"] == "preview"), 0)
+    preview_cpu = next((float(r["cpu_seconds"]) for r in [r for r, _ in rows] + list(earlier) if r["setting"] == "preview"), 0)
     for knob, value, overrides in knobs:
         if knob == "angular coefficients" and not glossy_scene:
             continue  # no glossy surface: the knob changes nothing
@@ -173,8 +177,10 @@ def run_scene(blend, work, quick, cache, log):
 
     samples = QUICK["cycles_samples"] if quick else CYCLES_SAMPLES
     resolution = QUICK["cycles_resolution"] if quick else CYCLES_RESOLUTION
+    if only is not None:
+        samples = [n for n in samples if f"Cycles bake {n} samples" in only]
     log(f"{name}: Cycles bake at {', '.join(map(str, samples))} samples, {resolution}x{resolution} atlas")
-    for n, seconds, cpu_seconds, radiance in cycles_bakes(blend, pairs_npz, work, samples, resolution):
+    for n, seconds, cpu_seconds, radiance in cycles_bakes(blend, pairs_npz, work, samples, resolution) if samples else []:
         row = {"scene": name, "method": "cycles bake", "setting": f"Cycles bake {n} samples", "knob": "samples",
                "value": n, "seconds": round(seconds, 3), "cpu_seconds": round(cpu_seconds, 3), "peak_mb": "",
                "coefficients": resolution * resolution, "reference_noise": round(noise, 4)}
@@ -196,6 +202,9 @@ def main(argv=None):
                         "build/study-quick with --quick, so a smoke run never replaces the study's results)")
     parser.add_argument("--cache", help="folder of the cached references (default bench/study/references; "
                         "build/study-quick/references with --quick)")
+    parser.add_argument("--setting", nargs="*", help="run only these settings (as the tables name them, e.g. "
+                        "final or 'preview, bounces 1') and keep the other rows of the earlier run (its pairs compared: "
+                        "those every method returned)")
     parser.add_argument("--work", default=str(ROOT / "build" / "study"), help="folder for intermediate files")
     args = parser.parse_args(argv)
     quick_dir = ROOT / "build" / "study-quick"
@@ -207,16 +216,31 @@ def main(argv=None):
     def log(text):
         print(f"study [{time.perf_counter() - start:6.0f} s] {text}", flush=True)
 
+    earlier = []
+    if (args.scene or args.blend or args.setting) and (out / "results.csv").exists():
+        with open(out / "results.csv", newline="") as f:
+            earlier = list(csv.DictReader(f))
     rows = []
     blends = [pathlib.Path(b).resolve() for b in args.blend] if args.blend else scenes(args.scene)
+    only = set(args.setting) if args.setting else None
     for blend in blends:
-        rows += run_scene(blend, pathlib.Path(args.work) / blend.stem, args.quick, pathlib.Path(args.cache), log)
+        rows += run_scene(blend, pathlib.Path(args.work) / blend.stem, args.quick, pathlib.Path(args.cache), log, only,
+                          [r for r in earlier if r["scene"] == blend.stem])
     out.mkdir(parents=True, exist_ok=True)
-    # A run of some scenes keeps the other scenes' rows of an earlier run.
-    done = {r["scene"] for r in rows}
-    if (args.scene or args.blend) and (out / "results.csv").exists():
-        with open(out / "results.csv", newline="") as f:
-            rows = [r for r in csv.DictReader(f) if r["scene"] not in done] + rows
+    # A run of some scenes (or settings) keeps the other scenes' (settings') rows of an earlier run,
+    # in their order.
+    if earlier:
+        studied = {b.stem for b in blends}
+
+        def redone(r):
+            return r["scene"] in studied and (only is None or r["setting"] in only)
+
+        if only is None:
+            rows = [r for r in earlier if not redone(r)] + rows
+        else:  # in place (a setting that failed this time is left out, not kept stale)
+            new = {(r["scene"], r["setting"]): r for r in rows}
+            rows = [new.pop((r["scene"], r["setting"]), None) if redone(r) else r for r in earlier]
+            rows = [r for r in rows if r is not None] + list(new.values())
     with open(out / "results.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=FIELDS)
         writer.writeheader()

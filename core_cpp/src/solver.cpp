@@ -1089,6 +1089,13 @@ SolverSettings SolverSettings::preset(const std::string& name) {
         // scenes' objects' estimates varied between sets by a standard deviation of log2 of 0.37
         // (median) at 48 checks, 0.25 at 128, which cost 3-11% of the solve's rays (1-4% at 48).
         s.error_checks = 128;
+        // Refined to 1% where the estimate says a surface is over it, within three times the
+        // first solve's rays (the worst surfaces first; bsgi.refine): against Mitsuba the
+        // validation's thin_occluder 1.2% -> 0.5%, leaning_board 2.6% -> 0.7%, open_box 3.4% ->
+        // 2.1%, table_spheres 1.7% -> 1.5% (ceiling_light 0.4%: nothing over), for 2.6-3.7x the
+        // CPU time (README, refinement).
+        s.refine_to_error = 0.01;
+        s.refine_cost = 3;
         if (name == "reference") {
             // Final's bounces, and a final gather that resolves shadow edges and contact lines
             // (four times the coefficients per direction) and the light it integrates there
@@ -1096,6 +1103,8 @@ SolverSettings SolverSettings::preset(const std::string& name) {
             // ones under 1% of Mitsuba's, at 5-8 times final's cost.
             s.final_spatial_factor = 4;
             s.final_integration_factor = 2;
+            s.refine_to_error = 0;  // one solve, fine everywhere: what refinement is measured against
+            s.refine_cost = 0;
         }
     } else {
         throw std::invalid_argument("unknown preset '" + name + "': use draft, preview, final or reference");

@@ -111,9 +111,10 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
                   solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None) -> _core.Solution:
     """Solves with solve_once(sides) and again with refined surfaces, as the module says (``sides``
     probed here if not given)."""
-    if not settings.estimate_error:
-        raise ValueError("solver settings: refine_to_error needs estimate_error")
     target = settings.refine_to_error
+    if not settings.estimate_error:
+        raise ValueError(f"solver settings: refine_to_error ({target:g}; the final preset's is 0.01) needs "
+                         "estimate_error: set refine_to_error = 0 to solve once without the estimate")
     own = {i: (scene.spatial_coeffs(i), scene.integration_factor(i)) for i in range(len(scene))}
     start = time.perf_counter()
     rays = estimate_rays = 0

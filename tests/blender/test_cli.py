@@ -47,6 +47,17 @@ def test_python_m_entry_refines_to_an_error_target(context, tmp_path):
     assert "surfaces refined in 1 more solves" in run.stdout, run.stdout
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "solved.blend"))
     assert bpy.context.scene.bsgi.refine_cost == pytest.approx(50)  # what the solve ran with, saved
+    assert bpy.context.scene.bsgi.refinement == "TO_ERROR"
+
+
+def test_python_m_entry_refuses_a_budget_without_a_target(context, tmp_path):
+    scenes.floor_under_lamp()
+    source = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(source))
+    run = run_module(source, "--out", tmp_path / "solved.blend", "--preset", "final", "--refine-budget", "2")
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert "--refine-budget need --refine-to-error" in run.stderr, run.stderr
+    assert not (tmp_path / "solved.blend").exists()
 
 
 def test_python_m_entry_solves_with_adaptive_coefficients(context, tmp_path):

@@ -360,6 +360,8 @@ def test_refine_to_error_solves_again_and_reports_it(context):
     settings = context.scene.bsgi
     settings.preset = "DRAFT"
     settings.refine_to_error, settings.refine_passes = 1e-4, 1  # a target no solve meets: one more pass
+    assert settings.solver_settings().refine_to_error == 0  # the draft quality's: read only with To Error
+    settings.refinement = "TO_ERROR"
     got = settings.solver_settings()
     assert (got.refine_to_error, got.refine_passes, got.spatial_coeffs) == (pytest.approx(1e-4), 1, 8)
     rep = pipeline.solve_and_bake(context)
@@ -372,6 +374,30 @@ def test_refine_to_error_solves_again_and_reports_it(context):
     assert "(2 still over the target, the worst refined first within the cost budget)" in pipeline.summary_text(trimmed)
     settings.refine_cost = 2.5
     assert settings.solver_settings().refine_cost == pytest.approx(2.5)
+
+
+def test_refinement_follows_the_quality_unless_set(context):
+    """Refinement As the Quality: Final's (the core's preset: 1%, a budget of 3), none at the others;
+    Off: none at Final either; To Error: the panel's target, passes and budget at any quality."""
+    settings = context.scene.bsgi
+    assert settings.refinement == "QUALITY"
+    final = bsgi.SolverSettings.preset("final")
+    assert final.refine_to_error > 0  # what As the Quality passes on
+    settings.preset = "FINAL"
+    got = settings.solver_settings()
+    assert (got.refine_to_error, got.refine_passes, got.refine_cost) == (
+        final.refine_to_error, final.refine_passes, final.refine_cost)
+    for preset in ("DRAFT", "PREVIEW", "REFERENCE", "CUSTOM"):
+        settings.preset = preset
+        assert settings.solver_settings().refine_to_error == 0, preset
+    settings.preset, settings.refinement = "FINAL", "OFF"
+    assert settings.solver_settings().refine_to_error == 0
+    settings.refinement = "TO_ERROR"
+    settings.refine_to_error, settings.refine_passes, settings.refine_cost = 0.03, 1, 1.5
+    got = settings.solver_settings()
+    assert (got.refine_to_error, got.refine_passes, got.refine_cost) == (pytest.approx(0.03), 1, pytest.approx(1.5))
+    settings.preset = "DRAFT"
+    assert settings.solver_settings().refine_to_error == pytest.approx(0.03)
 
 
 def test_object_panel_and_options_are_registered(context):

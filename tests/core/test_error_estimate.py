@@ -74,6 +74,7 @@ def compare(name, preset, seeds=SEEDS):
     for seed in seeds:
         settings = bsgi.SolverSettings.preset(preset)
         settings.error_checks_seed = seed
+        settings.refine_to_error = 0  # one solve's estimate, what final's refinement acts on
         sol = bsgi.solve(scene, settings)
         estimates.append({r["name"]: r["estimated_error"] for r in sol.reports})
         if seed == seeds[0]:

@@ -248,7 +248,7 @@ def test_an_edge_just_off_the_floor_casts_a_jump_at_the_splines_scale(height, mu
     scene.add_bilinear_patch("plank", [[0.5, -1, height], [0.5, 1, height], [1.0, 1, 0.9], [1.0, -1, 0.9]],
                              albedo=[0] * 3, emission=[0] * 3, receiver=False)
     settings = bsgi.SolverSettings.preset("final")
-    settings.max_bounces, settings.final_gather, settings.estimate_error = 0, False, False
+    settings.max_bounces, settings.final_gather, settings.estimate_error, settings.refine_to_error = 0, False, False, 0
     knots = np.array(bsgi.solve(scene, settings).radiance[0].axes[0].knots)
     # Inner knots within 5 cm of the edge's shadow (x = 0.5 to 0.6: u = 0.625 to 0.65), by value.
     near = knots[(knots > 0.62) & (knots < 0.665)]

@@ -3,9 +3,12 @@ Mitsuba 3 references (3,000 random visible pairs each, reference noise 0.2-0.3%;
 here): the relative RMSE and the worst object's mean radiance ratio are bounded within about 2x of
 what was measured, so a regression fails; the issue's targets (final <= 1% on diffuse scenes,
 <= 2% with GGX alpha >= 0.3, every surface's mean within 1%) are checked, as strict expected
-failures stating the measured figures where they are not met (ceiling_light and table_spheres
-meet them). Each scene is one final solve (bench/study/solve_blend.py, in a process of its own;
-about 2.5 minutes of CPU, more wall time on the shared 2-core machine); the figures print with -s.
+failures stating the measured figures where they are not met (open_box). The final preset refines
+to 1% within three times its first solve's rays (bsgi.refine); its first solve alone ("one
+solve", the refinement off) is what the error estimate is judged on and what refinement gains
+against. Each scene is solved by bench/study/solve_blend.py in a process of its own (about 3.5
+minutes of CPU for the refined finals, 1 for the one solves, 4 more for the estimate's other sets
+of checks); the figures print with -s.
 
     .venv/bin/python -m pytest tests/reference/test_validation_scenes.py -s
 """
@@ -19,14 +22,21 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "bench" / "validation"))
 
-# Measured at the final preset (bench/validation/validate.py measure --preset final): relative RMSE,
-# worst object's mean ratio; the bounds sit within about 2x of them (the ratio's distance from 1).
-# (3 December, with the sharpened fit and the hemisphere rule's Gauss nodes; before: 3.76%,
+# Measured at the final preset (bench/validation/validate.py measure --preset final; 5 December):
+# relative RMSE, worst object's mean ratio; the bounds sit within about 2x of them (the ratio's
+# distance from 1).
+MEASURED = {"open_box": (0.0210, 1.0036),  # the GGX panel (the floor and left wall 2.7% and 4.1%)
+            "table_spheres": (0.0152, 0.9951),  # the GGX sphere
+            "ceiling_light": (0.0042, 1.0006),  # the floor (nothing over the target: one solve)
+            "thin_occluder": (0.0050, 0.9952),  # the small wall
+            "leaning_board": (0.0070, 0.9982)}  # the narrow wall
+# One solve (the refinement off; --overrides '{"refine_to_error": 0}'), the final preset until it
+# refined. (3 December, with the sharpened fit and the hemisphere rule's Gauss nodes; before: 3.76%,
 # 4.13%, 0.81%, 2.25%; thin_occluder then 1.88% until the final preset's discontinuity knots,
 # open_box 3.56% and table_spheres 2.76% until the glossy splines' angular axes were sharpened;
 # with two final passes instead of four 3.51%, 1.85%, 0.42%, 1.21%, 2.78%; without the coarse
 # correction, 5 December, 3.40%, 1.72%, 0.42%, 1.18%, 2.61%, leaning_board's board 1.0064.)
-MEASURED = {"open_box": (0.0337, 0.9957),  # the ceiling
+MEASURED_ONE_SOLVE = {"open_box": (0.0337, 0.9957),  # the ceiling
             "table_spheres": (0.0171, 0.9969),  # the GGX sphere
             "ceiling_light": (0.0042, 1.0006),  # the floor
             "thin_occluder": (0.0118, 0.9975),  # the small wall
@@ -44,32 +54,31 @@ def meets_target(scene):
 
 
 _solved = {}
+ONE_SOLVE = {"refine_to_error": 0}
 
 
-def final(scene):
+def final(scene, overrides=None, label="final"):
+    """The scene at the final preset with `overrides` (solved once a session, printed)."""
     import validate
 
-    if scene not in _solved:
-        _solved[scene] = validate.measure(scene, "final")
-        validate.print_row(scene, "final", _solved[scene])
-    return _solved[scene]
+    key = (scene, repr(overrides))
+    if key not in _solved:
+        _solved[key] = validate.measure(scene, "final", overrides)
+        validate.print_row(scene, label, _solved[key])
+    return _solved[key]
 
 
-def final_with(scene, overrides, label):
-    """The scene at the final preset with `overrides` (printed), and at the final preset."""
-    import validate
-
-    r = validate.measure(scene, "final", overrides)
-    validate.print_row(scene, label, r)
-    return r, final(scene)
+def one_solve(scene, overrides=None, label="final, one solve"):
+    return final(scene, {**ONE_SOLVE, **(overrides or {})}, label)
 
 
 @pytest.mark.slow
 @pytest.mark.blender
 @pytest.mark.parametrize("scene", sorted(TARGET))
-def test_final_preset_within_measured_bounds(scene):
-    r = final(scene)
-    error, ratio = MEASURED[scene]
+@pytest.mark.parametrize("refined", [True, False], ids=["final", "one solve"])
+def test_final_preset_within_measured_bounds(scene, refined):
+    r = final(scene) if refined else one_solve(scene)
+    error, ratio = (MEASURED if refined else MEASURED_ONE_SOLVE)[scene]
     assert r["pairs"] >= 2900  # of 3,000: few lost to tessellation differences
     assert r["rel_rmse"] < 2 * error, r["rel_rmse"]
     assert abs(r["worst_surface_ratio"] - 1) < 2 * abs(ratio - 1), r["surfaces"]
@@ -89,7 +98,8 @@ def test_issue_target(scene, request):
     assert abs(r["worst_surface_ratio"] - 1) <= 0.01
 
 
-# The error estimate per object at final, against Mitsuba (its noise taken out): within a factor of
+# The error estimate per object at final's one solve (what refinement acts on), against Mitsuba
+# (its noise taken out): within a factor of
 # two (the issue's test) on every object with at least 100 pairs and an error over twice its
 # reference's noise, as the geometric mean over four sets of checks (SolverSettings.error_checks_seed:
 # an object's error sits in thin bands beside contact lines and shadow edges that one set of checks
@@ -106,12 +116,9 @@ _estimates = {}
 
 
 def estimates(scene):
-    """Per seed, the final solve's per-object figures (seed 0: final(scene)'s)."""
-    import validate
-
+    """Per seed, one final solve's per-object figures (seed 0: one_solve(scene)'s)."""
     if scene not in _estimates:
-        _estimates[scene] = [final(scene)["surfaces"]] + [
-            validate.measure(scene, "final", {"error_checks_seed": seed})["surfaces"] for seed in SEEDS[1:]]
+        _estimates[scene] = [one_solve(scene, {"error_checks_seed": seed} if seed else None)["surfaces"] for seed in SEEDS]
     return _estimates[scene]
 
 
@@ -141,6 +148,66 @@ def test_error_estimate_within_a_factor_of_two_per_object(scene):
         assert np.all((ratio >= 0.25) & (ratio <= 4)), (name, ratio)  # no set of checks far off
 
 
+# The estimate the user sees after final's refinement (its last solve's; one set of checks, seed 0),
+# judged as above. Known misses, all over (measured at seeds 0-3): open_box's GGX panel 2.80 (2.8-3.3:
+# its error where the pairs see it fell 2.7% -> 1.1% with 1.5x its spatial coefficients, its
+# estimate's fit part 3.1% -> 2.8% only: that is its part outside the box, which no pair sees;
+# over its whole surface the estimate is 0.93 of its error, next test), its block 2.50 (1.9-3.6;
+# the input term), and leaning_board's floor 2.59 (1.3-4.8; untraced) and box 7.5 (4.0-17; the
+# input term, as in one solve).
+KNOWN_REFINED_ESTIMATE_MISSES = {("open_box", "Panel"): 2.80, ("open_box", "Block"): 2.50,
+                                 ("leaning_board", "Floor"): 2.59, ("leaning_board", "Box"): 7.5}
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+@pytest.mark.parametrize("scene", sorted(TARGET))
+def test_refined_error_estimate_within_a_factor_of_two_per_object(scene):
+    judged = {name: s["estimated"] / s["measured"] for name, s in final(scene)["surfaces"].items()
+              if s["pairs"] >= 100 and s["measured"] > 2 * s["noise"]}
+    print({name: round(ratio, 2) for name, ratio in judged.items()})
+    assert judged or scene == "ceiling_light"
+    for name, ratio in judged.items():
+        known = KNOWN_REFINED_ESTIMATE_MISSES.get((scene, name))
+        if known:
+            assert known / 1.5 <= ratio <= known * 1.5, (name, ratio)
+        else:
+            assert 0.5 <= ratio <= 2, (name, ratio)
+
+
+# open_box's GGX panel passes 14 cm through the left wall: 5.2% of it lies outside the box, where
+# no light reaches (its exact radiance 0: the world is black, the walls' backs unlit) and no pair
+# looks (their eyes must be in open space). The error estimate's checks count it (a viewer outside
+# the box would see it). bench/validation/unlit_part.py: the spline there is 16% of the panel's
+# mean inside as an RMS, 3.75% of the panel's relative RMS error, in one solve; 14% and 3.10% after
+# final's refinement. With the error measured inside (2.71%, 1.09%), the panel's error over its
+# whole surface is 4.6% and 3.3%, estimated 3.3% and 3.0% (0.72 and 0.93 of it); the refinement
+# lowered the inside's error and not the bleed over the oblique line where the panel meets the
+# wall, which knots along parameter lines cannot follow (the paper's 5.1 split would).
+@pytest.mark.slow
+@pytest.mark.blender
+def test_the_panels_estimate_counts_its_unlit_part_outside_the_box():
+    import json
+    import math
+    import subprocess
+
+    import validate
+
+    run = subprocess.run([sys.executable, str(ROOT / "bench" / "validation" / "unlit_part.py"), "open_box", "Panel",
+                          "--outside", "-1", "1", "-1", "1", "0", "2", "--overrides", json.dumps(ONE_SOLVE)],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-3000:]
+    (panel,) = json.loads(run.stdout.strip().splitlines()[-1]).values()
+    print(panel)
+    assert 0.04 < panel["outside_fraction"] < 0.06  # the geometry: 5.2%
+    share = panel["outside_share"]
+    assert 0.019 < share < 0.075, share  # measured 0.0375
+    measured = one_solve("open_box")["surfaces"]["Panel"]
+    whole = math.sqrt(measured["measured"] ** 2 * (1 - panel["outside_fraction"]) + share ** 2)
+    assert abs(panel["estimated_error"] / measured["estimated"] - 1) < 1e-6  # the same solve
+    assert 0.5 <= panel["estimated_error"] / whole <= 2, (panel["estimated_error"], whole)  # measured 0.72
+
+
 # The reference preset (final's bounces; a final gather with discontinuity knots, 4x the spatial
 # coefficients per direction, 2x the integration nodes) on the three diffuse scenes, where it meets
 # the issue's target (validate.py measure --preset reference): relative RMSE, worst object's ratio.
@@ -167,13 +234,14 @@ def test_reference_preset_meets_the_target(scene):
     bound = max(2 * error, 2 * r["reference_noise"])
     assert r["rel_rmse"] <= min(TARGET[scene], bound), r["rel_rmse"]
     assert abs(r["worst_surface_ratio"] - 1) <= min(0.01, 2 * abs(ratio - 1)), r["surfaces"]
-    # Better than final.
-    base = final(scene)
+    # Better than final's one solve (leaning_board's 0.76% is not better than final's refinement,
+    # 0.70%, at 3x final's CPU time)
+    base = one_solve(scene)
     assert r["rel_rmse"] < base["rel_rmse"]
 
 
-# Refinement to a 1% target at final on thin_occluder (validate.py measure --scene thin_occluder
-# --preset final --overrides '{"refine_to_error": 0.01}'): the large wall's estimate is its final
+# Final's refinement to 1% on thin_occluder (validate.py measure --scene thin_occluder --preset
+# final; its one solve with --overrides '{"refine_to_error": 0}'): the large wall's estimate is its final
 # gather's integration (2.1% of 2.1%; the floor's light seen at grazing angles), whose nodes per
 # axis refinement doubles there; the floor (its shadow's oblique edges) gets 1.5 times its
 # coefficients. Measured (four final passes), after one pass: the large wall 1.74% -> 0.71%, the
@@ -183,7 +251,7 @@ def test_reference_preset_meets_the_target(scene):
 @pytest.mark.slow
 @pytest.mark.blender
 def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_errs():
-    r, base = final_with("thin_occluder", {"refine_to_error": 0.01}, "final, refined to 1%")
+    r, base = final("thin_occluder"), one_solve("thin_occluder")
     refined = {s["name"]: s for s in r["refinement"]["surfaces"]}
     wall = next(s for name, s in refined.items() if name.startswith("Large wall"))
     assert wall["integration_factor"] >= 2, wall
@@ -192,23 +260,23 @@ def test_refinement_raises_the_integration_where_the_estimate_says_the_gather_er
     assert r["rel_rmse"] <= min(TARGET["thin_occluder"], 2 * 0.0048), r["rel_rmse"]
 
 
-# The same refinement on the two scenes the final preset leaves furthest from the issue's targets
-# (validate.py measure --scene S --preset final --overrides '{"refine_to_error": 0.01}'; relative
-# RMSE, worst object's mean ratio, measured): open_box 3.37% -> 1.38% (the GGX target, 2%, met),
-# leaning_board 2.59% -> 0.71% (its 1% met; 1.51% until the contact lines' bands: the refined
+# The same refinement on the two scenes one final solve leaves furthest from the issue's targets
+# (relative RMSE, worst object's mean ratio, measured): open_box 3.37% -> 2.10% within the budget of
+# 3 (1.38% refined without a budget, at 6x the CPU time: its GGX panel's 4D refinement is dear),
+# leaning_board 2.59% -> 0.70% (its 1% met; 1.51% until the contact lines' bands: the refined
 # floor's 72 final coefficients a direction put its node beside the board's foot above the board).
-# (table_spheres 1.71% -> 1.48%; ceiling_light's surfaces all meet the target at final.)
-REFINED = {"open_box": (0.0138, 0.9963), "leaning_board": (0.0071, 0.9987)}  # the block, the narrow wall
+# (table_spheres 1.71% -> 1.52%; ceiling_light's surfaces all meet the target in one solve.)
+REFINED = {"open_box": (0.0210, 1.0036), "leaning_board": (0.0070, 0.9982)}  # the panel, the narrow wall
 
 
 @pytest.mark.slow
 @pytest.mark.blender
 @pytest.mark.parametrize("scene", sorted(REFINED))
 def test_refinement_to_one_percent_where_final_is_furthest(scene):
-    r, base = final_with(scene, {"refine_to_error": 0.01}, "final, refined to 1%")
+    r, base = final(scene), one_solve(scene)
     error, ratio = REFINED[scene]
     assert r["rel_rmse"] <= 1.5 * error and r["rel_rmse"] < 0.7 * base["rel_rmse"], (r["rel_rmse"], base["rel_rmse"])
-    assert r["rel_rmse"] <= TARGET[scene], r["rel_rmse"]
+    assert r["refinement"]["passes"] >= 1
     assert abs(r["worst_surface_ratio"] - 1) <= min(0.01, 2 * abs(ratio - 1)), r["surfaces"]
 
 
@@ -217,12 +285,13 @@ def test_refinement_to_one_percent_where_final_is_furthest(scene):
 # both sides, 1.0140 with two passes, 1.0110 with three, 1.0064 with the final preset's four); the
 # coarse correction (final_correction_bounces, 8 at final) carries the coarse light's error over
 # all the bounces at once before the second: 1.0016 (validate.py measure --scene leaning_board
-# --preset final [--overrides '{"final_correction_bounces": 0}']); inside the wedge the floor and
-# wall 1.12x Mitsuba's without it, 1.00x with it.
+# --preset final --overrides '{"refine_to_error": 0[, "final_correction_bounces": 0]}'); inside the
+# wedge the floor and wall 1.12x Mitsuba's without it, 1.00x with it (in one solve, as measured).
 @pytest.mark.slow
 @pytest.mark.blender
 def test_the_coarse_correction_carries_the_fine_light_into_a_wedge():
-    regathers, r = final_with("leaning_board", {"final_correction_bounces": 0}, "final, regathers alone")
+    regathers = one_solve("leaning_board", {"final_correction_bounces": 0}, "final, one solve, regathers alone")
+    r = one_solve("leaning_board")
     before, after = regathers["surfaces"]["Board"]["ratio"] - 1, r["surfaces"]["Board"]["ratio"] - 1
     assert 0 <= after <= 0.5 * before, (before, after)  # measured 0.0016 against 0.0064
     assert r["rel_rmse"] <= regathers["rel_rmse"]
