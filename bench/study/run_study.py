@@ -179,7 +179,8 @@ def run_scene(blend, work, quick, cache, log, only=None, earlier=()):
     resolution = QUICK["cycles_resolution"] if quick else CYCLES_RESOLUTION
     if only is not None:
         samples = [n for n in samples if f"Cycles bake {n} samples" in only]
-    log(f"{name}: Cycles bake at {', '.join(map(str, samples))} samples, {resolution}x{resolution} atlas")
+    if samples:
+        log(f"{name}: Cycles bake at {', '.join(map(str, samples))} samples, {resolution}x{resolution} atlas")
     for n, seconds, cpu_seconds, radiance in cycles_bakes(blend, pairs_npz, work, samples, resolution) if samples else []:
         row = {"scene": name, "method": "cycles bake", "setting": f"Cycles bake {n} samples", "knob": "samples",
                "value": n, "seconds": round(seconds, 3), "cpu_seconds": round(cpu_seconds, 3), "peak_mb": "",

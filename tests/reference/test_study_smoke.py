@@ -39,6 +39,25 @@ def test_quick_study_writes_results_plots_and_tables(tmp_path):
     blend = ROOT / "example_blends" / "cornell_box.blend"
     cached = references.load_cached(blend, True, tmp_path / "references")
     assert cached is not None and math.isclose(float(cached["spp"]), references.QUICK["spp"])
+    # --setting reruns those rows in place and keeps the others as they were (no Cycles bake):
+    # every row marked, only the draft's mark replaced.
+    for r in rows:
+        r["seconds"] = "-1"
+    with open(tmp_path / "results.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    subprocess.run([sys.executable, str(ROOT / "bench" / "study" / "run_study.py"), "--quick", "--scene", "cornell_box",
+                    "--setting", "draft", "--out", str(tmp_path), "--cache", str(tmp_path / "references"),
+                    "--work", str(tmp_path / "work")], check=True, timeout=600)
+    with open(tmp_path / "results.csv", newline="") as f:
+        again = list(csv.DictReader(f))
+    assert [r["setting"] for r in again] == [r["setting"] for r in rows]
+    for before, after in zip(rows, again):
+        if before["setting"] != "draft":
+            assert after == before
+    draft_again = next(r for r in again if r["setting"] == "draft")
+    assert draft_again["coefficients"] == draft["coefficients"] and float(draft_again["seconds"]) > 0
 
 
 def test_stale_reference_is_detected(tmp_path):
