@@ -137,8 +137,8 @@ def report(job: Job, solution: bsgi.Solution, solve_seconds: float, bake_seconds
 
 
 def refinement_summary(solution: bsgi.Solution):
-    """With Refine to Error (bsgi.refine): the passes, why they stopped, the surfaces refined and
-    those still over the target; None without it."""
+    """With refinement (bsgi.refine: Final's, or Refinement To Error): the passes, why they
+    stopped, the surfaces refined and those still over the target; None without it."""
     r = getattr(solution, "refinement", None)
     if r is None:
         return None

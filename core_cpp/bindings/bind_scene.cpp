@@ -389,7 +389,10 @@ void bind_scene(py::module_& m) {
         .def("cancel", &Progress::cancel)
         .def("begin_stage", &Progress::begin_stage, py::arg("name"), py::arg("index"), py::arg("count"), py::arg("total"),
              "Starts stage `index` of `count` equal parts of the whole, with `total` units of work.")
-        .def("advance", &Progress::advance, py::arg("units"), "Counts `units` of the stage's work as done.");
+        .def("advance", &Progress::advance, py::arg("units"), "Counts `units` of the stage's work as done.")
+        .def("begin_pass", &Progress::begin_pass, py::arg("label"),
+             "Names the whole solve the following stages belong to (a refinement pass): stage reads 'label: stage' "
+             "until an empty label.");
 
     py::class_<SurfaceRadiance>(m, "SurfaceRadiance",
                                 "A surface's outgoing radiance: 2D spline (diffuse) or 4D over the hemisphere map "

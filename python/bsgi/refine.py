@@ -108,9 +108,11 @@ def predicted_rays(scene: _core.Scene, stats: dict, reports: dict, chosen: dict,
 
 
 def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
-                  solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None) -> _core.Solution:
+                  solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None,
+                  progress: Optional[_core.Progress] = None) -> _core.Solution:
     """Solves with solve_once(sides) and again with refined surfaces, as the module says (``sides``
-    probed here if not given)."""
+    probed here if not given). ``progress`` (the one solve_once advances) names each pass after
+    the first in its stage ("refinement 1 of at most 2: ..."): its fraction starts again at 0."""
     target = settings.refine_to_error
     if not settings.estimate_error:
         raise ValueError(f"solver settings: refine_to_error ({target:g}; the final preset's is 0.01) needs "
@@ -190,6 +192,8 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             apply(changes)
             previous = {i: over[i]["estimated_error"] for i in changes}
             pass_start = time.perf_counter()
+            if progress is not None:
+                progress.begin_pass(f"refinement {passes + 1} of at most {settings.refine_passes}")
             solution = solve_once(sides)
             passes += 1
             errors = {i: r["estimated_error"] for i, r in zip(receivers(solution), solution.reports)}
@@ -202,6 +206,8 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
         last_factor = {i: scene.integration_factor(i) for i in receivers(solution)}
         refinable = {i for i, r in zip(receivers(solution), solution.reports) if refinements(scene, i, r, settings)}
     finally:
+        if progress is not None:
+            progress.begin_pass("")
         for i, (n, f) in own.items():
             if scene.spatial_coeffs(i) != n:
                 scene.set_spatial_coeffs(i, n)

@@ -48,7 +48,7 @@ def solve(
 
     def solve_here() -> _core.Solution:
         if settings.refine_to_error > 0:
-            return refined_solve(scene, settings, solve_once, sides)
+            return refined_solve(scene, settings, solve_once, sides, progress)
         return solve_once(sides)
 
     if on_progress is None:

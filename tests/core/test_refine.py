@@ -140,6 +140,26 @@ def test_the_pass_budget_stops_refinement():
     assert r["rays"] > solution.stats["rays"]  # both passes counted
 
 
+def test_each_pass_after_the_first_names_itself_in_the_progress():
+    """The progress' fraction starts again with each pass (a whole solve): its stage says which
+    pass it is, and the name is gone once refinement ends."""
+    from bsgi.refine import refined_solve
+
+    scene, settings, progress = shadow_scene(), coarse_settings(refine_to_error=1e-4, refine_passes=2), bsgi.Progress()
+    stages = []
+
+    def solve_once(sides):
+        solution = bsgi.solve(scene, settings_once, progress, sides=sides)
+        stages.append(progress.stage)  # as the last stage of the pass read
+        return solution
+
+    settings_once = coarse_settings()  # the same solve, without refinement of its own
+    solution = refined_solve(scene, settings, solve_once, progress=progress)
+    assert solution.refinement["passes"] == 2
+    assert stages == ["done", "refinement 1 of at most 2: done", "refinement 2 of at most 2: done"]
+    assert progress.stage == "done"
+
+
 def test_the_memory_budget_stops_refinement():
     scene = shadow_scene()
     s = coarse_settings(refine_to_error=1e-4, refine_passes=3)

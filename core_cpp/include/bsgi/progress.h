@@ -26,6 +26,12 @@ public:
         total_ = total == 0 ? 1 : total;
         done_ = 0;
     }
+    // Names the whole solve the stages that follow belong to (a pass of refinement, which solves
+    // again from the start): stage() reads "label: stage" until an empty label.
+    void begin_pass(const std::string& label) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        pass_ = label;
+    }
     void advance(size_t units) { done_.fetch_add(units, std::memory_order_relaxed); }
     double fraction() const {
         const double within = double(done_.load(std::memory_order_relaxed)) / double(total_.load());
@@ -33,7 +39,7 @@ public:
     }
     std::string stage() const {
         std::lock_guard<std::mutex> lock(mutex_);
-        return stage_;
+        return pass_.empty() ? stage_ : pass_ + ": " + stage_;
     }
     void cancel() { cancelled_ = true; }
     bool cancelled() const { return cancelled_.load(std::memory_order_relaxed); }
@@ -49,7 +55,7 @@ public:
 
 private:
     mutable std::mutex mutex_;
-    std::string stage_ = "waiting";
+    std::string stage_ = "waiting", pass_;
     std::atomic<int> stage_index_{0}, stage_count_{1};
     std::atomic<size_t> total_{1}, done_{0};
     std::atomic<bool> cancelled_{false};
