@@ -204,8 +204,8 @@ def main(argv=None):
     parser.add_argument("--cache", help="folder of the cached references (default bench/study/references; "
                         "build/study-quick/references with --quick)")
     parser.add_argument("--setting", nargs="*", help="run only these settings (as the tables name them, e.g. "
-                        "final or 'preview, bounces 1') and keep the other rows of the earlier run (its pairs compared: "
-                        "those every method returned)")
+                        "final or 'preview, bounces 1') and keep the other rows of the earlier run as they were (each "
+                        "setting's error over the pairs its own run compared)")
     parser.add_argument("--work", default=str(ROOT / "build" / "study"), help="folder for intermediate files")
     args = parser.parse_args(argv)
     quick_dir = ROOT / "build" / "study-quick"
