@@ -146,6 +146,7 @@ def test_each_pass_after_the_first_names_itself_in_the_progress():
     from bsgi.refine import refined_solve
 
     scene, settings, progress = shadow_scene(), coarse_settings(refine_to_error=1e-4, refine_passes=2), bsgi.Progress()
+    settings_once = coarse_settings()  # the same solve, without refinement of its own
     stages = []
 
     def solve_once(sides):
@@ -153,7 +154,6 @@ def test_each_pass_after_the_first_names_itself_in_the_progress():
         stages.append(progress.stage)  # as the last stage of the pass read
         return solution
 
-    settings_once = coarse_settings()  # the same solve, without refinement of its own
     solution = refined_solve(scene, settings, solve_once, progress=progress)
     assert solution.refinement["passes"] == 2
     assert stages == ["done", "refinement 1 of at most 2: done", "refinement 2 of at most 2: done"]
