@@ -215,17 +215,35 @@ SurfaceHit past_panes(const RayCaster& caster, SurfaceHit hit, const Vec3& dir) 
     return hit.surface < 0 || !caster.pane(hit.surface) ? hit : SurfaceHit{};
 }
 
-// The probe's rays from point p on `side`, cast together: their directions and the first
-// surfaces they meet that are not panes.
-struct ProbeRays {
-    std::array<Vec3, kRays> dirs;
-    std::array<SurfaceHit, kRays> hits;
+// The probe's rays from point p on `side`, cast a packet at a time as they are read: their
+// directions and the first surfaces they meet that are not panes. The questions the probe asks
+// of a point's rays (does one escape to the world, do two reach lit cells) are often answered
+// before the last packet.
+class ProbeRays {
+public:
+    static constexpr int kPacket = 16;
+    ProbeRays(const RayCaster& caster, const SurfacePoint& p, int side, double turn) : caster_(caster) {
+        probe_directions(p, side, turn, dirs_);
+        origin_ = caster.spawn(p.p, p.frame.z, dirs_[0]);
+    }
+    const Vec3& dir(int k) const { return dirs_[size_t(k)]; }
+    const SurfaceHit& hit(int k) {
+        while (k >= cast_) {
+            const int m = std::min(kPacket, kRays - cast_);
+            caster_.closest_hits_from(origin_, &dirs_[size_t(cast_)], size_t(m), &hits_[size_t(cast_)]);
+            for (int r = cast_; r < cast_ + m; ++r) hits_[size_t(r)] = past_panes(caster_, hits_[size_t(r)], dirs_[size_t(r)]);
+            cast_ += m;
+        }
+        return hits_[size_t(k)];
+    }
+
+private:
+    const RayCaster& caster_;
+    Vec3 origin_;
+    std::array<Vec3, kRays> dirs_;
+    std::array<SurfaceHit, kRays> hits_;
+    int cast_ = 0;
 };
-void cast_probe_rays(const RayCaster& caster, const SurfacePoint& p, int side, double turn, ProbeRays& out) {
-    probe_directions(p, side, turn, out.dirs);
-    caster.closest_hits_from(caster.spawn(p.p, p.frame.z, out.dirs[0]), out.dirs.data(), kRays, out.hits.data());
-    for (int k = 0; k < kRays; ++k) out.hits[k] = past_panes(caster, out.hits[k], out.dirs[k]);
-}
 
 uint32_t end_cell(const SurfaceHit& hit, const Vec3& dir) {
     return uint32_t((2 * hit.surface + (dot(dir, hit.frame.z) < 0 ? 0 : 1)) * kCells + cell_of(hit.u, hit.v));
@@ -295,11 +313,13 @@ std::vector<CellView> probe_side(const Scene& scene, const std::vector<int>& emi
         if (!surface.in_domain((c / kPoints + 0.5) / kPoints, (c % kPoints + 0.5) / kPoints)) continue;
         const SurfacePoint p = cell_centre(surface, c);
         view.light = direct_light(scene, emitters, caster, i, p, side);
-        ProbeRays rays;
-        cast_probe_rays(caster, p, side, cell_turn(i, c, side), rays);
+        ProbeRays rays(caster, p, side, cell_turn(i, c, side));
         for (int k = 0; k < kRays; ++k) {
-            const Vec3& dir = rays.dirs[k];
-            const SurfaceHit& hit = rays.hits[k];
+            // A lit cell's rays tell only whether it sees out of the side (for a two-sided
+            // emitter: whether its back encloses its light); a dark side's message reads them.
+            if (view.light != kNoLight && !scene[i].material.two_sided_emission) break;
+            const Vec3& dir = rays.dir(k);
+            const SurfaceHit& hit = rays.hit(k);
             if (hit.surface < 0) {
                 view.escaped = true;
                 if (scene.has_world() && view.light == kNoLight) view.light = world_light(scene);
@@ -445,12 +465,16 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
         if (direct_light(scene, emitters, caster, surface, p, end_side) != kNoLight) return true;
         std::array<uint32_t, kRays> reached;
         size_t m = 0;
-        ProbeRays rays;
-        cast_probe_rays(caster, p, end_side, 0.5, rays);
+        ProbeRays rays(caster, p, end_side, 0.5);
+        uint32_t lit_rays = 0;
         for (int r = 0; r < kRays; ++r) {
-            const SurfaceHit& hit = rays.hits[r];
+            const SurfaceHit& hit = rays.hit(r);
             if (hit.surface < 0 && scene.has_world()) return true;
-            if (hit.surface >= 0 && scene[hit.surface].receiver) reached[m++] = end_cell(hit, rays.dirs[r]);
+            if (hit.surface < 0 || !scene[hit.surface].receiver) continue;
+            reached[m++] = end_cell(hit, rays.dir(r));
+            // Enough rays reach lit cells: it carries light (what the record would say), and
+            // the rest need not be cast.
+            if (lit(reached[m - 1]) && ++lit_rays == kRaysToCarry) return true;
         }
         std::sort(reached.begin(), reached.begin() + m);
         ReachedCells::encode(reached.data(), m, out);
@@ -492,12 +516,11 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     // The rays of cell c of a side of surface i, in order: visit(k, hit, end cell) for those
     // that end on a receiver, until it returns true.
     auto cell_rays = [&](int i, int side, int c, auto&& visit) {
-        ProbeRays rays;
-        cast_probe_rays(caster, cell_centre(*scene[i].surface, c), side, cell_turn(i, c, side), rays);
+        ProbeRays rays(caster, cell_centre(*scene[i].surface, c), side, cell_turn(i, c, side));
         for (int k = 0; k < kRays; ++k) {
-            const SurfaceHit& hit = rays.hits[k];
+            const SurfaceHit& hit = rays.hit(k);
             if (hit.surface < 0 || !scene[hit.surface].receiver) continue;
-            if (visit(k, hit, end_cell(hit, rays.dirs[k]))) return;
+            if (visit(k, hit, end_cell(hit, rays.dir(k)))) return;
         }
     };
     // Each pass asks, in order, every dark cell whose answer may have changed (Gauss-Seidel: a
@@ -520,9 +543,13 @@ std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caste
     };
     const size_t cells = probed.size() * 2 * kCells;
     auto cell_at = [&](size_t p) { return Cell{probed[p / (2 * kCells)], int(p / kCells % 2), int(p % kCells)}; };
+    // A cell is lit by kRaysToCarry of its rays ending in lit cells (and carrying light there):
+    // the record of where its rays end tells, without casting them again, when too few do (the
+    // inside of a closed mesh, whose rays all end on its own dark inside, is most of the cells
+    // asked).
     auto asks_now = [&](const Cell& cell) {
         const CellView& view = views[cell.i][cell.side][cell.c];
-        return !lit(cell.id()) && view.asks && changed_for(view);
+        return !lit(cell.id()) && view.asks && view.ends >= 0 && reaches_lit(seen[view.ends]) && changed_for(view);
     };
     constexpr size_t kPrefetch = 64;  // cells (a smaller window sees more of the cells lit meanwhile)
     std::vector<Cell> window;
