@@ -3,7 +3,10 @@ solution's radiance at the study's pairs. Prints a JSON line of figures.
 
     python bench/study/solve_blend.py scene.blend settings.json pairs.npz out.npz
 
-settings.json: {"preset": "preview", "overrides": {"spatial_coeffs": 8, ...}}. The scene comes from
+settings.json: {"preset": "preview", "overrides": {"spatial_coeffs": 8, ...}}; with "first_pass": true
+a refined solve (refine_to_error > 0) also writes its first pass's radiance and estimate, which
+are those of one solve without the refinement, to out.first.npz (and its figures under
+"first_pass"): one process gives both. The scene comes from
 the add-on's export, as a user's solve gets it; the pairs' eye rays are cast against the solver's
 surfaces to find what each eye sees (surface, u, v)."""
 from __future__ import annotations
@@ -121,21 +124,43 @@ def main():
     pathlib.Path("/proc/self/clear_refs").write_text("5")
     before = status_mb("VmRSS")
     start, cpu = time.perf_counter(), time.process_time()
-    solution = bsgi.solve(export.scene, settings)
+    scale = float(np.ptp(pairs["point"], axis=0).max())
+    first = {}
+
+    def solve_once(sides):
+        solution = bsgi._core.solve(export.scene, settings, bsgi.Progress(), sides)
+        if not first:  # read now: the refinement changes the scene's coefficients after it
+            first.update(seconds=time.perf_counter() - start, cpu_seconds=time.process_time() - cpu,
+                         bounces=solution.stats["bounces"], coefficients=solution.stats["coefficients"],
+                         rays=solution.stats["rays"] + solution.stats["estimate_rays"])
+            write_solution(out_npz.replace(".npz", ".first.npz"), export, solution, pairs, scale)
+        return solution
+
+    if spec.get("first_pass") and settings.refine_to_error > 0:
+        from bsgi.refine import refined_solve
+
+        solution = refined_solve(export.scene, settings, solve_once)
+    else:
+        solution = bsgi.solve(export.scene, settings)
     seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
     peak = status_mb("VmHWM")
-    scale = float(np.ptp(pairs["point"], axis=0).max())
-    ours, seen = radiance_at_pairs(export, solution, pairs, 1e-3 * scale)
-    estimates = np.array([r["estimated_error"] for r in solution.reports if r["shape"]])
-    parts = np.array([[r["error_parts"][k] for k in ERROR_PARTS] for r in solution.reports if r["shape"]]).reshape(-1, 4)
-    np.savez(out_npz, radiance=ours, surface=seen, estimated_error=estimates, error_parts=parts,
-             receivers=np.array([i for i, r in enumerate(solution.radiance) if r is not None]),
-             names=np.array([r["name"] for r in solution.reports if r["shape"]]))
+    write_solution(out_npz, export, solution, pairs, scale)
     print(json.dumps({"seconds": seconds, "cpu_seconds": cpu_seconds, "peak_mb": peak - before, "coefficients": solution.stats["coefficients"],
                       "bounces": solution.stats["bounces"],
                       # of all passes, with refine_to_error (bsgi.refine)
                       "rays": getattr(solution, "refinement", solution.stats)["rays"],
-                      "refinement": getattr(solution, "refinement", None)}))
+                      "refinement": getattr(solution, "refinement", None),
+                      **({"first_pass": first} if first else {})}))
+
+
+def write_solution(path, export, solution, pairs, scale):
+    """The solution's radiance at the pairs, the surfaces they see and its error estimate."""
+    ours, seen = radiance_at_pairs(export, solution, pairs, 1e-3 * scale)
+    estimates = np.array([r["estimated_error"] for r in solution.reports if r["shape"]])
+    parts = np.array([[r["error_parts"][k] for k in ERROR_PARTS] for r in solution.reports if r["shape"]]).reshape(-1, 4)
+    np.savez(path, radiance=ours, surface=seen, estimated_error=estimates, error_parts=parts,
+             receivers=np.array([i for i, r in enumerate(solution.radiance) if r is not None]),
+             names=np.array([r["name"] for r in solution.reports if r["shape"]]))
 
 
 if __name__ == "__main__":

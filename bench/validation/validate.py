@@ -89,7 +89,9 @@ def compared(emitting, data, radiance):
 
 def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
     """One solve of the scene (solve_blend.py, its own process) and its radiance at the pairs:
-    (radiance (n, 3), the solve's figures, mask of the pairs compared)."""
+    (radiance (n, 3), the solve's figures, mask of the pairs compared). With spec["first_pass"]
+    (a refined solve) the figures hold under "first_pass" its first pass's, as one solve's:
+    (radiance, figures, mask) too."""
     import run_study
     from references import describe
 
@@ -101,16 +103,26 @@ def solve(scene: str, spec: dict, data: dict, work: pathlib.Path):
     if out.returncode:
         raise RuntimeError(f"{scene}: solve failed:\n{out.stderr[-3000:]}")
     figures = json.loads(out.stdout.strip().splitlines()[-1])
-    solved = np.load(work / "solve.npz")
-    ours = solved["radiance"]
-    # The solver's own estimate of its error and its parts, per pair those of the surface the pair
-    # lies on (NaN where it lies on none).
+    emitting = run_study.emitting_objects(describe(blend))
+    ours = read_solution(work / "solve.npz", figures)
+    if "first_pass" in figures:
+        first = figures["first_pass"]
+        radiance = read_solution(work / "solve.first.npz", first)
+        figures["first_pass"] = (radiance, first, compared(emitting, data, radiance))
+    return ours, figures, compared(emitting, data, ours)
+
+
+def read_solution(path: pathlib.Path, figures: dict):
+    """The radiance at the pairs solve_blend.py wrote to `path`; into `figures` the solver's own
+    estimate of its error and its parts, per pair those of the surface the pair lies on (NaN where
+    it lies on none)."""
+    solved = np.load(path)
     row_of = {k: i for i, k in enumerate(solved["receivers"].tolist())}
     rows = np.array([row_of.get(int(k), -1) for k in solved["surface"]], dtype=int)
     known = rows >= 0
     figures["estimate_at_pairs"] = np.where(known, solved["estimated_error"][rows], np.nan)
     figures["parts_at_pairs"] = np.where(known[:, None], solved["error_parts"][rows], np.nan)
-    return ours, figures, compared(run_study.emitting_objects(describe(blend)), data, ours)
+    return solved["radiance"]
 
 
 def per_surface(ours, data, valid, estimate=None, parts=None) -> dict:
@@ -142,15 +154,24 @@ def worst_ratio(surfaces: dict) -> float:
     return max((s["ratio"] for s in surfaces.values()), key=lambda r: abs(r - 1))
 
 
-def measure(scene: str, preset: str, overrides=None, work=None) -> dict:
+def measure(scene: str, preset: str, overrides=None, work=None, first_pass=False) -> dict:
     """Errors of one solve against the committed reference: run_study.errors' figures, the
-    solve's CPU seconds, per-surface figures and the worst surface's mean ratio."""
-    import run_study
-
+    solve's CPU seconds, per-surface figures and the worst surface's mean ratio. With
+    `first_pass` (a refined solve) "first_pass" holds the same of its first pass (one solve)."""
     data = load_reference(scene)
-    spec = {"preset": preset, **({"overrides": overrides} if overrides else {})}
+    spec = {"preset": preset, **({"overrides": overrides} if overrides else {}), **({"first_pass": True} if first_pass else {})}
     with tempfile.TemporaryDirectory() as tmp:
         ours, figures, valid = solve(scene, spec, data, pathlib.Path(work or tmp))
+    out = measured(ours, figures, valid, data)
+    if "first_pass" in figures:
+        out["first_pass"] = measured(*figures["first_pass"], data)
+    return out
+
+
+def measured(ours, figures: dict, valid, data) -> dict:
+    """measure's figures of one solution."""
+    import run_study
+
     surfaces = per_surface(ours, data, valid, figures["estimate_at_pairs"], figures["parts_at_pairs"])
     return {**run_study.errors(ours, data, valid), "seconds": figures["cpu_seconds"], "wall_seconds": figures["seconds"],
             "reference_noise": noise(data, valid), "surfaces": surfaces, "worst_surface_ratio": worst_ratio(surfaces),
