@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     parser.add_argument("--refine-to-error", type=float, metavar="ERROR",
                         help="refine surfaces whose estimated relative error is above ERROR (e.g. 0.02) and solve "
                              "again (0: off; default: the scene's setting, at first the preset's: final refines to "
-                             "0.01 within a budget of 3)")
+                             "0.01 within a budget of 5)")
     parser.add_argument("--refine-passes", type=int, metavar="N", help="at most N solves after the first when refining")
     parser.add_argument("--refine-budget", type=float, metavar="FACTOR",
                         help="the solves after the first trace at most FACTOR times the first's rays, the surfaces "

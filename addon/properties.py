@@ -84,7 +84,7 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="With Refinement To Error: at most this many solves after the first while surfaces are over "
         "Refine to Error")
     refine_cost: FloatProperty(
-        name="Refine Budget", default=3.0, min=0.0, max=100.0, precision=1,
+        name="Refine Budget", default=5.0, min=0.0, max=100.0, precision=1,
         description="With Refinement To Error: the solves after the first may trace at most this many times the "
         "first's rays; where refining every surface over Refine to Error would overrun it, those with the highest "
         "estimated errors are refined first. 0: no limit")

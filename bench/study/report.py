@@ -105,7 +105,7 @@ def write(out, rows, readme=None):
              "time around the preview preset (where the preview took over a minute of CPU, without spatial 32, "
              "hemisphere nodes 16x32 and, after a minute of wall time, the final preset), and Cycles baking at "
              "several sample counts. The final preset refines the surfaces its error estimate puts over 1% and "
-             "solves again, within three times its first solve's rays. Anisotropic metals are rendered by Mitsuba "
+             "solves again, within five times its first solve's rays. Anisotropic metals are rendered by Mitsuba "
              "along Blender's default tangent. "
              "Error: relative RMSE "
              "against Mitsuba 3 at the same random visible (point, direction) pairs; *glossy surfaces* are the "

@@ -377,7 +377,7 @@ def test_refine_to_error_solves_again_and_reports_it(context):
 
 
 def test_refinement_follows_the_quality_unless_set(context):
-    """Refinement As the Quality: Final's (the core's preset: 1%, a budget of 3), none at the others;
+    """Refinement As the Quality: Final's (the core's preset: 1%, a budget of 5), none at the others;
     Off: none at Final either; To Error: the panel's target, passes and budget at any quality."""
     settings = context.scene.bsgi
     assert settings.refinement == "QUALITY"

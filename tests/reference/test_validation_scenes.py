@@ -3,11 +3,12 @@ Mitsuba 3 references (3,000 random visible pairs each, reference noise 0.2-0.3%;
 here): the relative RMSE and the worst object's mean radiance ratio are bounded within about 2x of
 what was measured, so a regression fails; the issue's targets (final <= 1% on diffuse scenes,
 <= 2% with GGX alpha >= 0.3, every surface's mean within 1%) are checked, as strict expected
-failures stating the measured figures where they are not met (open_box). The final preset refines
-to 1% within three times its first solve's rays (bsgi.refine); its first solve alone ("one
-solve", the refinement off) is what the error estimate is judged on and what refinement gains
-against. Each scene is solved by bench/study/solve_blend.py in a process of its own (about 3.5
-minutes of CPU for the refined finals, whose first passes are the one solves, 4 more for the
+failures stating the measured figures where they are not met (none since 6 December; open_box
+until then). The final preset refines to 1% within five times its first solve's rays
+(bsgi.refine); its first solve alone ("one solve", the refinement off) is what the error estimate
+is judged on and what refinement gains against. Each scene is solved by
+bench/study/solve_blend.py in a process of its own (about 6 minutes of CPU for the refined
+finals, whose first passes are the one solves, 4 more for the
 estimate's other sets of checks); the figures print with -s.
 
     .venv/bin/python -m pytest tests/reference/test_validation_scenes.py -s
@@ -22,14 +23,16 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "bench" / "validation"))
 
-# Measured at the final preset (bench/validation/validate.py measure --preset final; 5 December):
-# relative RMSE, worst object's mean ratio; the bounds sit within about 2x of them (the ratio's
-# distance from 1).
-MEASURED = {"open_box": (0.0210, 1.0036),  # the GGX panel (the floor and left wall 2.7% and 4.1%)
-            "table_spheres": (0.0152, 0.9951),  # the GGX sphere
+# Measured at the final preset (bench/validation/validate.py measure --preset final; 6 December,
+# its refinement within five times the first solve's rays): relative RMSE, worst object's mean
+# ratio; the bounds sit within about 2x of them (the ratio's distance from 1). (Within three times,
+# 5 December: open_box 2.10%, one refinement pass, its floor and left wall 2.7% and 4.1%, now
+# 1.6% and 2.4%; table_spheres 1.52%; the others as now.)
+MEASURED = {"open_box": (0.0138, 0.9963),  # the block
+            "table_spheres": (0.0150, 0.9952),  # the GGX sphere
             "ceiling_light": (0.0042, 1.0006),  # the floor (nothing over the target: one solve)
             "thin_occluder": (0.0050, 0.9952),  # the small wall
-            "leaning_board": (0.0070, 0.9982)}  # the narrow wall
+            "leaning_board": (0.0071, 0.9987)}  # the narrow wall
 # One solve (the refinement off; --overrides '{"refine_to_error": 0}'), the final preset until it
 # refined. (3 December, with the sharpened fit and the hemisphere rule's Gauss nodes; before: 3.76%,
 # 4.13%, 0.81%, 2.25%; thin_occluder then 1.88% until the final preset's discontinuity knots,
@@ -157,14 +160,16 @@ def test_error_estimate_within_a_factor_of_two_per_object(scene):
 
 
 # The estimate the user sees after final's refinement (its last solve's; one set of checks, seed 0),
-# judged as above. Known misses, all over (measured at seeds 0-3): open_box's GGX panel 2.80 (2.8-3.3:
-# its error where the pairs see it fell 2.7% -> 1.1% with 1.5x its spatial coefficients, its
-# estimate's fit part 3.1% -> 2.8% only: that is its part outside the box, which no pair sees;
-# over its whole surface the estimate is 0.93 of its error, next test), its block 2.50 (1.9-3.6;
-# the input term), and leaning_board's floor 2.59 (1.3-4.8; seed 0's checks are its high set in
-# one solve too: 2.41 against 0.89-1.43) and box 7.5 (4.0-17; the input term, as in one solve).
-KNOWN_REFINED_ESTIMATE_MISSES = {("open_box", "Panel"): 2.80, ("open_box", "Block"): 2.50,
-                                 ("leaning_board", "Floor"): 2.59, ("leaning_board", "Box"): 7.5}
+# judged as above. Known misses, all over (measured with the refinement within three times the
+# first solve's rays, at seeds 0-3; within five times, 6 December, seed 0, in brackets): open_box's
+# GGX panel 2.80 (3.29; 2.8-3.3: its error where the pairs see it fell 2.7% -> 1.1% with 1.5x its
+# spatial coefficients, its estimate's fit part 3.1% -> 2.8% only: that is its part outside the
+# box, which no pair sees; over its whole surface the estimate is 0.93 of its error, next test),
+# its block 2.50 (2.71; 1.9-3.6; the input term), and leaning_board's floor 2.59 (2.49; 1.3-4.8;
+# seed 0's checks are its high set in one solve too: 2.41 against 0.89-1.43) and box 7.5 (not
+# judged: its error within twice the noise; 4.0-17; the input term, as in one solve).
+KNOWN_REFINED_ESTIMATE_MISSES = {("open_box", "Panel"): 3.29, ("open_box", "Block"): 2.71,
+                                 ("leaning_board", "Floor"): 2.49, ("leaning_board", "Box"): 7.5}
 
 
 @pytest.mark.slow
