@@ -103,22 +103,29 @@ def refuse_light_the_reference_lacks(context, export):
 ERROR_PARTS = ("fit", "input", "integration", "tail")  # the estimate's parts, the columns of error_parts
 
 
+def open_and_export(blend, spec: dict):
+    """The .blend opened with the add-on loaded, a swept knob set over the objects' own, and
+    exported as a user's solve gets it: (export, solver settings of `spec`)."""
+    import bpy
+
+    blend_scene.load_addon()
+    from bsgi_addon.export import export_scene
+
+    bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(blend).resolve()))
+    settings = settings_of(spec)
+    knob_overrides_objects(bpy.context, spec.get("overrides", {}))
+    return export_scene(bpy.context.evaluated_depsgraph_get()), settings
+
+
 def main():
     blend, settings_json, pairs_npz, out_npz = blend_scene.main_argv()
     import bpy
 
     import bsgi
 
-    blend_scene.load_addon()
-    from bsgi_addon.export import export_scene
-
-    bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(blend).resolve()))
-    context = bpy.context
     spec = json.loads(pathlib.Path(settings_json).read_text())
-    settings = settings_of(spec)
-    knob_overrides_objects(context, spec.get("overrides", {}))
-    export = export_scene(context.evaluated_depsgraph_get())
-    refuse_light_the_reference_lacks(context, export)
+    export, settings = open_and_export(blend, spec)
+    refuse_light_the_reference_lacks(bpy.context, export)
     pairs = dict(np.load(pairs_npz))
     # Reset the peak to the current size (Linux clear_refs), so loading Blender does not count.
     pathlib.Path("/proc/self/clear_refs").write_text("5")

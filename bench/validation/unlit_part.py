@@ -45,18 +45,11 @@ def main(argv=None) -> int:
     parser.add_argument("--overrides", help="solver settings over the final preset's, as JSON")
     args = parser.parse_args(argv)
 
-    import blend_scene
-    import bpy
-
     import bsgi
-    from solve_blend import settings_of
+    from solve_blend import open_and_export
 
-    blend_scene.load_addon()
-    from bsgi_addon.export import export_scene
-
-    bpy.ops.wm.open_mainfile(filepath=str(HERE / "scenes" / f"{args.scene}.blend"))
-    export = export_scene(bpy.context.evaluated_depsgraph_get())
-    settings = settings_of({"preset": "final", "overrides": json.loads(args.overrides) if args.overrides else {}})
+    spec = {"preset": "final", "overrides": json.loads(args.overrides) if args.overrides else {}}
+    export, settings = open_and_export(HERE / "scenes" / f"{args.scene}.blend", spec)
     solution = bsgi.solve(export.scene, settings)
     reports = {r["name"]: r for r in solution.reports}
     lo, hi = np.array(args.outside[0::2]), np.array(args.outside[1::2])
