@@ -71,7 +71,7 @@ def final(scene, overrides=None, label="final"):
     if key not in _solved:
         _solved[key] = validate.measure(scene, "final", overrides, first_pass=overrides is None)
         validate.print_row(scene, label, _solved[key])
-        if overrides is None:
+        if "first_pass" in _solved[key]:  # a refined final (the preset's refine_to_error > 0)
             first = _solved[(scene, repr(ONE_SOLVE))] = _solved[key]["first_pass"]
             validate.print_row(scene, "final, one solve (its first pass)", first)
     return _solved[key]
