@@ -221,7 +221,7 @@ SurfaceHit past_panes(const RayCaster& caster, SurfaceHit hit, const Vec3& dir) 
 // before the last packet.
 class ProbeRays {
 public:
-    static constexpr int kPacket = 16;
+    static constexpr int kPacket = 16;  // the ray scene traces packets of 16 (embree_scene.cpp)
     ProbeRays(const RayCaster& caster, const SurfacePoint& p, int side, double turn) : caster_(caster) {
         probe_directions(p, side, turn, dirs_);
         origin_ = caster.spawn(p.p, p.frame.z, dirs_[0]);

@@ -8,8 +8,8 @@ until then). The final preset refines to 1% within five times its first solve's 
 (bsgi.refine); its first solve alone ("one solve", the refinement off) is what the error estimate
 is judged on and what refinement gains against. Each scene is solved by
 bench/study/solve_blend.py in a process of its own (about 6 minutes of CPU for the refined
-finals, whose first passes are the one solves, 4 more for the
-estimate's other sets of checks); the figures print with -s.
+finals, whose first passes are the one solves, 4 more for the estimate's other sets of checks);
+the figures print with -s.
 
     .venv/bin/python -m pytest tests/reference/test_validation_scenes.py -s
 """
