@@ -69,7 +69,8 @@ def main(argv=None) -> int:
                         "with the highest estimates refined first (0: no limit)")
     parser.add_argument("--adaptive-coefficients", type=float, metavar="TOLERANCE",
                         help="spatial coefficients from each surface's size and its light's detail, within TOLERANCE "
-                        "of its brightest light (e.g. 0.005; 0: the preset's everywhere)")
+                        "of its brightest light (e.g. 0.005; 0: off, the preset's everywhere; default: the scene's "
+                        "setting, at first the preset's: preview adapts at 0.005)")
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="solve on a Ray cluster: 'auto' (the cluster this machine joined with `ray start`), "
                              "'ray://host:10001' or host:port (needs `pip install ray`, and bsgi on every node)")
@@ -111,6 +112,7 @@ def main(argv=None) -> int:
     if args.refine_budget is not None:
         context.scene.bsgi.refine_cost = args.refine_budget
     if args.adaptive_coefficients is not None:
+        context.scene.bsgi.adaptive_coefficients = "TOLERANCE" if args.adaptive_coefficients > 0 else "OFF"
         context.scene.bsgi.detail_tolerance = args.adaptive_coefficients
 
     def on_progress(fraction, stage):

@@ -43,10 +43,18 @@ PRESETS = [
 # budget; bsgi.SolverSettings.preset says how), none, or the user's target and budgets.
 REFINEMENTS = [
     ("QUALITY", "As the Quality", "Final refines the surfaces whose estimated error is over 1% and solves again, "
-     "tracing at most 3 times the first solve's rays (the worst surfaces first): under 1% on diffuse scenes for "
-     "about 3 times the time; the other qualities solve once", "NONE", 0),
+     "tracing at most 5 times the first solve's rays (the worst surfaces first): under 1% on diffuse scenes for "
+     "3 to 5 times the time; the other qualities solve once", "NONE", 0),
     ("OFF", "Off", "One solve, whatever its estimated error", "NONE", 1),
     ("TO_ERROR", "To Error", "Refine to the error, passes and budget below", "NONE", 2),
+]
+
+ADAPTIVE_COEFFICIENTS = [
+    ("QUALITY", "As the Quality", "Preview gives each surface coefficients from its size and the detail of its light "
+     "(tolerance 0.005); the other qualities give every surface the quality's", "NONE", 0),
+    ("OFF", "Off", "Every surface the quality's coefficients per direction, whatever its size", "NONE", 1),
+    ("TOLERANCE", "To Tolerance", "Coefficients from each surface's size and its light's detail, to the tolerance "
+     "below", "NONE", 2),
 ]
 
 
@@ -88,13 +96,17 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="With Refinement To Error: the solves after the first may trace at most this many times the "
         "first's rays; where refining every surface over Refine to Error would overrun it, those with the highest "
         "estimated errors are refined first. 0: no limit")
+    adaptive_coefficients: EnumProperty(
+        name="Adaptive Coefficients", items=ADAPTIVE_COEFFICIENTS, default="QUALITY",
+        description="Whether small or evenly lit surfaces get fewer spatial coefficients than the quality's "
+        "(a furnished interior at Preview: 0.28x the time of the same coefficients everywhere, the same error "
+        "over its area; the README's figures)")
     detail_tolerance: FloatProperty(
-        name="Adaptive Coefficients", default=0.0, min=0.0, max=0.1, precision=3,
-        description="Give each surface spatial coefficients from its size and the detail of its light, planned "
-        "for the final gather from the light after the bounces (small, evenly lit faces get few), so that a "
-        "quadratic spline's error stays under this fraction of the surface's brightest light; glossy surfaces keep "
-        "the quality's. 0.005 on a furnished interior: 0.6x the time of Preview, its median error per surface "
-        "5.2% against 4.1% (the README's figures). 0: the quality's coefficients everywhere")
+        name="Detail Tolerance", default=0.005, min=0.0, max=0.1, precision=3,
+        description="With Adaptive Coefficients To Tolerance: each surface gets spatial coefficients from its size "
+        "and the detail of its light, planned for the final gather from the light after the bounces, so that a "
+        "quadratic spline's error stays under this fraction of the surface's brightest light; 0: from its size "
+        "alone")
     chart_min_faces: IntProperty(
         name="Chart Above Faces", default=64, min=0, max=10**7,
         description="A mesh with at least this many faces (of one material) is solved as one UV chart: one "
@@ -120,7 +132,9 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
     def solver_settings(self) -> bsgi.SolverSettings:
         """The preset's settings, or with CUSTOM the core's defaults with the individual settings."""
         s = self.preset_settings()
-        if self.detail_tolerance > 0:
+        if self.adaptive_coefficients == "OFF":
+            s.coeffs_from_size, s.detail_tolerance = False, 0.0
+        elif self.adaptive_coefficients == "TOLERANCE":
             s.coeffs_from_size, s.detail_tolerance = True, self.detail_tolerance
         if self.refinement == "OFF":
             s.refine_to_error = 0

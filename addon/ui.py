@@ -23,7 +23,10 @@ def draw_controls(layout, scene, obj=None):
     row.prop(settings, "refine_to_error")
     row.prop(settings, "refine_passes", text="Passes")
     row.prop(settings, "refine_cost", text="Budget")
-    layout.prop(settings, "detail_tolerance")
+    layout.prop(settings, "adaptive_coefficients")
+    row = layout.row()
+    row.enabled = settings.adaptive_coefficients == "TOLERANCE"  # shown for reference, used only by To Tolerance
+    row.prop(settings, "detail_tolerance")
     layout.prop(settings, "chart_min_faces")
     layout.prop(settings, "texture_texels")
     layout.prop(settings, "world_map_width")

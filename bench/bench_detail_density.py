@@ -1,7 +1,7 @@
 """What SolverSettings.detail_density_max costs and buys (issue 16): the furnished interior of
 bench/interior_core.py (sun through a window, sky, shelves of books) solved at the preview preset
-with coeffs_from_size and detail_tolerance 0.005, and the density cap at 16 (the default), 32 and
-unlimited: each solve's seconds and coefficients, and its relative RMS error against Mitsuba 3 (an
+with coeffs_from_size and detail_tolerance 0.005 (the preset's), and the density cap at 16 (the
+default), 32 and unlimited, and with them off (the preset's 12 x 12 on every surface): each solve's seconds and coefficients, and its relative RMS error against Mitsuba 3 (an
 independent path tracer) at visible (point, direction) pairs on the receivers' fronts, chosen by
 area, over all of them and over those on surfaces under 0.8 m (where the cap acts), and the
 solver's own error estimate pooled over those small surfaces against their measured error. The
@@ -123,17 +123,20 @@ def run() -> dict:
           f"relative; {small.sum()} of {len(size)} pairs on surfaces under {SMALL} m", flush=True)
     figures = {"detail_objects": OBJECTS, "detail_reference_noise": noise}
     sides = None
-    for cap in CAPS:
+    for cap in (None,) + CAPS:  # None: the preset with the adaptive coefficients off, every surface 12 x 12
         settings = bsgi.SolverSettings.preset("preview")
-        settings.coeffs_from_size, settings.detail_tolerance, settings.memory_budget_mb = True, 0.005, 24000
-        settings.detail_density_max = cap
+        settings.memory_budget_mb = 24000
+        if cap is None:
+            settings.coeffs_from_size, settings.detail_tolerance = False, 0.0
+        else:
+            settings.coeffs_from_size, settings.detail_tolerance, settings.detail_density_max = True, 0.005, cap
         if sides is None:
             sides = bsgi.probe_sides(scene, settings)[0]
         start = time.perf_counter()
         solution = bsgi.solve(scene, settings, sides=sides)
         seconds = time.perf_counter() - start
         got = solved_radiance(scene, solution, pairs)
-        name = f"{int(cap)}" if np.isfinite(cap) else "unlimited"
+        name = "uniform" if cap is None else f"{int(cap)}" if np.isfinite(cap) else "unlimited"
         figures[f"detail_{name}_seconds"] = seconds
         figures[f"detail_{name}_coefficients"] = solution.stats["coefficients"]
         figures[f"detail_{name}_rel_rmse"] = rel_rmse(got, want, stderr, everywhere)
@@ -146,7 +149,7 @@ def run() -> dict:
         figures[f"detail_{name}_small_estimate_ratio"] = float(
             np.sqrt(np.mean(estimated[pooled] ** 2 * np.sum(got[pooled] ** 2, axis=1)) / np.mean(np.sum(want[pooled] ** 2, axis=1)))
             / rel_rmse(got, want, stderr, pooled))
-        print(f"  detail_density_max {name}: {seconds:.1f} s, {solution.stats['coefficients']} coefficients, "
+        print(f"  {'the same coefficients everywhere' if cap is None else 'detail_density_max ' + name}: {seconds:.1f} s, {solution.stats['coefficients']} coefficients, "
               f"relative RMSE {figures[f'detail_{name}_rel_rmse']:.4f} (surfaces under {SMALL} m "
               f"{figures[f'detail_{name}_small_rel_rmse']:.4f}, their error estimate {figures[f'detail_{name}_small_estimate_ratio']:.2f}x "
               f"the measured)", flush=True)

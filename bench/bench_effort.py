@@ -1,13 +1,14 @@
 """Effort where the light needs it (issue 16, item 1): the issue's scene of boxes (five 0.4 m
 quads each) scattered on a 20 m floor under one square light, solved at the preview preset with
 the core API, with spatial coefficients from each surface's size and its light's detail
-(coeffs_from_size, detail_tolerance) against the preset's uniform 12 x 12. Figures: time, rays
-of the whole solve, and rays per box face, i.e. the solve's rays less those of the floor and
-light alone, over the box faces. The same for the furnished interior of bench/interior_core.py
+(coeffs_from_size, detail_tolerance; on in the preset) against the same preset with them off,
+12 x 12 everywhere. Figures: time, rays of the whole solve, and rays per box face, i.e. the
+solve's rays less those of the floor and light alone, over the box faces. The same for the furnished interior of bench/interior_core.py
 at 100 objects (books on shelves, a table, chairs; a sun and a sky): time and rays per surface,
 and each solve's error per surface against the final preset's solve (no path tracer reaches a
 core-only scene): the median and 90th percentile, over the diffuse sides at least 1% as bright
-as the scene's mean, of the RMS difference at 16 random points over the side's mean.
+as the scene's mean, of the RMS difference at 16 random points over the side's mean, and the
+scene's error with each side weighed by its area.
 
     python bench/run.py effort
 """
@@ -25,8 +26,8 @@ BOXES = 40
 INTERIOR_OBJECTS = 100
 FLOOR = 20.0
 BOX = 0.4
-ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}  # opt-in (bench/study/compare_preview.py)
-UNIFORM = {"coeffs_from_size": False, "detail_tolerance": 0.0}  # the preview preset
+ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}  # the preview preset
+UNIFORM = {"coeffs_from_size": False, "detail_tolerance": 0.0}  # the preset with them off (12 x 12 everywhere)
 
 
 def boxes_scene(boxes: int, seed: int = 1) -> bsgi.Scene:
@@ -81,13 +82,20 @@ def diffuse_samples(solution, points: int = 16) -> dict:
     return out
 
 
-def surface_errors(samples: dict, reference: dict) -> tuple:
+def surface_errors(samples: dict, reference: dict, scene) -> tuple:
     """(median, 90th percentile) over the sides at least 1% as bright as the mean of the
-    reference's: the RMS difference from the reference over its mean."""
+    reference's: the RMS difference from the reference over its mean; and over the whole scene,
+    each side weighed by its area (what random points of it see), the RMS difference over the
+    mean radiance."""
     scene_mean = np.mean([r.mean() for r in reference.values()])
     errors = [np.sqrt(np.mean((samples[k] - r) ** 2)) / r.mean() for k, r in reference.items()
               if k in samples and r.mean() >= 0.01 * scene_mean]
-    return float(np.median(errors)), float(np.percentile(errors, 90))
+    sides = [k for k in reference if k in samples]
+    area = np.array([scene.area(k[0]) for k in sides])
+    squares = np.array([np.mean((samples[k] - reference[k]) ** 2) for k in sides])
+    means = np.array([reference[k].mean() for k in sides])
+    weighed = np.sqrt((area * squares).sum() / area.sum()) / ((area * means).sum() / area.sum())
+    return float(np.median(errors)), float(np.percentile(errors, 90)), float(weighed)
 
 
 def run() -> dict:
@@ -108,12 +116,13 @@ def run() -> dict:
     reference = solve(scene, {}, "final")["samples"]
     for name, overrides in (("uniform", UNIFORM), ("adaptive", ADAPTIVE)):
         solved = solve(scene, overrides)
-        median, p90 = surface_errors(solved["samples"], reference)
+        median, p90, weighed = surface_errors(solved["samples"], reference, scene)
         figures.update({f"effort_interior_{INTERIOR_OBJECTS}_{name}_seconds": solved["seconds"],
                         f"effort_interior_{INTERIOR_OBJECTS}_{name}_rays_per_surface": solved["rays"] / len(scene),
                         f"effort_interior_{INTERIOR_OBJECTS}_{name}_coefficients": solved["coefficients"],
                         f"effort_interior_{INTERIOR_OBJECTS}_{name}_surface_error_median": median,
-                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_surface_error_p90": p90})
+                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_surface_error_p90": p90,
+                        f"effort_interior_{INTERIOR_OBJECTS}_{name}_area_weighted_error": weighed})
     return figures
 
 

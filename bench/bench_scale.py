@@ -2,10 +2,11 @@
 with the core API, each size in a process of its own: wall time, the process's peak resident
 memory, the solve's own memory estimate before it starts (bsgi.estimate_solve_bytes), and the
 growth exponent of time and memory between sizes. 100 and 1,000 objects by default;
-BSGI_BENCH_SCALE=100,1000,10000 sets the sizes (10,000 objects: about 80 minutes at preview, 47 with
-the overrides below). With
-BSGI_BENCH_SCALE_OVERRIDES='{"coeffs_from_size": true, "detail_tolerance": 0.005}' the preset's
-settings are changed and the keys are scale_custom_<objects>_* (scale_custom_overrides says how).
+BSGI_BENCH_SCALE=100,1000,10000 sets the sizes (10,000 objects: about 10 minutes). With
+BSGI_BENCH_SCALE_OVERRIDES='{"coeffs_from_size": false, "detail_tolerance": 0}' (the preset's
+coefficients on every surface, over the 4 GB budget at 10,000 objects: add "memory_budget_mb") the
+preset's settings are changed and the keys are scale_custom_<objects>_* (scale_custom_overrides
+says how).
 Each row also gives the phases' seconds (the error estimate's among them), the sides probe's
 (once, for the memory estimate and the solve) and the memory estimate's own seconds.
 

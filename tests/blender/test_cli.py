@@ -67,7 +67,8 @@ def test_python_m_entry_solves_with_adaptive_coefficients(context, tmp_path):
     run = run_module(source, "--out", out, "--preset", "draft", "--adaptive-coefficients", "0.005")
     assert run.returncode == 0, run.stdout + run.stderr
     bpy.ops.wm.open_mainfile(filepath=str(out))
-    assert bpy.context.scene.bsgi.detail_tolerance == pytest.approx(0.005)  # what the solve ran with, saved
+    saved = bpy.context.scene.bsgi  # what the solve ran with
+    assert saved.adaptive_coefficients == "TOLERANCE" and saved.detail_tolerance == pytest.approx(0.005)
 
 
 def test_python_m_entry_refuses_workers_of_no_threads():

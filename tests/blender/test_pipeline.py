@@ -333,23 +333,29 @@ def test_custom_preset_uses_the_individual_settings(context):
 
 def test_adaptive_coefficients_give_a_small_box_fewer_than_the_floor(context):
     # A 0.2 m cube on a 2 m floor under the lamp: with Adaptive Coefficients the cube's faces get
-    # fewer coefficients than the preset's (the floor, the largest, keeps them); 0 turns it off.
+    # fewer coefficients than the preset's (the floor, the largest, keeps them); Off turns it off,
+    # As the Quality follows the preset (Preview adapts, Draft does not).
     scenes.floor_under_lamp()
     bpy.ops.mesh.primitive_cube_add(size=0.2, location=(0.5, 0.5, 0.1))
     settings = context.scene.bsgi
     settings.preset = "DRAFT"
+    assert settings.adaptive_coefficients == "QUALITY" and not settings.solver_settings().coeffs_from_size
     uniform = pipeline.solve_and_bake(context)
-    settings.detail_tolerance = 0.005
+    settings.adaptive_coefficients, settings.detail_tolerance = "TOLERANCE", 0.01
     got = settings.solver_settings()
-    assert got.coeffs_from_size and got.detail_tolerance == pytest.approx(0.005) and got.spatial_coeffs == 8
+    assert got.coeffs_from_size and got.detail_tolerance == pytest.approx(0.01) and got.spatial_coeffs == 8
     adaptive = pipeline.solve_and_bake(context)
     for rep in (uniform, adaptive):
         assert rep["representations"]["largest"]["name"] == "Floor: face 0"
         assert rep["representations"]["largest"]["shape"] == [16, 16]  # draft's 8, doubled by the final gather
     # The cube's six faces (five lit, one resting on the floor) at 16 x 16 each without it.
     assert adaptive["coefficients"] < 0.75 * uniform["coefficients"]
-    settings.detail_tolerance = 0.0
-    assert not settings.solver_settings().coeffs_from_size
+    settings.preset, settings.adaptive_coefficients = "PREVIEW", "QUALITY"
+    got = settings.solver_settings()
+    assert got.coeffs_from_size and got.detail_tolerance == pytest.approx(0.005)
+    settings.adaptive_coefficients = "OFF"
+    got = settings.solver_settings()
+    assert not got.coeffs_from_size and got.detail_tolerance == 0
 
 
 def test_refine_to_error_solves_again_and_reports_it(context):

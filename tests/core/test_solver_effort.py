@@ -9,8 +9,8 @@ from closed_forms import polygon_irradiance
 
 FLOOR, BOX, ALBEDO = 6.0, 0.3, 0.6
 LIGHT = np.array([[-0.5, -0.5, 3], [-0.5, 0.5, 3], [0.5, 0.5, 3], [0.5, -0.5, 3]], float)  # facing down
-ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}  # opt-in (bench/study/compare_preview.py)
-UNIFORM = {"coeffs_from_size": False, "detail_tolerance": 0.0}  # the preview preset
+ADAPTIVE = {"coeffs_from_size": True, "detail_tolerance": 0.005}  # the preview preset
+UNIFORM = {"coeffs_from_size": False, "detail_tolerance": 0.0}  # the preset with them off (12 x 12 everywhere)
 CENTRES = [(1.5, 1.5), (-1.5, 1.5), (-1.5, -1.5), (1.5, -1.5)]
 
 
