@@ -150,6 +150,12 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     if getattr(node, "distribution", "GGX") in {"BECKMANN", "ASHIKHMIN_SHIRLEY"}:
         warnings.append(f"material '{material.name}': {node.name}'s {node.distribution.replace('_', '-').title()} "
                         "microfacet distribution is solved as GGX")
+    if getattr(node, "distribution", "GGX") == "MULTI_GGX" and _rough_lobe(material, node):
+        # Cycles' default: the light its microfacets scatter more than once is kept (Cycles adds
+        # it back); the solver's GGX loses it, a few percent at roughness 0.5 and more above.
+        warnings.append(f"material '{material.name}': {node.name}'s Multiscatter GGX is solved as single-scattering "
+                        f"GGX (roughness {_scalar(material, node, 'Roughness', 0.5):.2f}: darker than Cycles by the "
+                        "light scattered between microfacets)")
     if kind in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC"}:
         # Cycles' Glossy BSDF: anisotropy a in [-0.99, 0.99] narrows the lobe along the tangent
         # by (1 - a) for a > 0 and widens it by 1 / (1 + a) for a < 0 (the other axis inversely).
@@ -259,6 +265,21 @@ def _warn_tint(colour, node, material, warnings):
     if min(colour) < 1 - 1e-3:
         warnings.append(f"material '{material.name}': {node.name}'s glass colour "
                         f"({', '.join(f'{c:.2f}' for c in colour)}) is not solved; the glass is solved clear")
+
+
+# Below this roughness single scattering keeps nearly all of a GGX lobe's energy (its loss grows
+# about as the roughness squared): Multiscatter GGX is then not worth a warning.
+MULTISCATTER_ROUGHNESS = 0.3
+
+
+def _rough_lobe(material, node) -> bool:
+    """Whether the node has a rough microfacet lobe of its own colour (a metal, a glossy or glass
+    BSDF; not a Principled dielectric's faint specular layer)."""
+    if _scalar(material, node, "Roughness", 0.5) < MULTISCATTER_ROUGHNESS:
+        return False
+    if node.type == "BSDF_PRINCIPLED":
+        return _scalar(material, node, "Metallic") > 0
+    return node.type in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC", "BSDF_GLASS"}
 
 
 def _warn_ignored_inputs(node, material, warnings):

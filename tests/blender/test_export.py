@@ -94,16 +94,19 @@ def test_textured_glass_is_named_in_warnings_textured_glossy_is_solved(context):
                               glass_node.inputs["Color"])
     scenes.add_quad("Pane", [(-1, -1, 0.5), (1, -1, 0.5), (1, 1, 0.5), (-1, 1, 0.5)], glass)
     result = export.export_scene(context.evaluated_depsgraph_get())
-    text = "\n".join(result.warnings)
+    text = "\n".join(w for w in result.warnings if "Multiscatter GGX" not in w)  # Blender's default lobe, named
     assert "material 'Shiny'" not in text
     assert "material 'Frosted'" in text and "driven by nodes" in text
     assert len(result.warnings) == len(set(result.warnings))
 
 
-def solver_material(material):
+def solver_material(material, multiscatter_named=False):
+    """(solver material, warnings); the warnings that name Blender's default Multiscatter GGX
+    left out unless asked for (test_multiscatter_ggx_is_named_where_the_lobe_is_rough)."""
     warnings = []
     described = materials.describe_material(material, warnings)
-    return materials.solver_material(material, described, warnings), warnings
+    got = materials.solver_material(material, described, warnings)
+    return got, [w for w in warnings if multiscatter_named or "Multiscatter GGX is solved as" not in w]
 
 
 def assert_same_bsdf(bsdf, expected):
@@ -314,6 +317,26 @@ def test_principled_unsolved_layers_are_named_in_warnings(context):
     node.distribution = "BECKMANN"
     _, warnings = solver_material(m)
     assert any("material 'Beckmann'" in w and "Beckmann" in w and "as GGX" in w for w in warnings)
+
+
+def test_multiscatter_ggx_is_named_where_the_lobe_is_rough(context):
+    # Cycles' default distribution keeps the light scattered between microfacets; the solver's
+    # single-scattering GGX does not: named for rough metals and glossy BSDFs, not for smooth
+    # ones nor for a dielectric's faint specular layer.
+    def named(material):
+        return any(f"material '{material.name}'" in w and "Multiscatter GGX is solved as single-scattering" in w
+                   for w in solver_material(material, multiscatter_named=True)[1])
+
+    rough_metal = principled("Rough metal", **{"Metallic": 1.0, "Roughness": 0.6})
+    assert next(n for n in rough_metal.node_tree.nodes if n.type == "BSDF_PRINCIPLED").distribution == "MULTI_GGX"
+    assert named(rough_metal)
+    assert not named(principled("Smooth metal", **{"Metallic": 1.0, "Roughness": 0.2}))
+    assert not named(principled("Rough plastic", **{"Metallic": 0.0, "Roughness": 0.6}))
+    m, node = shader_material("Rough glossy", "ShaderNodeBsdfGlossy", Roughness=0.5)
+    node.distribution = "MULTI_GGX"
+    assert named(m)
+    node.distribution = "GGX"
+    assert not named(m)
 
 
 def test_mix_of_diffuse_and_glossy_names_what_is_dropped(context):
