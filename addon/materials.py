@@ -147,10 +147,11 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     if kind == "EMISSION":
         return SurfaceMaterial(emission=_scale(socket_color(node, "Color"), socket_value(node, "Strength", 1.0)),
                                **textured)
-    if getattr(node, "distribution", "GGX") in {"BECKMANN", "ASHIKHMIN_SHIRLEY"}:
-        warnings.append(f"material '{material.name}': {node.name}'s {node.distribution.replace('_', '-').title()} "
+    distribution = getattr(node, "distribution", "GGX")
+    if distribution in {"BECKMANN", "ASHIKHMIN_SHIRLEY"}:
+        warnings.append(f"material '{material.name}': {node.name}'s {distribution.replace('_', '-').title()} "
                         "microfacet distribution is solved as GGX")
-    if getattr(node, "distribution", "GGX") == "MULTI_GGX" and _rough_lobe(material, node):
+    if distribution == "MULTI_GGX" and _rough_lobe(material, node):
         # Cycles' default: the light its microfacets scatter more than once is kept (Cycles adds
         # it back); the solver's GGX loses it, a few percent at roughness 0.5 and more above.
         warnings.append(f"material '{material.name}': {node.name}'s Multiscatter GGX is solved as single-scattering "

@@ -94,10 +94,13 @@ def test_textured_glass_is_named_in_warnings_textured_glossy_is_solved(context):
                               glass_node.inputs["Color"])
     scenes.add_quad("Pane", [(-1, -1, 0.5), (1, -1, 0.5), (1, 1, 0.5), (-1, 1, 0.5)], glass)
     result = export.export_scene(context.evaluated_depsgraph_get())
-    text = "\n".join(w for w in result.warnings if "Multiscatter GGX" not in w)  # Blender's default lobe, named
+    text = "\n".join(w for w in result.warnings if MULTISCATTER not in w)  # Blender's default lobe, named
     assert "material 'Shiny'" not in text
     assert "material 'Frosted'" in text and "driven by nodes" in text
     assert len(result.warnings) == len(set(result.warnings))
+
+
+MULTISCATTER = "Multiscatter GGX is solved as single-scattering"  # the warning's words
 
 
 def solver_material(material, multiscatter_named=False):
@@ -106,7 +109,7 @@ def solver_material(material, multiscatter_named=False):
     warnings = []
     described = materials.describe_material(material, warnings)
     got = materials.solver_material(material, described, warnings)
-    return got, [w for w in warnings if multiscatter_named or "Multiscatter GGX is solved as" not in w]
+    return got, [w for w in warnings if multiscatter_named or MULTISCATTER not in w]
 
 
 def assert_same_bsdf(bsdf, expected):
@@ -324,7 +327,7 @@ def test_multiscatter_ggx_is_named_where_the_lobe_is_rough(context):
     # single-scattering GGX does not: named for rough metals and glossy BSDFs, not for smooth
     # ones nor for a dielectric's faint specular layer.
     def named(material):
-        return any(f"material '{material.name}'" in w and "Multiscatter GGX is solved as single-scattering" in w
+        return any(f"material '{material.name}'" in w and MULTISCATTER in w
                    for w in solver_material(material, multiscatter_named=True)[1])
 
     rough_metal = principled("Rough metal", **{"Metallic": 1.0, "Roughness": 0.6})
