@@ -20,12 +20,27 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kMaxEmitterCellBend = 0.7;
 constexpr double kCurvedEmitterCellRatio = 0.1;
 constexpr int kCurvedEmitterDepth = 4;
+// A curved emitter's cell across its terminator as seen from the receiver (cos_e changes sign
+// inside it) holds a kink of the integrand, max(cos_e, 0), that the cell's rule cannot follow
+// (the error grows as the square of the normals' turn across the cell). Such cells are split
+// until their normals turn by less than half the cell ratio (the sine of the angle from corner
+// to centre: 30 degrees at ratio 1, 7 at the refined 0.25), only along the terminator.
+constexpr int kTerminatorDepth = 7;
 
 // B-spline quadrature (11) on [0, 1] with n coefficients: of the quadratic quasi-interpolant
 // for degree 2 (with 3 coefficients this is Simpson's rule), of Schoenberg's approximation otherwise.
 QuadratureRule emitter_quadrature(int n, int degree) {
     const KnotVector k = KnotVector::clamped_uniform(n, degree, 0.0, 1.0);
     return k.degree() == 2 ? quasi_interpolant_quadrature(k) : schoenberg_quadrature(k);
+}
+
+// A node of a cell's rule at its corner or centre (Simpson's rule has nine such nodes) is the
+// point the cell already evaluated; any other node is evaluated.
+template <typename Cell, typename Evaluate>
+SurfacePoint known_point(const Cell& cell, const SurfacePoint& centre, double x, double y, Evaluate&& evaluate) {
+    if ((x == 0 || x == 1) && (y == 0 || y == 1)) return cell.corner[(x == 1) + 2 * (y == 1)];
+    if (x == 0.5 && y == 0.5) return centre;
+    return evaluate();
 }
 
 }  // namespace
@@ -48,6 +63,18 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
         for (double u : {0.1, 0.5, 0.9})
             for (double v : {0.1, 0.5, 0.9}) flat &= dot(e.evaluate(u, v).frame.z, n0) > 1 - 1e-9;
         if (!flat) self_lit_.push_back(i);
+    }
+    for (const int i : emitters_) {
+        // Cells start between the creases: a cell's nodes cannot follow a kink of cos_e inside it.
+        const Surface& e = *scene[i].surface;
+        auto [su, sv] = e.creases();
+        su.insert(su.begin(), 0.0), su.push_back(1.0), sv.insert(sv.begin(), 0.0), sv.push_back(1.0);
+        std::vector<EmitterCell>& cells = emitter_domains_.emplace_back();
+        for (size_t a = 0; a + 1 < su.size(); ++a)
+            for (size_t b = 0; b + 1 < sv.size(); ++b)
+                cells.push_back({su[a], su[a + 1], sv[b], sv[b + 1],
+                                 {e.evaluate(su[a], sv[b]), e.evaluate(su[a + 1], sv[b]), e.evaluate(su[a], sv[b + 1]),
+                                  e.evaluate(su[a + 1], sv[b + 1])}});
     }
     cell_rule_ = emitter_quadrature(settings.emitter_coeffs, settings.emitter_degree);
     // Node p covers the share of the cell its weight gives it (midway between nodes where a
@@ -102,31 +129,38 @@ std::vector<std::pair<Vec3, double>> Gatherer::world_bright() const {
 // until both are resolved. visit(wi, value) gets each visible sample's unit direction (world)
 // and its radiance times cos_r cos_e / d^2 times the area element and weight.
 template <typename Visit>
-void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
-                            double t0, double t1, int depth, double ratio, std::array<bool, 2> sides, Visit&& visit,
-                            size_t& rays) const {
-    const SurfacePoint centre = emitter.evaluate(0.5 * (s0 + s1), 0.5 * (t0 + t1));
+void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, const EmitterCell& cell,
+                            int depth, double ratio, std::array<bool, 2> sides, Visit&& visit, size_t& rays) const {
+    const double s0 = cell.s0, s1 = cell.s1, t0 = cell.t0, t1 = cell.t1;
+    const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
+    const SurfacePoint centre = emitter.evaluate(sm, tm);
     const Vec3 c = centre.p;
     double radius = 0, bend = 1;
-    for (double s : {s0, s1})
-        for (double t : {t0, t1}) {
-            const SurfacePoint corner = emitter.evaluate(s, t);
-            radius = std::max(radius, length(corner.p - c));
-            bend = std::min(bend, dot(corner.frame.z, centre.frame.z));
-        }
-    const double dist = length(c - r.p) - radius;
+    for (const SurfacePoint& corner : cell.corner) {
+        radius = std::max(radius, length(corner.p - c));
+        bend = std::min(bend, dot(corner.frame.z, centre.frame.z));
+    }
+    const double centre_dist = length(c - r.p), dist = centre_dist - radius;
     // A strongly curved cell (a whole sphere: its corners are the poles) turns away from the
     // receiver inside the cell, where the cell's few nodes cannot follow cos_e: it is split
     // further, but not without end (a crease never straightens out).
     const bool curved = bend < kMaxEmitterCellBend;
     const double limit = curved ? std::min(ratio, kCurvedEmitterCellRatio) : ratio;
-    const bool split = 2 * radius > limit * dist || (curved && depth < kCurvedEmitterDepth);
+    // cos_e can change sign inside the cell only if at its centre it is smaller than the turn of
+    // the normals plus that of the direction to the receiver across the cell (the corners' signs
+    // alone miss a terminator that passes between them).
+    const double cos_centre = -dot(c - r.p, centre.frame.z) / centre_dist;
+    const double turn = std::sqrt(std::max(0.0, 1 - bend * bend));
+    const bool terminator = turn > 0.25 * settings_.emitter_cell_ratio && depth < kTerminatorDepth && std::abs(cos_centre) < turn + radius / centre_dist;
+    const bool split = 2 * radius > limit * dist || (curved && depth < kCurvedEmitterDepth) || terminator;
     auto split_in_four = [&] {
-        const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
-        emitter_cell(r, emitter, light, s0, sm, t0, tm, depth + 1, ratio, sides, visit, rays);
-        emitter_cell(r, emitter, light, sm, s1, t0, tm, depth + 1, ratio, sides, visit, rays);
-        emitter_cell(r, emitter, light, s0, sm, tm, t1, depth + 1, ratio, sides, visit, rays);
-        emitter_cell(r, emitter, light, sm, s1, tm, t1, depth + 1, ratio, sides, visit, rays);
+        const SurfacePoint bottom = emitter.evaluate(sm, t0), top = emitter.evaluate(sm, t1);
+        const SurfacePoint left = emitter.evaluate(s0, tm), right = emitter.evaluate(s1, tm);
+        const auto& k = cell.corner;
+        emitter_cell(r, emitter, light, {s0, sm, t0, tm, {k[0], bottom, left, centre}}, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, {sm, s1, t0, tm, {bottom, k[1], centre, right}}, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, {s0, sm, tm, t1, {left, centre, k[2], top}}, depth + 1, ratio, sides, visit, rays);
+        emitter_cell(r, emitter, light, {sm, s1, tm, t1, {centre, right, top, k[3]}}, depth + 1, ratio, sides, visit, rays);
     };
     if (depth < settings_.emitter_max_depth && split) {
         split_in_four();
@@ -148,7 +182,7 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
         for (size_t k = 0; k < cell_rule_.nodes.size(); ++k) {
             const double s = s0 + ds * cell_rule_.nodes[p], t = t0 + dt * cell_rule_.nodes[k];
             if (!emitter.in_domain(s, t)) continue;  // the mask chi of (8)
-            const SurfacePoint ep = emitter.evaluate(s, t);
+            const SurfacePoint ep = known_point(cell, centre, cell_rule_.nodes[p], cell_rule_.nodes[k], [&] { return emitter.evaluate(s, t); });
             const Vec3 d = ep.p - r.p;
             const double cos_r = dot(d, r.frame.z), facing = -dot(d, ep.frame.z);
             // Emitters radiate from their front (and their back if two-sided).
@@ -184,11 +218,13 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
 template <typename Visit>
 void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, std::array<bool, 2> sides,
                                        Visit&& visit, size_t& rays, LightParts parts) const {
-    for (int e : emitters_) {
+    for (size_t i = 0; i < emitters_.size(); ++i) {
+        const int e = emitters_[i];
         if (parts == LightParts::Distant) break;
         if (e == receiver && std::find(self_lit_.begin(), self_lit_.end(), e) == self_lit_.end()) continue;
         const SceneSurface& es = scene_[e];
-        emitter_cell(r, *es.surface, es.material, 0, 1, 0, 1, 0, ratio, sides, visit, rays);
+        for (const EmitterCell& cell : emitter_domains_[i])
+            emitter_cell(r, *es.surface, es.material, cell, 0, ratio, sides, visit, rays);
     }
     for (const DistantSample& d : distant_) {
         if (parts == LightParts::Emitters) break;

@@ -206,6 +206,27 @@ std::vector<double> NurbsSurface::breakpoints(const std::vector<double>& knots, 
     return b;
 }
 
+std::array<std::vector<double>, 2> NurbsSurface::creases() const {
+    // A knot line is a crease where the normals just before and after it differ anywhere along
+    // it (sampled; by more than about half a degree).
+    constexpr double kStep = 1e-7, kSameNormal = 0.99996;
+    std::array<std::vector<double>, 2> out;
+    for (int along_u = 0; along_u < 2; ++along_u) {
+        const std::vector<double> b = along_u ? breakpoints(knots_u_, range_u_) : breakpoints(knots_v_, range_v_);
+        for (size_t i = 1; i + 1 < b.size(); ++i) {
+            bool crease = false;
+            for (int j = 0; j <= 16 && !crease; ++j) {
+                const double x = b[i], y = j / 16.0;
+                const Vec3 before = along_u ? evaluate(x - kStep, y).frame.z : evaluate(y, x - kStep).frame.z;
+                const Vec3 after = along_u ? evaluate(x + kStep, y).frame.z : evaluate(y, x + kStep).frame.z;
+                crease = dot(before, after) < kSameNormal;
+            }
+            if (crease) out[along_u ? 0 : 1].push_back(b[i]);
+        }
+    }
+    return out;
+}
+
 void NurbsSurface::derivatives(double u, double v, Vec3& p, Vec3& su, Vec3& sv, Vec3& suv) const {
     const double wu = range_u_.second - range_u_.first, wv = range_v_.second - range_v_.first;
     if (u_.cyclic) u -= std::floor(u);

@@ -254,10 +254,15 @@ private:
     void gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                       Incoming&& incoming, Vec3* out) const;
     ScatterTable& scatter_table(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const;
+    // A parameter cell [s0, s1] x [t0, t1] of an emitter with its corners evaluated, in the order
+    // (s0, t0), (s1, t0), (s0, t1), (s1, t1): a split evaluates only the points its quarters add.
+    struct EmitterCell {
+        double s0, s1, t0, t1;
+        std::array<SurfacePoint, 4> corner;
+    };
     template <typename Visit>
-    void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, double s0, double s1,
-                      double t0, double t1, int depth, double ratio, std::array<bool, 2> sides, Visit&& visit,
-                      size_t& rays) const;
+    void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, const EmitterCell& cell,
+                      int depth, double ratio, std::array<bool, 2> sides, Visit&& visit, size_t& rays) const;
     // Light arriving on the receiver's sides marked in `sides` (front: along its normal).
     template <typename Visit>
     void for_each_emitter_sample(int receiver, const SurfacePoint& r, double ratio, std::array<bool, 2> sides,
@@ -282,6 +287,8 @@ private:
     std::optional<EnvironmentMap> world_smooth_;
     std::vector<int> emitters_;
     std::vector<int> self_lit_;  // curved emitters, which light themselves too
+    // Each emitter's domain as cells between its creases (one cell for most), parallel to emitters_.
+    std::vector<std::vector<EmitterCell>> emitter_domains_;
     QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell
     std::vector<double> cell_edges_;  // the cumulative weights of cell_rule_: node p covers [edge p, edge p+1]
 };

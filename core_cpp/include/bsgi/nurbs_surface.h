@@ -71,6 +71,8 @@ public:
     double area() const override { return area_; }
     bool periodic_u() const override { return u_.cyclic; }
     bool periodic_v() const override { return v_.cyclic; }
+    // Knots (C0 ones, where the spans meet at an angle: a bulb's neck, a cone's rim).
+    std::array<std::vector<double>, 2> creases() const override;
 
     const NurbsDirection& direction_u() const { return u_; }
     const NurbsDirection& direction_v() const { return v_; }

@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,9 @@ public:
     // Cyclic directions: parameters wrap around instead of stopping at 0 and 1.
     virtual bool periodic_u() const { return false; }
     virtual bool periodic_v() const { return false; }
+    // Parameter values (normalised, inside (0, 1)) of the lines u = c (first) and v = c (second)
+    // across which the normal jumps, a crease of the surface: integrals over it split there.
+    virtual std::array<std::vector<double>, 2> creases() const { return {}; }
 
     // Intersection of the ray o + t d with the exact surface near the guess (u, v, t), by
     // Newton's method on s(u, v) = o + t d. Returns false (leaving the guess) when it does not
