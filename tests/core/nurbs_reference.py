@@ -34,7 +34,13 @@ def blender_sphere_points(radius=1.0):
     in u (order 3, endpoint + Bezier) swept by a circle of 8 points in v (order 3, cyclic +
     Bezier + endpoint), as read from Blender 5.0."""
     h = np.sqrt(0.5)
-    profile = [(0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1)]  # (r, z, weight)
+    return revolved_points([(0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1)], radius)
+
+
+def revolved_points(profile, radius=1.0):
+    """The control net of a profile of 5 (r, z, weight) points (two quadratic Bezier pieces, as
+    the sphere's semicircle) swept by the sphere's circle of 8 points: SPHERE_FLAGS apply."""
+    h = np.sqrt(0.5)
     ring = [(-1, 0, 1), (-1, -1, h), (0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1), (-1, 1, h)]  # (x, y, w)
     pts = [[radius * r * c, radius * r * s, radius * z, w * wr] for (c, s, wr) in ring for (r, z, w) in profile]
     return np.array(pts, float)

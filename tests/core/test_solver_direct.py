@@ -206,21 +206,13 @@ def test_curved_emitter_a_nurbs_sphere_lights_a_floor_as_the_closed_form(r):
     # (closed form). The sphere's whole-domain emitter cell has the poles for corners: it must be
     # split for its curvature, not only for its size (it came out black right below the bulb),
     # and also when it is tiny and far (a point light's sphere: it came out 3x too dark).
-    from nurbs_reference import SPHERE_FLAGS, blender_sphere_points
+    from nurbs_reference import blender_sphere_points
 
     h = 0.5
     L = 10.0 * (0.1 / r) ** 2
     points = blender_sphere_points(r)
     points[:, 2] += h
-    scene = bsgi.Scene()
-    scene.add_bilinear_patch("floor", np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float),
-                             albedo=[0.5] * 3, emission=[0] * 3)
-    scene.add_surface(bsgi.NurbsSurface("bulb", points, front="blender", **SPHERE_FLAGS), albedo=[0] * 3,
-                      emission=[L] * 3, receiver=False)
-    settings = bsgi.SolverSettings()
-    settings.spatial_coeffs = 32
-    settings.max_bounces = 1
-    sol = bsgi.solve(scene, settings)
+    sol = solve_floor_under_emitter([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], points, L, spatial_coeffs=32)
     xs = np.array([0.0, 0.15, 0.3, 0.45, 0.6])
     got = sol.radiance[0].evaluate(np.stack([(xs + 1) / 2, np.full_like(xs, 0.5)], axis=1))[:, 0]
     d2 = xs**2 + h**2
@@ -229,6 +221,21 @@ def test_curved_emitter_a_nurbs_sphere_lights_a_floor_as_the_closed_form(r):
     print(f"\nNURBS sphere emitter (radius {r}) over a floor vs the closed form: max relative error {err:.2e}")
     assert err < {0.1: 0.012, 1e-3: 0.012}[r]  # measured 7.1e-3 and 6.0e-3
 
+
+
+def solve_floor_under_emitter(floor, points, radiance, **settings):
+    """A floor (albedo 0.5) lit by an emitting NURBS surface (SPHERE_FLAGS' layout), one bounce."""
+    from nurbs_reference import SPHERE_FLAGS
+
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("floor", np.array(floor, float), albedo=[0.5] * 3, emission=[0] * 3)
+    scene.add_surface(bsgi.NurbsSurface("emitter", points, front="blender", **SPHERE_FLAGS), albedo=[0] * 3,
+                      emission=[radiance] * 3, receiver=False)
+    s = bsgi.SolverSettings()
+    s.max_bounces = 1
+    for name, value in settings.items():
+        setattr(s, name, value)
+    return bsgi.solve(scene, s)
 
 
 def drop_irradiance(x, radius, apex, centre_height, n=1000):
@@ -266,24 +273,14 @@ def test_curved_emitter_with_a_crease_lights_oblique_receivers_as_a_quadrature_o
     # must start at the crease (a knot where the normal jumps) and split along the terminator
     # seen from the receiver, where cos_e is clipped at 0, on receivers up to 75 degrees off;
     # the emitter cell ratio sets how far.
-    from nurbs_reference import SPHERE_FLAGS
+    from nurbs_reference import revolved_points
 
     radius, height, L, length = 0.15, 0.6, 10.0, 2.4
     h = np.sqrt(0.5)
-    profile = [(0, -1, 1), (1, -1, h), (1, 0, 1), (0.5, apex / 2, 1), (0, apex, 1)]  # (r, z, weight)
-    ring = [(-1, 0, 1), (-1, -1, h), (0, -1, 1), (1, -1, h), (1, 0, 1), (1, 1, h), (0, 1, 1), (-1, 1, h)]
-    points = np.array([[radius * r * c, radius * r * sn, height + radius * z, w * wr] for (c, sn, wr) in ring
-                       for (r, z, w) in profile])
-    scene = bsgi.Scene()
-    scene.add_bilinear_patch("floor", np.array([[0, -0.05, 0], [length, -0.05, 0], [length, 0.05, 0], [0, 0.05, 0]], float),
-                             albedo=[0.5] * 3, emission=[0] * 3)
-    scene.add_surface(bsgi.NurbsSurface("drop", points, front="blender", **SPHERE_FLAGS), albedo=[0] * 3,
-                      emission=[L] * 3, receiver=False)
-    settings = bsgi.SolverSettings()
-    settings.spatial_coeffs = 64
-    settings.max_bounces = 1
-    settings.emitter_cell_ratio = ratio
-    sol = bsgi.solve(scene, settings)
+    points = revolved_points([(0, -1, 1), (1, -1, h), (1, 0, 1), (0.5, apex / 2, 1), (0, apex, 1)], radius)
+    points[:, 2] += height
+    sol = solve_floor_under_emitter([[0, -0.05, 0], [length, -0.05, 0], [length, 0.05, 0], [0, 0.05, 0]], points, L,
+                                    spatial_coeffs=64, emitter_cell_ratio=ratio)
     xs = np.array([0.1, 0.3, 0.6, 0.9, 1.2, 1.6, 2.0, 2.3])
     got = sol.radiance[0].evaluate(np.stack([xs / length, np.full_like(xs, 0.5)], axis=1))[:, 0]
     want = np.array([0.5 / np.pi * L * drop_irradiance(x, radius, apex, height) for x in xs])
