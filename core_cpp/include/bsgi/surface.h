@@ -1,8 +1,8 @@
 // Parametric surfaces s(u, v) on [0, 1]^2 with derivatives and the local frame (1)-(3).
 #pragma once
+#include <array>
 #include <cstdint>
 #include <memory>
-#include <array>
 #include <string>
 #include <vector>
 
