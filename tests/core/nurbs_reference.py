@@ -1,5 +1,6 @@
 """Independent references for NURBS surfaces: scipy's NdBSpline on homogeneous coordinates, and
-the control net of Blender's NURBS sphere primitive."""
+the control net of Blender's NURBS sphere primitive and of shapes revolved like it, and the light
+of a "drop" (a hemisphere under a cone) by quadrature of the analytic surfaces."""
 import numpy as np
 from scipy.interpolate import NdBSpline
 
@@ -48,3 +49,28 @@ def revolved_points(profile, radius=1.0):
 
 SPHERE_FLAGS = dict(count_u=5, count_v=8, order_u=3, order_v=3, endpoint_u=True, endpoint_v=True,
                     bezier_u=True, bezier_v=True, cyclic_u=False, cyclic_v=True)
+
+
+def drop_irradiance(x, radius, apex, centre_height, n=1000):
+    """E / L at (x, 0, 0) on a floor facing up, from a convex "drop": a lower hemisphere of the
+    radius and a cone from its equator to an apex `apex` radii above the centre (a crease where
+    they meet). The midpoint rule over the analytic surfaces; convex, so nothing shadows itself."""
+    phi = (np.arange(n) + 0.5) / n * 2 * np.pi
+    s = (np.arange(n) + 0.5) / n
+
+    def part(pos, nrm, area):
+        d = pos - np.array([x, 0.0, 0.0])
+        r2 = (d * d).sum(-1)
+        cos_r = np.clip(d[..., 2], 0, None) / np.sqrt(r2)
+        cos_e = np.clip(-(d * nrm).sum(-1), 0, None) / np.sqrt(r2)
+        return (cos_r * cos_e / r2 * area).sum()
+
+    theta, p = np.meshgrid(s * np.pi / 2, phi, indexing="ij")  # polar angle from the south pole
+    nrm = np.stack([np.sin(theta) * np.cos(p), np.sin(theta) * np.sin(p), -np.cos(theta)], -1)
+    sphere = part(radius * nrm + [0, 0, centre_height], nrm, radius**2 * np.sin(theta) * (np.pi / 2 / n) * (2 * np.pi / n))
+    t, p = np.meshgrid(s, phi, indexing="ij")  # from the rim to the apex
+    ring = radius * (1 - t)
+    pos = np.stack([ring * np.cos(p), ring * np.sin(p), centre_height + radius * apex * t], -1)
+    nrm = np.stack([apex * np.cos(p), apex * np.sin(p), np.ones_like(p)], -1) / np.hypot(1, apex)
+    cone = part(pos, nrm, ring * (2 * np.pi / n) * radius * np.hypot(1, apex) / n)
+    return sphere + cone
