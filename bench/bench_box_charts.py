@@ -83,8 +83,9 @@ def build(as_charts: bool) -> tuple:
 
 
 def face_samples(solution, faces: list) -> dict:
-    """{(face name, side): radiance (R + G + B) at POINTS fixed random points of the face} of
-    the diffuse box faces, the same face points whether the face is a patch or an island."""
+    """{(face name, side): radiance (R + G + B) at POINTS fixed random points of the face (a
+    metal face's along its normal) of the box faces, the same face points whether the face is a
+    patch or an island."""
     rng = np.random.default_rng(7)
     out = {}
     for name, index, rect in faces:
@@ -109,7 +110,8 @@ def solve(scene, preset: str) -> tuple:
 
 
 def errors(samples: dict, reference: dict, area: dict) -> tuple:
-    """(median, 90th percentile, area-weighted) as bench_effort.surface_errors, over box sides."""
+    """(median, 90th percentile, area-weighted) as bench_effort.surface_errors, over the box
+    sides both solves have, and how many of the reference's this one lacks."""
     scene_mean = np.mean([r.mean() for r in reference.values()])
     keys = [k for k in reference if k in samples]
     each = [np.sqrt(np.mean((samples[k] - reference[k]) ** 2)) / reference[k].mean() for k in keys
