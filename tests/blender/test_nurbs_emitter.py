@@ -35,6 +35,8 @@ def floor_under_a_drop(context):
     drop.data.resolution_u = drop.data.resolution_v = 32
     drop.data.render_resolution_u = drop.data.render_resolution_v = 32
     glow = bpy.data.materials.new("Glow")
+    if glow.node_tree is None:  # Blender before 5.0 makes a material without nodes
+        glow.use_nodes = True
     tree = glow.node_tree
     tree.nodes.clear()
     emission, out = tree.nodes.new("ShaderNodeEmission"), tree.nodes.new("ShaderNodeOutputMaterial")
