@@ -13,7 +13,7 @@ import scenes
 from test_pipeline import render_floor_from_above, solve_floor_direct
 
 sys.path.insert(0, str(scenes.ROOT / "tests" / "core"))
-from nurbs_reference import drop_irradiance, revolved_points  # noqa: E402
+from nurbs_reference import drop_irradiance, drop_points  # noqa: E402
 
 RADIUS, APEX, HEIGHT, STRENGTH, ALBEDO = 0.15, 3.0, 0.6, 10.0, 0.5
 
@@ -25,8 +25,7 @@ def floor_under_a_drop(context):
     bpy.ops.surface.primitive_nurbs_surface_sphere_add(radius=1.0, location=(0, 0, HEIGHT))
     drop = context.active_object
     drop.name = "Drop"
-    h = math.sqrt(0.5)
-    net = revolved_points([(0, -1, 1), (1, -1, h), (1, 0, 1), (0.5, APEX / 2, 1), (0, APEX, 1)], RADIUS)
+    net = drop_points(RADIUS, APEX)
     points = drop.data.splines[0].points
     assert len(points) == len(net)  # Blender's sphere net: 5 points in u, 8 around
     for point, co in zip(points, net):

@@ -51,6 +51,13 @@ SPHERE_FLAGS = dict(count_u=5, count_v=8, order_u=3, order_v=3, endpoint_u=True,
                     bezier_u=True, bezier_v=True, cyclic_u=False, cyclic_v=True)
 
 
+def drop_points(radius, apex):
+    """The control net of a "drop" centred at the origin: Blender's sphere net with its upper
+    arc replaced by a straight cone to an apex `apex` radii up (SPHERE_FLAGS apply)."""
+    h = np.sqrt(0.5)
+    return revolved_points([(0, -1, 1), (1, -1, h), (1, 0, 1), (0.5, apex / 2, 1), (0, apex, 1)], radius)
+
+
 def drop_irradiance(x, radius, apex, centre_height, n=1000):
     """E / L at (x, 0, 0) on a floor facing up, from a convex "drop": a lower hemisphere of the
     radius and a cone from its equator to an apex `apex` radii above the centre (a crease where

@@ -222,7 +222,6 @@ def test_curved_emitter_a_nurbs_sphere_lights_a_floor_as_the_closed_form(r):
     assert err < {0.1: 0.012, 1e-3: 0.012}[r]  # measured 7.1e-3 and 6.0e-3
 
 
-
 def solve_floor_under_emitter(floor, points, radiance, **settings):
     """A floor (albedo 0.5) lit by an emitting NURBS surface (SPHERE_FLAGS' layout), one bounce."""
     from nurbs_reference import SPHERE_FLAGS
@@ -248,11 +247,10 @@ def test_curved_emitter_with_a_crease_lights_oblique_receivers_as_a_quadrature_o
     # must start at the crease (a knot where the normal jumps) and split along the terminator
     # seen from the receiver, where cos_e is clipped at 0, on receivers up to 75 degrees off;
     # the emitter cell ratio sets how far.
-    from nurbs_reference import drop_irradiance, revolved_points
+    from nurbs_reference import drop_irradiance, drop_points
 
     radius, height, L, length = 0.15, 0.6, 10.0, 2.4
-    h = np.sqrt(0.5)
-    points = revolved_points([(0, -1, 1), (1, -1, h), (1, 0, 1), (0.5, apex / 2, 1), (0, apex, 1)], radius)
+    points = drop_points(radius, apex)
     points[:, 2] += height
     sol = solve_floor_under_emitter([[0, -0.05, 0], [length, -0.05, 0], [length, 0.05, 0], [0, 0.05, 0]], points, L,
                                     spatial_coeffs=64, emitter_cell_ratio=ratio)
