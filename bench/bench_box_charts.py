@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 
 import bsgi
+from bsgi.refine import coarse_coeffs, receivers
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import interior_core  # noqa: E402
-import interior_layout  # noqa: E402  (example_blends/, on the path interior_core set)
+from bench_effort import surface_errors  # noqa: E402
 
 OBJECTS = 100
 POINTS = 16
@@ -54,41 +55,31 @@ def box_chart(name: str, quads: list) -> bsgi.MeshChart:
 
 
 def build(as_charts: bool) -> tuple:
-    """(scene, box faces): the interior with its boxes per face or as charts; per box face
-    (its name, the scene index holding it, its island or None)."""
-    interior = interior_layout.furnished_interior(OBJECTS)
-    scene = bsgi.Scene()
-    materials = {name: interior_core._material(name) for name in interior_layout.MATERIALS}
-    for k, (material, quad) in enumerate(interior_layout.room_quads(interior)):
-        scene.add_bilinear_patch(f"Room {k}", np.array(quad, float), emission=(0, 0, 0), **materials[material])
+    """(scene, box faces): the interior with its boxes per face or as charts; per box face (in
+    the same order either way) the scene index holding it and its island (None for a patch)."""
     faces = []
-    for thing in interior.things:
-        for p, piece in enumerate(thing.pieces):
-            if isinstance(piece, interior_layout.Ball):
-                piece = interior_layout.Box(piece.centre, (2 * piece.radius,) * 3, piece.material)
-            quads = interior_layout.box_quads(piece)
-            if as_charts:
-                index = len(scene)
-                scene.add_surface(box_chart(f"{thing.name} {p}", quads), emission=(0, 0, 0), **materials[piece.material])
-                faces += [(f"{thing.name} {p}.{f}", index, island(f)) for f in range(len(quads))]
-            else:
-                for f, quad in enumerate(quads):
-                    faces.append((f"{thing.name} {p}.{f}", len(scene), None))
-                    scene.add_bilinear_patch(f"{thing.name} {p}.{f}", np.array(quad, float), emission=(0, 0, 0),
-                                             **materials[piece.material])
-    scene.add_distant_light("Sun", np.array(interior.sun_direction), np.full(3, interior_core.SUN_IRRADIANCE),
-                            np.radians(0.53))
-    scene.world_radiance = np.array(interior_core.SKY_RADIANCE)
+
+    def add_box(scene, name, quads, material):
+        if as_charts:
+            faces.extend((len(scene), island(f)) for f in range(len(quads)))
+            scene.add_surface(box_chart(name, quads), emission=(0, 0, 0), **material)
+        else:
+            faces.extend((len(scene) + f, None) for f in range(len(quads)))
+            interior_core.add_box_per_face(scene, name, quads, material)
+
+    scene, _ = interior_core.build_scene(OBJECTS, add_box)
     return scene, faces
 
 
 def face_samples(solution, faces: list) -> dict:
-    """{(face name, side): radiance (R + G + B) at POINTS fixed random points of the face (a
-    metal face's along its normal) of the box faces, the same face points whether the face is a
-    patch or an island."""
+    """{(face, side): radiance (R + G + B) at POINTS fixed random points of box face number
+    `face` (a metal face's along its normal), the same face points whether the face is a patch
+    or an island; faces numbered as the per-face scene's indices, so that
+    bench_effort.surface_errors weighs them by that scene's areas."""
     rng = np.random.default_rng(7)
     out = {}
-    for name, index, rect in faces:
+    first = faces[0][0]  # the per-face scene's index of the first box face (the room's quads before)
+    for k, (index, rect) in enumerate(faces):
         uv = rng.uniform(0.02, 0.98, (POINTS, 2))
         surface = solution.surfaces[index]
         if surface is None:
@@ -98,7 +89,7 @@ def face_samples(solution, faces: list) -> dict:
             uv = np.column_stack([u0 + du * uv[:, 0], v0 + dv * uv[:, 1]])
         for side, part in enumerate((surface.upper, surface.lower)):
             if part is not None:
-                out[name, side] = surface.evaluate(uv, np.tile([0, 0, 1.0 - 2 * side], (POINTS, 1))).sum(axis=1)
+                out[first + k, side] = surface.evaluate(uv, np.tile([0, 0, 1.0 - 2 * side], (POINTS, 1))).sum(axis=1)
     return out
 
 
@@ -109,42 +100,17 @@ def solve(scene, preset: str) -> tuple:
     return solution, time.perf_counter() - start
 
 
-def errors(samples: dict, reference: dict, area: dict) -> tuple:
-    """(median, 90th percentile, area-weighted) as bench_effort.surface_errors, over the box
-    sides both solves have, and how many of the reference's this one lacks."""
-    scene_mean = np.mean([r.mean() for r in reference.values()])
-    keys = [k for k in reference if k in samples]
-    each = [np.sqrt(np.mean((samples[k] - reference[k]) ** 2)) / reference[k].mean() for k in keys
-            if reference[k].mean() >= 0.01 * scene_mean]
-    a = np.array([area[k[0]] for k in keys])
-    squares = np.array([np.mean((samples[k] - reference[k]) ** 2) for k in keys])
-    means = np.array([reference[k].mean() for k in keys])
-    weighed = np.sqrt((a * squares).sum() / a.sum()) / ((a * means).sum() / a.sum())
-    missing = len(reference) - len(keys)
-    return float(np.median(each)), float(np.percentile(each, 90)), float(weighed), missing
-
-
 def run() -> dict:
     per_face, faces = build(False)
-    area = {name: per_face.area(index) for name, index, _ in faces}
-    reference_solution, _ = solve(per_face, "final")
-    reference = face_samples(reference_solution, faces)
-    figures, chart_coeffs = {}, {}
+    reference = face_samples(solve(per_face, "final")[0], faces)
     charts_scene, chart_faces = build(True)
-    # Per face and as charts at the preset; then the charts with twice the spatial coefficients
-    # per axis that the preset gave them, which is where their error meets the per-face solve's.
-    runs = (("per_face", per_face, faces, 1), ("charts", charts_scene, chart_faces, 1),
-            ("charts_2x", charts_scene, chart_faces, 2))
-    for name, scene, where, factor in runs:
-        if factor != 1:
-            for index in {i for _, i, _ in where}:
-                scene.set_spatial_coeffs(index, factor * chart_coeffs[index])
+    figures = {}
+
+    def measure(name, scene, where):
         solution, seconds = solve(scene, "preview")
-        if name == "charts":  # each chart's spatial coefficients per axis before the final gather's factor
-            receivers = [i for i, r in enumerate(solution.radiance) if r is not None]
-            factor_final = bsgi.SolverSettings.preset("preview").final_spatial_factor
-            chart_coeffs = {i: max(r["shape"][:2]) // factor_final for i, r in zip(receivers, solution.reports)}
-        median, p90, weighed, missing = errors(face_samples(solution, where), reference, area)
+        samples = face_samples(solution, where)
+        median, p90, weighed = surface_errors(samples, reference, per_face)
+        missing = len(reference.keys() - samples.keys())
         print(f"  {name}: {len(scene)} surfaces, {seconds:.1f} s, {solution.stats['rays'] / 1e6:.1f} M rays, "
               f"{solution.stats['coefficients']} coefficients; box sides' error median {median:.4f}, "
               f"90th percentile {p90:.4f}, area-weighted {weighed:.4f} ({missing} sides live per face are "
@@ -154,6 +120,17 @@ def run() -> dict:
                         f"box_charts_{name}_coefficients": solution.stats["coefficients"],
                         f"box_charts_{name}_error_median": median, f"box_charts_{name}_error_p90": p90,
                         f"box_charts_{name}_area_weighted_error": weighed})
+        return solution
+
+    measure("per_face", per_face, faces)
+    charts = measure("charts", charts_scene, chart_faces)
+    # Then the charts with twice the spatial coefficients per axis the preset gave them, which is
+    # where their error meets the per-face solve's.
+    preview = bsgi.SolverSettings.preset("preview")
+    coarse = dict(zip(receivers(charts), (coarse_coeffs(r, preview) for r in charts.reports)))
+    for index in {i for i, _ in chart_faces}:
+        charts_scene.set_spatial_coeffs(index, 2 * coarse[index])
+    measure("charts_2x", charts_scene, chart_faces)
     figures["box_charts_2x_rays_over_per_face"] = figures["box_charts_charts_2x_rays"] / figures["box_charts_per_face_rays"]
     return figures
 

@@ -31,8 +31,15 @@ def _material(name):
     return dict(albedo=rgb)
 
 
-def build_scene(objects: int) -> tuple:
-    """(scene, interior): the interior of `objects` objects as a core scene."""
+def add_box_per_face(scene: bsgi.Scene, name: str, quads: list, material: dict) -> None:
+    """A box's six quads as six bilinear patches, '<name>.<face>'."""
+    for f, quad in enumerate(quads):
+        scene.add_bilinear_patch(f"{name}.{f}", _patch(quad), emission=(0, 0, 0), **material)
+
+
+def build_scene(objects: int, add_box=add_box_per_face) -> tuple:
+    """(scene, interior): the interior of `objects` objects as a core scene; each box (and ball)
+    added by add_box(scene, name, its six quads, its material's keywords)."""
     interior = interior_layout.furnished_interior(objects)
     scene = bsgi.Scene()
     materials = {name: _material(name) for name in interior_layout.MATERIALS}
@@ -42,9 +49,7 @@ def build_scene(objects: int) -> tuple:
         for p, piece in enumerate(thing.pieces):
             if isinstance(piece, interior_layout.Ball):
                 piece = interior_layout.Box(piece.centre, (2 * piece.radius,) * 3, piece.material)
-            for f, quad in enumerate(interior_layout.box_quads(piece)):
-                scene.add_bilinear_patch(f"{thing.name} {p}.{f}", _patch(quad), emission=(0, 0, 0),
-                                         **materials[piece.material])
+            add_box(scene, f"{thing.name} {p}", interior_layout.box_quads(piece), materials[piece.material])
     scene.add_distant_light("Sun", np.array(interior.sun_direction), np.full(3, SUN_IRRADIANCE), math.radians(0.53))
     scene.world_radiance = np.array(SKY_RADIANCE)
     return scene, interior
