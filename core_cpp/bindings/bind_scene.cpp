@@ -112,6 +112,14 @@ std::optional<std::vector<SurfaceSides>> sides_from_list(const std::optional<py:
     return out;
 }
 
+// A sides probe with its own rays' scene (a worker's part of the probe).
+struct OwnedSidesProbe {
+    RayCaster caster;
+    SidesProbe probe;
+    OwnedSidesProbe(const Scene& scene, const SolverSettings& settings, int part, int parts)
+        : caster(ray_caster_of(scene)), probe(scene, caster, settings, part, parts) {}
+};
+
 const char* kind_name(Representation r) {
     return r == Representation::Glossy ? "glossy" : (r == Representation::Decomposed ? "decomposed" : "diffuse");
 }
@@ -563,6 +571,44 @@ void bind_scene(py::module_& m) {
         py::arg("scene"), py::arg("settings"),
         "The sides probe alone (bsgi/sides.h): per surface (front solved, back solved, why, why, encloses its emission) "
         "as SolveSteps.sides, and the bytes the probe held at its peak. Releases the GIL.");
+    py::class_<OwnedSidesProbe>(m, "SidesProbe",
+                                "The sides probe in parts (bsgi/sides.h), for a solve split over workers: part `part` "
+                                "of `parts` probes its surfaces' cells (SidesProbe.owner) and the parts exchange the "
+                                "cells they light (settle) until none lights more; then each one's sides() are right "
+                                "for the surfaces it owns. With its own rays' scene of `scene`.")
+        .def(py::init([](const Scene& scene, const SolverSettings& settings, int part, int parts) {
+                 py::gil_scoped_release release;
+                 return std::make_unique<OwnedSidesProbe>(scene, settings, part, parts);
+             }),
+             py::arg("scene"), py::arg("settings"), py::arg("part") = 0, py::arg("parts") = 1, py::keep_alive<1, 2>(),
+             "Probes the views of its part's cells (on settings.threads threads). Releases the GIL.")
+        .def_static("owner", &SidesProbe::owner, py::arg("surface"), py::arg("parts"), py::arg("surfaces"),
+                    "The part of `parts` that probes surface `surface` of a scene of `surfaces`.")
+        .def(
+            "lit_directly",
+            [](OwnedSidesProbe& self) {
+                const std::vector<uint32_t> lit = self.probe.lit_directly();
+                return py::array_t<uint32_t>(py::ssize_t(lit.size()), lit.data());
+            },
+            "Its cells lit directly or emitting (ids as settle's), not returned before.")
+        .def(
+            "settle",
+            [](OwnedSidesProbe& self, py::array_t<uint32_t, py::array::c_style | py::array::forcecast> lit_elsewhere) {
+                const std::vector<uint32_t> cells(lit_elsewhere.data(), lit_elsewhere.data() + lit_elsewhere.size());
+                std::vector<uint32_t> lit;
+                {
+                    py::gil_scoped_release release;
+                    lit = self.probe.settle(cells);
+                }
+                return py::array_t<uint32_t>(py::ssize_t(lit.size()), lit.data());
+            },
+            py::arg("lit_elsewhere"),
+            "Marks the cells other parts lit (ids (surface * 2 + side) * 36 + cell), settles its own cells and returns "
+            "those it lit since the last call (of this or lit_directly). Releases the GIL.")
+        .def("sides", [](const OwnedSidesProbe& self) { return sides_to_list(self.probe.sides()); },
+             "Per surface as probe_sides()[0], right for the surfaces this part owns (and those not probed).")
+        .def_property_readonly("peak_bytes", [](const OwnedSidesProbe& self) { return self.probe.peak_bytes(); },
+                               "The bytes the probe has held at its peak.");
     m.def(
         "solve",
         [](const Scene& scene, const SolverSettings& settings, Progress& progress, std::optional<py::list> sides) {

@@ -1122,8 +1122,6 @@ SolverSettings SolverSettings::preset(const std::string& name) {
     return s;
 }
 
-namespace {
-
 // The rays' scene: the surfaces that block rays, by scene index (null for the others), and
 // the window panes among them, which rays cross.
 RayCaster ray_caster_of(const Scene& scene) {
@@ -1135,6 +1133,8 @@ RayCaster ray_caster_of(const Scene& scene) {
     }
     return RayCaster(occluders, panes);
 }
+
+namespace {
 
 // The final gather's integration nodes per axis at scene surface i: the settings' factor times
 // the surface's own (SurfaceOptions::integration_factor, which refinement raises).

@@ -13,9 +13,10 @@ Ray is optional: it is imported when a RayExecutor first solves.
 """
 from __future__ import annotations
 
+import threading
 import time
 from collections import deque
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 
@@ -31,24 +32,80 @@ def import_ray() -> Any:
     return ray
 
 
-class SolveWorker:
-    """A Ray actor's state: the scene and its SolveSteps, built once (and again if Ray restarts it)."""
+def sides_of_parts(surfaces: int, parts: int, each_part: Callable[[str, Optional[np.ndarray]], list]) -> list:
+    """The sides probe's answer from its parts (_core.SidesProbe), as SolveWorker runs them:
+    each_part(method, lit) returns SolveWorker.method(part, parts, lit) of every part, in part
+    order. First each part's cells lit directly; then every part settles its cells given the
+    cells lit in any part (packed bits), until none lights more; then each part's sides."""
+    lit = np.zeros(2 * 36 * surfaces, bool)  # cells: (surface * 2 + side) * 36 + cell
+    for cells in each_part("probe", None):
+        lit[cells] = True
+    while True:
+        before = int(np.count_nonzero(lit))
+        for cells in each_part("probe", np.packbits(lit)):
+            lit[cells] = True
+        if int(np.count_nonzero(lit)) == before:
+            break
+    parts_sides = each_part("probed_sides", np.packbits(lit))
+    return [parts_sides[_core.SidesProbe.owner(i, parts, surfaces)][i] for i in range(surfaces)]
 
-    def __init__(self, scene: _core.Scene, fields: dict, sides: list) -> None:
-        self.steps = _core.SolveSteps(scene, settings_from(fields), _core.Progress(), sides)
+
+class SolveWorker:
+    """A Ray actor's state: the scene, its parts of the sides probe while they run, and its
+    SolveSteps once the sides are known, each built when first needed (and again if Ray restarts
+    the actor: every call carries what rebuilding needs)."""
+
+    def __init__(self, scene: _core.Scene, fields: dict) -> None:
+        self.scene = scene
+        self.settings = settings_from(fields)
+        self.probes: dict = {}  # part -> _core.SidesProbe
+        self.steps: Optional[_core.SolveSteps] = None
+        self.lock = threading.Lock()  # Ray's second actor thread (cancel) may call in meanwhile
         self.progress = _core.Progress()
         self.unpacked = -1  # the phase (the driver's count) whose input the splines hold
 
+    def probe(self, part: int, parts: int, lit: Optional[np.ndarray]) -> np.ndarray:
+        """The cells of the sides probe's part `part` lit since this actor last answered for it
+        (all of them if it built the part here only now): with `lit` None, those lit directly;
+        else after settling given `lit`, the packed bits of the cells lit in any part."""
+        with self.lock:
+            probe = self.probes.get(part)
+            if probe is None:
+                probe = self.probes[part] = _core.SidesProbe(self.scene, self.settings, part, parts)
+            if lit is None:
+                return probe.lit_directly()
+            return probe.settle(np.flatnonzero(np.unpackbits(lit)).astype(np.uint32))
+
+    def probed_sides(self, part: int, parts: int, lit: np.ndarray) -> list:
+        """The sides of the surfaces of part `part`, once no part lights more (`lit`: the cells
+        lit, packed bits); frees the part."""
+        self.probe(part, parts, lit)  # rebuilds it if Ray restarted this actor since
+        with self.lock:
+            return self.probes.pop(part).sides()
+
+    def solve_steps(self, sides: list) -> _core.SolveSteps:
+        """The SolveSteps of the scene with these sides (built at the first call)."""
+        with self.lock:
+            if self.steps is None:
+                self.steps = _core.SolveSteps(self.scene, self.settings, _core.Progress(), sides)
+            return self.steps
+
+    def prepare(self, sides_box: list) -> None:
+        """Builds the SolveSteps (places the knots) while the driver does its own."""
+        self.solve_steps(import_ray().get(sides_box[0]))
+
     def gather(self, phase: str, begin: int, end: int, coefficients: np.ndarray, nodes: int, settled: list,
-               phase_index: int) -> tuple:
+               phase_index: int, sides_box: list) -> tuple:
         """(the group's coefficients, its rays, the seconds it took here). A phase's later groups
-        here read its input from the splines the first one unpacked it into."""
+        here read its input from the splines the first one unpacked it into. `sides_box`: [the
+        sides' object ref], read only if this actor has no SolveSteps (restarted by Ray)."""
         progress = _core.Progress()
         progress.begin_stage(phase, 0, 1, nodes)
         self.progress = progress  # what cancel() sees, from Ray's second actor thread
+        steps = self.steps if self.steps is not None else self.solve_steps(import_ray().get(sides_box[0]))
         start = time.perf_counter()
-        part, rays = self.steps.gather(phase, begin, end, coefficients, progress, settled,
-                                       unpacked=self.unpacked == phase_index)
+        part, rays = steps.gather(phase, begin, end, coefficients, progress, settled,
+                                  unpacked=self.unpacked == phase_index)
         self.unpacked = phase_index
         return part, rays, time.perf_counter() - start
 
@@ -144,6 +201,7 @@ class RayExecutor:
         # the same for all receivers in a phase): a glossy node costs many diffuse ones, so
         # groups of equal nodes would leave a worker idle while another gathers the glossy group.
         self.cost_per_node: Optional[np.ndarray] = None
+        self.sides_box: list = []  # [the object ref of the running solve's sides]
 
     def connect(self) -> Any:
         ray = import_ray()
@@ -171,16 +229,22 @@ class RayExecutor:
         fields["threads"] = self.threads_per_worker
         actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
                            max_task_retries=self.max_retries, max_concurrency=2)(SolveWorker)
-        # The driver probes the sides once (unless given them); the workers take them (and place the same knots).
-        steps = _core.SolveSteps(scene, settings, progress, sides)
         scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
-        self.actors = [actor.remote(scene_ref, fields, steps.sides) for _ in range(count)]
+        self.actors = [actor.remote(scene_ref, fields) for _ in range(count)]
         self.bytes_sent = []
         self.phase_times = []
         self.lost = set()
         self.keep_groups = settings.form_factors
         self.cost_per_node = None
         try:
+            # The workers probe the sides (unless given them), then take them and place the same
+            # knots as the driver, each on its own.
+            if sides is None:
+                sides = self.probe_parts(ray, progress, len(scene))
+            self.sides_box = [ray.put(sides)]  # in a list: Ray passes the ref, read by a restarted worker
+            for a in self.live_actors():
+                a.prepare.remote(self.sides_box)
+            steps = _core.SolveSteps(scene, settings, progress, sides)
             solution = steps.solve(progress, lambda *args: self.run_phase(ray, progress, *args))
             alive = [a for w, a in enumerate(self.actors) if w not in self.lost]
             self.worker_cpu_seconds = ray.get([a.cpu_seconds.remote() for a in alive])
@@ -189,6 +253,58 @@ class RayExecutor:
             for a in self.actors:
                 ray.kill(a)  # also ends a gather still running after a cancel
             self.actors = []
+
+    def live_actors(self) -> list:
+        return [a for w, a in enumerate(self.actors) if w not in self.lost]
+
+    def probe_sides(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> list:
+        """The sides probe (bsgi.probe_sides) split over this executor's workers, started for it."""
+        ray = self.connect()
+        fields = settings_fields(settings)
+        fields["threads"] = self.threads_per_worker
+        actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
+                           max_task_retries=self.max_retries, max_concurrency=2)(SolveWorker)
+        count = self.workers or max(1, int(ray.cluster_resources().get("CPU", 0)) // self.threads_per_worker)
+        self.actors = [actor.remote(ray.put(scene), fields) for _ in range(count)]
+        self.lost = set()
+        try:
+            return self.probe_parts(ray, progress, len(scene))
+        finally:
+            for a in self.actors:
+                ray.kill(a)
+            self.actors = []
+
+    def probe_parts(self, ray: Any, progress: _core.Progress, surfaces: int) -> list:
+        """The sides probe in parts, one a worker (_core.SidesProbe): each probes its part's
+        cells, then all settle their cells given the cells any part lit, exchanged as bits, until
+        none lights more (the one probe's answer: lighting only grows). A part whose worker is
+        lost for good goes to another, which probes it afresh."""
+        parts = len(self.live_actors())
+        holder = dict(enumerate(w for w in range(len(self.actors)) if w not in self.lost))  # part -> worker
+
+        def each_part(method: str, *args) -> list:
+            """method(part, parts, *args) on each part's worker, cancellable; the results in part order."""
+            running = {getattr(self.actors[holder[p]], method).remote(p, parts, *args): p for p in range(parts)}
+            results: dict = {}
+            while running:
+                if progress.cancelled:
+                    raise _core.SolveCancelled("solve cancelled")
+                ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_seconds)
+                for ref in ready:
+                    p = running.pop(ref)
+                    try:
+                        results[p] = ray.get(ref)
+                    except ray.exceptions.RayActorError:
+                        self.lost.add(holder[p])
+                        alive = [w for w in range(len(self.actors)) if w not in self.lost]
+                        if not alive:
+                            raise RuntimeError("the distributed solve lost all its Ray workers") from None
+                        holder[p] = alive[p % len(alive)]
+                        running[getattr(self.actors[holder[p]], method).remote(p, parts, *args)] = p
+            return [results[p] for p in range(parts)]
+
+        progress.begin_stage("probing sides", 0, 1, 1)
+        return sides_of_parts(surfaces, parts, lambda method, lit: each_part(method, None if lit is None else ray.put(lit)))
 
     def run_phase(self, ray: Any, progress: _core.Progress, phase: str, coefficients: np.ndarray, nodes: list) -> tuple:
         """One phase's gather for all receivers, group by group on the free workers."""
@@ -236,7 +352,8 @@ class RayExecutor:
                 if queue:
                     idle.remove(w)
                     group = queue.popleft()
-                    ref = self.actors[w].gather.remote(phase, *group[:2], coefficients_ref, *group[2:], len(self.bytes_sent))
+                    ref = self.actors[w].gather.remote(phase, *group[:2], coefficients_ref, *group[2:], len(self.bytes_sent),
+                                                       self.sides_box)
                     running[ref] = (w, group)
             ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_seconds)
             for ref in ready:

@@ -109,9 +109,10 @@ def predicted_rays(scene: _core.Scene, stats: dict, reports: dict, chosen: dict,
 
 def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
                   solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None,
-                  progress: Optional[_core.Progress] = None) -> _core.Solution:
+                  progress: Optional[_core.Progress] = None,
+                  probe_sides: Optional[Callable[[], list]] = None) -> _core.Solution:
     """Solves with solve_once(sides) and again with refined surfaces, as the module says (``sides``
-    probed here if not given). ``progress`` (the one solve_once advances) names each pass after
+    probed first if not given: by probe_sides(), or here). ``progress`` (the one solve_once advances) names each pass after
     the first in its stage ("refinement 1 of at most 2: ..."): its fraction starts again at 0."""
     target = settings.refine_to_error
     if not settings.estimate_error:
@@ -154,7 +155,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
     try:
         pass_start = time.perf_counter()
         if sides is None:
-            sides = _core.probe_sides(scene, settings)[0]
+            sides = probe_sides() if probe_sides is not None else _core.probe_sides(scene, settings)[0]
         solution = solve_once(sides)
         passes = 0
         first_rays = solution.stats["rays"] + solution.stats["estimate_rays"]

@@ -12,10 +12,13 @@ ProgressCallback = Callable[[float, str], Optional[bool]]
 
 class Executor(Protocol):
     """Runs a solve's gathers elsewhere (bsgi.RayExecutor): solve() as _core.solve does (``sides``:
-    probed already, as _core.probe_sides returns them first, or None)."""
+    probed already, as _core.probe_sides returns them first, or None), and the sides probe alone
+    (as _core.probe_sides(...)[0])."""
 
     def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress,
               sides: Optional[list] = None) -> _core.Solution: ...
+
+    def probe_sides(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> list: ...
 
 
 def solve(
@@ -48,7 +51,8 @@ def solve(
 
     def solve_here() -> _core.Solution:
         if settings.refine_to_error > 0:
-            return refined_solve(scene, settings, solve_once, sides, progress)
+            probe = None if executor is None else (lambda: executor.probe_sides(scene, settings, progress))
+            return refined_solve(scene, settings, solve_once, sides, progress, probe)
         return solve_once(sides)
 
     if on_progress is None:

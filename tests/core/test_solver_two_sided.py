@@ -339,3 +339,63 @@ def test_sides_probed_once_serve_the_estimate_and_the_solve():
         bsgi.estimate_solve_bytes(scene, s, sides[:2])
     with pytest.raises(ValueError, match="sides of 2 surfaces given for a scene of 7"):
         bsgi.solve(scene, s, sides=sides[:2])
+
+
+def probed_in_parts(scene, s, parts, restart=False):
+    """The probe in `parts` parts as the Ray workers run it (SolveWorker, here in this process):
+    (sides, the rounds of settling). `restart`: part 0's sides come from a worker that never saw
+    it (as after Ray restarted its actor), given only the cells lit at the end."""
+    from bsgi.ray_executor import SolveWorker, sides_of_parts
+    from bsgi.rebuildable import settings_fields
+
+    workers = [SolveWorker(scene, settings_fields(s)) for _ in range(parts)]
+    rounds = []
+
+    def each_part(method, lit):
+        rounds.append(method)
+        if method == "probed_sides" and restart:
+            workers[0] = SolveWorker(scene, settings_fields(s))
+        return [getattr(workers[p], method)(p, parts, lit) for p in range(parts)]
+
+    sides = sides_of_parts(len(scene), parts, each_part)
+    assert all(not w.probes for w in workers)  # each part freed once its sides are read
+    return sides, rounds.count("probe") - 1
+
+
+def test_probe_in_parts_reaches_the_one_probes_answer():
+    # Issue 16: the Ray workers probe the sides in parts, exchanging the cells they light. A cell
+    # is lit only by more cells being lit, so however the parts split the cells, the least fixed
+    # point is the one probe's: the same sides solved on every surface. (Which lit cell a side
+    # names as its reason may differ: the one lit first.)
+    import sys
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[2] / "bench"))
+    import interior_core
+    from reference import scene_spec
+
+    scenes = {"room": room_scene(), "Cornell box": scene_spec.to_bsgi(scene_spec.cornell_box()),
+              "interior": interior_core.build_scene(30)[0]}
+    for name, scene in scenes.items():
+        s = settings(threads=1)
+        one, _ = bsgi.probe_sides(scene, s)
+        live = [(side[0], side[1], side[4]) for side in one]
+        for parts, restart in ((2, False), (3, True), (len(scene) + 1, False)):
+            sides, rounds = probed_in_parts(scene, s, parts, restart)
+            assert [(side[0], side[1], side[4]) for side in sides] == live, (name, parts)
+            # Reasons of light received directly are the cell's own, whatever the parts.
+            for a, b in zip(sides, one):
+                for k in (2, 3):
+                    if not b[k].startswith("receives light reflected"):
+                        assert a[k] == b[k], (name, parts)
+            print(f"\n{name}, {len(scene)} surfaces in {parts} parts: {rounds} rounds of settling")
+            if name == "interior" and parts == 2:
+                # Light reaches cells of one part only through the other's: it took more than one
+                # round (a test of the exchange, not only of the split).
+                assert rounds >= 3
+    # A part cut off from the others' cells lights fewer: the exchange is what makes it right.
+    scene = scenes["interior"]
+    alone = bsgi.SidesProbe(scene, settings(threads=1), 0, 2)
+    alone.lit_directly()
+    alone.settle(np.zeros(0, np.uint32))
+    one, _ = bsgi.probe_sides(scene, settings(threads=1))
+    owned = [i for i in range(len(scene)) if bsgi.SidesProbe.owner(i, 2, len(scene)) == 0]
+    assert sum(alone.sides()[i][:2] != one[i][:2] for i in owned) > 0

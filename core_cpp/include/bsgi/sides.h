@@ -4,6 +4,8 @@
 // spline. A cheap probe decides it before anything is allocated.
 #pragma once
 #include <array>
+#include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,6 +33,40 @@ struct SurfaceSides {
 // `bytes`, if given, receives the memory the probe held at its peak (for the solve's estimate).
 std::vector<SurfaceSides> probe_sides(const Scene& scene, const RayCaster& caster, const SolverSettings& settings,
                                       size_t* bytes = nullptr);
+
+// The same probe in parts, for a solve split over machines (bsgi.RayExecutor): part p of n
+// probes the cells of the surfaces owner() gives it, and the parts reach the one probe's
+// answer by exchanging the cells they light (a cell is numbered (surface * 2 + side) * 36 +
+// its cell of 6 x 6) until none lights more:
+//     SidesProbe probe(scene, caster, settings, p, n);
+//     lit = probe.lit_directly();             // its cells lit directly (or emitting), to all
+//     lit = probe.settle(cells others lit);   // repeated, until no part returns any
+//     probe.sides()                           // right for the surfaces it owns
+// With one part, settle({}) once is the whole probe.
+class SidesProbe {
+public:
+    // Probes the views of its part's cells (on settings.threads threads). The scene and caster
+    // must outlive it.
+    SidesProbe(const Scene& scene, const RayCaster& caster, const SolverSettings& settings, int part = 0, int parts = 1);
+    ~SidesProbe();
+    // The part of `parts` that probes surface `surface` of a scene of `surfaces`.
+    static int owner(int surface, int parts, int surfaces);
+    // Its cells lit directly or emitting, not returned before (all of them at the first call).
+    std::vector<uint32_t> lit_directly();
+    // Marks `lit_elsewhere` lit (cells other parts lit; its own and those marked already are
+    // skipped), lights what its cells then see, to a fixed point over its own cells, and returns
+    // its cells lit since the last call (of this or lit_directly()).
+    std::vector<uint32_t> settle(const std::vector<uint32_t>& lit_elsewhere);
+    // Per surface as probe_sides() gives it, for the surfaces this part owns and those that are
+    // not probed (transmitting, or all with two_sided off); the rest as default.
+    std::vector<SurfaceSides> sides() const;
+    // The bytes it has held at its peak.
+    size_t peak_bytes() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
 // The same with the scene's own ray caster (what the solve casts rays at).
 std::vector<SurfaceSides> probe_sides(const Scene& scene, const SolverSettings& settings, size_t* bytes = nullptr);
 

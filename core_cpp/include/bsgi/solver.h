@@ -224,6 +224,10 @@ struct Solution {
     SolveStats stats;
 };
 
+// The rays' scene of a scene: what the solve casts rays at (and the sides probe, sides.h).
+class RayCaster;
+RayCaster ray_caster_of(const Scene& scene);
+
 // Bytes the solve will allocate for the given scene and settings. `sides`: the sides already
 // probed (probe_sides, SolveSteps::sides) for a solve that takes them; null: probed here, and the
 // probe's own peak counted (a solve that probes holds it first).
