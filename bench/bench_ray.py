@@ -10,6 +10,9 @@ float64), which a cluster sends once to each machine; the workers send as much b
 ray_final_gather_mb, ray_regather_mb and ray_estimate_mb: the same for the final gather (the
 coarse Le), a regather (the finals' Le and the coarse Le) and the error estimate's input pass
 (those, each surface's input scale and the checks pass's records).
+The sides probe runs on the workers too, in parts (bsgi.SidesProbe): ray_probe_seconds is its
+wall time on 2 workers, ray_probe_rounds its rounds of settling, ray_probe_mb the lit cells it
+puts into the object store in all (a bit a cell of every surface side, once a round).
 
     .venv/bin/python bench/bench_ray.py [--objects N] [--preset NAME]
 """
@@ -83,6 +86,9 @@ def run(objects: int = OBJECTS, preset: str = "preview") -> dict:
         "ray_final_gather_mb": two.bytes_sent[1 + bounces] / 2**20 if settings.final_gather else 0.0,
         "ray_regather_mb": two.bytes_sent[2 + bounces] / 2**20 if settings.final_passes > 1 else 0.0,
         "ray_estimate_mb": two.bytes_sent[-1] / 2**20 if settings.estimate_error else 0.0,
+        "ray_probe_seconds": next(ended - began for phase, began, ended, _ in two.phase_times if phase == "probing sides"),
+        "ray_probe_rounds": two.probe_rounds,
+        "ray_probe_mb": two.probe_bytes / 2**20,
         "ray_equal_to_local": float(same),
         "ray_2workers_estimate_seconds": solution.stats["seconds_estimate"],
     }

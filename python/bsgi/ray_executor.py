@@ -202,6 +202,9 @@ class RayExecutor:
         # groups of equal nodes would leave a worker idle while another gathers the glossy group.
         self.cost_per_node: Optional[np.ndarray] = None
         self.sides_box: list = []  # [the object ref of the running solve's sides]
+        self.scene_ref = None  # of the running solve's scene
+        self.probe_rounds = 0  # of the last sides probe: its rounds of settling, and the bytes of lit cells it sent
+        self.probe_bytes = 0
 
     def connect(self) -> Any:
         ray = import_ray()
@@ -212,9 +215,9 @@ class RayExecutor:
                 raise RuntimeError(f"cannot connect to the Ray cluster at '{self.address}' ({error!r})") from None
         return ray
 
-    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress,
-              sides: Optional[list] = None) -> _core.Solution:
-        ray = self.connect()
+    def start_workers(self, ray: Any, scene: _core.Scene, settings: _core.SolverSettings) -> None:
+        """self.actors: the workers, each building the scene (from one pickled copy, kept in
+        self.scene_ref while they run: Ray rebuilds a restarted actor from it)."""
         cpus = int(ray.cluster_resources().get("CPU", 0))
         count = self.workers or max(1, cpus // self.threads_per_worker)
         if count * self.threads_per_worker > cpus:  # the workers that do not fit would never start
@@ -229,11 +232,22 @@ class RayExecutor:
         fields["threads"] = self.threads_per_worker
         actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
                            max_task_retries=self.max_retries, max_concurrency=2)(SolveWorker)
-        scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
-        self.actors = [actor.remote(scene_ref, fields) for _ in range(count)]
-        self.bytes_sent = []
-        self.phase_times = []
+        self.scene_ref = ray.put(scene)  # pickled once (bsgi.Scene keeps the calls that built it)
+        self.actors = [actor.remote(self.scene_ref, fields) for _ in range(count)]
         self.lost = set()
+        self.phase_times = []
+
+    def stop_workers(self, ray: Any) -> None:
+        for a in self.actors:
+            ray.kill(a)  # also ends a gather still running after a cancel
+        self.actors = []
+        self.scene_ref = None
+
+    def solve(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress,
+              sides: Optional[list] = None) -> _core.Solution:
+        ray = self.connect()
+        self.start_workers(ray, scene, settings)
+        self.bytes_sent = []
         self.keep_groups = settings.form_factors
         self.cost_per_node = None
         try:
@@ -250,9 +264,7 @@ class RayExecutor:
             self.worker_cpu_seconds = ray.get([a.cpu_seconds.remote() for a in alive])
             return solution
         finally:
-            for a in self.actors:
-                ray.kill(a)  # also ends a gather still running after a cancel
-            self.actors = []
+            self.stop_workers(ray)
 
     def live_actors(self) -> list:
         return [a for w, a in enumerate(self.actors) if w not in self.lost]
@@ -260,19 +272,11 @@ class RayExecutor:
     def probe_sides(self, scene: _core.Scene, settings: _core.SolverSettings, progress: _core.Progress) -> list:
         """The sides probe (bsgi.probe_sides) split over this executor's workers, started for it."""
         ray = self.connect()
-        fields = settings_fields(settings)
-        fields["threads"] = self.threads_per_worker
-        actor = ray.remote(num_cpus=self.threads_per_worker, max_restarts=self.max_retries,
-                           max_task_retries=self.max_retries, max_concurrency=2)(SolveWorker)
-        count = self.workers or max(1, int(ray.cluster_resources().get("CPU", 0)) // self.threads_per_worker)
-        self.actors = [actor.remote(ray.put(scene), fields) for _ in range(count)]
-        self.lost = set()
+        self.start_workers(ray, scene, settings)
         try:
             return self.probe_parts(ray, progress, len(scene))
         finally:
-            for a in self.actors:
-                ray.kill(a)
-            self.actors = []
+            self.stop_workers(ray)
 
     def probe_parts(self, ray: Any, progress: _core.Progress, surfaces: int) -> list:
         """The sides probe in parts, one a worker (_core.SidesProbe): each probes its part's
@@ -282,8 +286,17 @@ class RayExecutor:
         parts = len(self.live_actors())
         holder = dict(enumerate(w for w in range(len(self.actors)) if w not in self.lost))  # part -> worker
 
-        def each_part(method: str, *args) -> list:
-            """method(part, parts, *args) on each part's worker, cancellable; the results in part order."""
+        seconds = []  # of each part's call in each round, from the round's start to its answer
+        began = time.perf_counter()
+        self.probe_rounds, self.probe_bytes = 0, 0
+
+        def each_part(method: str, lit: Optional[np.ndarray]) -> list:
+            """method(part, parts, lit) on each part's worker, cancellable; the results in part order."""
+            if lit is not None:
+                self.probe_rounds += method == "probe"
+                self.probe_bytes += lit.nbytes
+            args = (None if lit is None else ray.put(lit),)  # once per round, fetched once per machine
+            start = time.perf_counter()
             running = {getattr(self.actors[holder[p]], method).remote(p, parts, *args): p for p in range(parts)}
             results: dict = {}
             while running:
@@ -294,6 +307,7 @@ class RayExecutor:
                     p = running.pop(ref)
                     try:
                         results[p] = ray.get(ref)
+                        seconds.append(time.perf_counter() - start)
                     except ray.exceptions.RayActorError:
                         self.lost.add(holder[p])
                         alive = [w for w in range(len(self.actors)) if w not in self.lost]
@@ -304,7 +318,9 @@ class RayExecutor:
             return [results[p] for p in range(parts)]
 
         progress.begin_stage("probing sides", 0, 1, 1)
-        return sides_of_parts(surfaces, parts, lambda method, lit: each_part(method, None if lit is None else ray.put(lit)))
+        sides = sides_of_parts(surfaces, parts, each_part)
+        self.phase_times.append(("probing sides", began, time.perf_counter(), seconds))
+        return sides
 
     def run_phase(self, ray: Any, progress: _core.Progress, phase: str, coefficients: np.ndarray, nodes: list) -> tuple:
         """One phase's gather for all receivers, group by group on the free workers."""

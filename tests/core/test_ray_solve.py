@@ -2,7 +2,9 @@
 workers give every coefficient the local solve gives; a cancel returns at once; a worker killed
 mid-solve costs a retry, not the solve. Scenes pickle for the workers (bsgi.rebuildable)."""
 import os
+import pathlib
 import pickle
+import sys
 import time
 
 import numpy as np
@@ -137,9 +139,13 @@ def test_ray_solve_equals_the_local_solve(ray_cluster, final_passes, late_bounce
     assert executor.bytes_sent[-1] > executor.bytes_sent[-2] > executor.bytes_sent[1]
     # Each phase's times (bench/ray_phases.py prints them): in order, a group's seconds each.
     bounces = ["bounce", "late bounce", "late bounce"] if late_bounces_after else ["bounce"] * 3
-    assert [p[0] for p in executor.phase_times] == ["direct", *bounces, "final", *["late bounce"] * taken,
+    assert [p[0] for p in executor.phase_times] == ["probing sides", "direct", *bounces, "final", *["late bounce"] * taken,
                                                     *["regather"] * (final_passes - 1), "estimate checks", "estimate input"]
     assert all(began < ended and len(seconds) >= 2 for _, began, ended, seconds in executor.phase_times), executor.phase_times
+    # The sides probe, in two parts on the workers, sends a bit for each cell of each side of
+    # each surface (36 a side) each round of settling, and once more for the parts' sides.
+    assert executor.probe_rounds >= 1
+    assert executor.probe_bytes == (executor.probe_rounds + 1) * -(-2 * 36 * len(scene) // 8)
 
 
 @pytest.mark.parametrize("late_bounces_after,unpacked", [(0, False), (2, False), (2, True)])
@@ -273,6 +279,36 @@ def test_worker_lost_for_good_leaves_its_groups_to_the_others(ray_cluster):
     solution = bsgi.solve(scene, s, on_progress=on_progress, executor=executor, poll_seconds=0.01)
     assert killed and executor.lost == {0}
     assert_same_coefficients(local, solution)
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+@pytest.mark.parametrize("retries", [3, 0])
+def test_worker_killed_mid_probe_costs_its_part_a_retry(ray_cluster, monkeypatch, retries):
+    # Worker 0 killed as the sides probe's first round of settling starts: Ray restarts it (its
+    # part built afresh there, from the cells lit so far) or, with no retries left, its part goes
+    # to the other worker; either way the sides are the one probe's.
+    import bsgi.ray_executor as ray_executor
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "bench"))
+    import interior_core
+
+    scene, s = interior_core.build_scene(30)[0], settings()
+    executor = bsgi.RayExecutor(workers=2, max_retries=retries)
+    killed = []
+    sides_of_parts = ray_executor.sides_of_parts
+
+    def killing(surfaces, parts, each_part):
+        def each_part_killing(method, lit):
+            if method == "probe" and lit is not None and not killed:
+                ray.kill(executor.actors[0], no_restart=retries == 0)
+                killed.append(method)
+            return each_part(method, lit)
+        return sides_of_parts(surfaces, parts, each_part_killing)
+
+    monkeypatch.setattr(ray_executor, "sides_of_parts", killing)
+    sides = executor.probe_sides(scene, s, bsgi.Progress())
+    one, _ = bsgi.probe_sides(scene, s)
+    assert killed and executor.lost == (set() if retries else {0})
+    assert [(a[0], a[1], a[4]) for a in sides] == [(b[0], b[1], b[4]) for b in one]
 
 
 def test_steps_gathered_in_groups_equal_the_solve_without_a_final_gather():
