@@ -44,11 +44,15 @@ class SurfaceMaterial:
     shadow: float | None = None
     # Glossy colour driven by nodes (a Glossy BSDF's Color, a metallic Principled BSDF's Base Color).
     specular_textured: bool = False
+    # How the glossy lobe's reflectance rises towards grazing angles in Cycles: Schlick's Fresnel
+    # from `specular` (a metallic Principled BSDF), or not at all (a Glossy BSDF: its colour times GGX).
+    schlick: bool = True
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
                                self.rotation, self.transmission * k, self.ior, _scale(self.emission, k),
-                               self.albedo_textured, self.emission_textured, self.shadow, self.specular_textured)
+                               self.albedo_textured, self.emission_textured, self.shadow, self.specular_textured,
+                               self.schlick)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -59,7 +63,7 @@ class SurfaceMaterial:
                                _add(self.emission, other.emission), self.albedo_textured or other.albedo_textured,
                                self.emission_textured or other.emission_textured,
                                self.shadow if self.shadow is not None else other.shadow,
-                               self.specular_textured or other.specular_textured)
+                               self.specular_textured or other.specular_textured, dominant.schlick)
 
 
 def _scale(c, k):
@@ -164,8 +168,10 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         stretch = 1 / (1 + a) if a < 0 else 1 - a
         rotation = socket_value(node, "Rotation") if a else 0.0
         _warn_tangent(node, material, warnings, a)
+        # Its colour times GGX, without Fresnel (Cycles' node_glossy_bsdf).
         return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=_scalar(material, node, "Roughness", 0.5),
-                               stretch=stretch, rotation=2 * math.pi * rotation, specular_textured=specular_textured)
+                               stretch=stretch, rotation=2 * math.pi * rotation, specular_textured=specular_textured,
+                               schlick=False)
     if kind == "BSDF_GLASS":
         _warn_tint(socket_color(node, "Color", (1.0, 1.0, 1.0)), node, material, warnings)
         return SurfaceMaterial(transmission=1.0, roughness=_scalar(material, node, "Roughness", 0.0),
@@ -370,6 +376,7 @@ class SolverMaterial:
     alpha_y: float = 0.0
     rotation: float = 0.0
     f0: tuple = (0.0, 0.0, 0.0)
+    schlick: bool = True  # "ggx": Schlick's Fresnel from f0, or f0 at every angle (SurfaceMaterial.schlick)
     eta: float = 1.0
     bsdf: object = None  # bsgi.Bsdf, None for Lambert (the scene then uses albedo)
     # Node-driven colour of a Lambertian material and node-driven emission: baked by textures.py
@@ -456,8 +463,8 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         alpha = _alpha(name, described.roughness, warnings)
         ax, ay = _anisotropic_alphas(name, described, alpha, warnings)
         return SolverMaterial((0, 0, 0), described.emission, "ggx", alpha=alpha, alpha_x=ax, alpha_y=ay,
-                              rotation=described.rotation, f0=f0,
-                              bsdf=bsgi.GgxReflection(ax, ay, f0, rotation=described.rotation))
+                              rotation=described.rotation, f0=f0, schlick=described.schlick,
+                              bsdf=bsgi.GgxReflection(ax, ay, f0, rotation=described.rotation, schlick=described.schlick))
     if glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
         warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
                         f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")
@@ -542,7 +549,8 @@ class ObjectMaterials:
             return keywords
         angle, spread = tangents.surface_rotation(self.radial, surface)
         self.spread = max(self.spread, spread)
-        bsdf = bsgi.GgxReflection(material.alpha_x, material.alpha_y, material.f0, rotation=material.rotation + angle)
+        bsdf = bsgi.GgxReflection(material.alpha_x, material.alpha_y, material.f0, rotation=material.rotation + angle,
+                                  schlick=material.schlick)
         return {**keywords, "bsdf": bsdf}
 
     def use_glass(self, shape: GlassShape, choice: str, warnings) -> set:

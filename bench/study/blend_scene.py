@@ -64,6 +64,8 @@ class Material:
     # roughness^2 * stretch along the tangent turned by `rotation` radians about the normal.
     stretch: float = 1.0
     rotation: float = 0.0
+    # The lobe's Fresnel in Cycles: Schlick's from `specular` (metals) or none (a Glossy BSDF's colour).
+    schlick: bool = True
 
 
 @dataclass
@@ -91,7 +93,7 @@ def describe(material) -> Material:
     from bsgi_addon.materials import describe_material
 
     d = describe_material(material, [])
-    return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation)
+    return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation, d.schlick)
 
 
 def default_tangents(world, triangles, radial):

@@ -42,12 +42,25 @@ def bsdf(material) -> dict:
             return {"type": "dielectric", "int_ior": ior, "ext_ior": 1.0}
         return {"type": "roughdielectric", "distribution": "ggx", "alpha": alpha, "int_ior": ior, "ext_ior": 1.0}
     if glossy > diffuse:
-        # A conductor whose Fresnel reflectance at normal incidence is the specular colour:
-        # k = 0 and eta from f0 = ((eta - 1) / (eta + 1))^2 (f0 = 1: Fresnel 1, material 'none').
         f0 = np.clip(np.asarray(material.specular, float), 0.0, 1.0)
-        if f0.min() >= 1 - 1e-6:
+        if f0.min() >= 1 - 1e-6:  # Fresnel 1
             conductor = {"material": "none"}
+        elif not material.schlick:
+            # Cycles' Glossy BSDF: its colour times GGX without Fresnel.
+            conductor = {"material": "none", "specular_reflectance": {"type": "rgb", "value": f0.tolist()}}
+        elif not smooth:
+            # Cycles' metal (the Principled BSDF's F82 tint model with its default white tint):
+            # Schlick's Fresnel from f0 = the base colour, which Mitsuba's principled BSDF, all
+            # metallic, is (its default specular 0.5 makes its Schlick term reflect from outside);
+            # equal to the solver's GGX to 1e-6 (tests/core/test_bsdf.py). A conductor of that f0
+            # (k = 0) reflected up to 20% less at grazing angles. Its anisotropy a gives
+            # alpha_u / alpha_v = 1 / (1 - 0.9 a), as Blender's Principled BSDF.
+            aspect = 1 / max(material.stretch, 1.0)
+            return {"type": "principled", "base_color": {"type": "rgb", "value": f0.tolist()}, "metallic": 1.0,
+                    "roughness": float(np.sqrt(alpha)), "anisotropic": float((1 - aspect ** 2) / 0.9)}
         else:
+            # A mirror: a conductor whose Fresnel reflectance at normal incidence is the colour
+            # (k = 0, eta from f0 = ((eta - 1) / (eta + 1))^2), near Schlick's but for grazing angles.
             s = np.sqrt(np.minimum(f0, 1 - 1e-4))
             eta = (1 + s) / (1 - s)
             conductor = {"eta": {"type": "rgb", "value": eta.tolist()}, "k": {"type": "rgb", "value": [0.0] * 3}}

@@ -134,11 +134,13 @@ void bind_bsdf(py::module_& m) {
              }),
              py::arg("rd"), py::arg("rs"), py::arg("nu"), py::arg("nv"));
     py::class_<GgxReflection, Bsdf, std::shared_ptr<GgxReflection>>(
-        m, "GgxReflection", "GGX reflection; rotation (radians) turns the alpha_x axis from s_u towards s_v about the normal.")
-        .def(py::init([](double ax, double ay, const Array& f0, double rotation) {
-                 return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "GgxReflection: f0"), rotation);
+        m, "GgxReflection",
+        "GGX reflection; rotation (radians) turns the alpha_x axis from s_u towards s_v about the normal. schlick: "
+        "Schlick's Fresnel from f0 (Cycles' metals); off: f0 at every angle (Cycles' Glossy BSDF, its colour).")
+        .def(py::init([](double ax, double ay, const Array& f0, double rotation, bool schlick) {
+                 return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "GgxReflection: f0"), rotation, schlick);
              }),
-             py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("rotation") = 0.0);
+             py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("rotation") = 0.0, py::arg("schlick") = true);
     py::class_<DiffuseGgx, Bsdf, std::shared_ptr<DiffuseGgx>>(m, "DiffuseGgx",
                                                                "Lambertian base under a GGX coat: albedo / pi + GGX.")
         .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0) {

@@ -26,8 +26,8 @@ Vec3 gray(double x) { return {x, x, x}; }
 
 // ---- GGX reflection ----
 
-GgxReflection::GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation)
-    : D_{alpha_x, alpha_y}, f0_(f0), cos_(std::cos(rotation)), sin_(std::sin(rotation)) {
+GgxReflection::GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation, bool schlick)
+    : D_{alpha_x, alpha_y}, f0_(f0), cos_(std::cos(rotation)), sin_(std::sin(rotation)), schlick_(schlick) {
     check_alpha(alpha_x);
     check_alpha(alpha_y);
     if (!std::isfinite(rotation)) throw std::invalid_argument("GGX rotation must be finite");
@@ -40,7 +40,7 @@ Vec3 GgxReflection::eval(const Vec3& wo_local, const Vec3& wi_local) const {
     const Vec3 wo = to_lobe(wo_local), wi = to_lobe(wi_local);
     const Vec3 h = normalize(wo + wi);
     const double g = D_.G1(wo, h) * D_.G1(wi, h);
-    return fresnel_schlick(f0_, dot(wi, h)) * (D_.D(h) * g / (4 * wo.z * wi.z));
+    return fresnel(dot(wi, h)) * (D_.D(h) * g / (4 * wo.z * wi.z));
 }
 
 double GgxReflection::pdf(const Vec3& wo_local, const Vec3& wi_local) const {
@@ -59,7 +59,7 @@ Vec3 GgxReflection::eval_pdf(const Vec3& wo_local, const Vec3& wi_local, double&
     const double d = D_.D(h), g_o = D_.G1(wo, h), oh = dot(wo, h);
     // visible_pdf(wo, h) / (4 wo.h) = G1(wo, h) D(h) / (4 wo.z), for wo.h > 0.
     if (oh > 0) pdf_out = g_o * d / (4 * wo.z);
-    return fresnel_schlick(f0_, dot(wi, h)) * (d * g_o * D_.G1(wi, h) / (4 * wo.z * wi.z));
+    return fresnel(dot(wi, h)) * (d * g_o * D_.G1(wi, h) / (4 * wo.z * wi.z));
 }
 
 bool GgxReflection::sample(const Vec3& wo, double, double u1, double u2, BsdfSample& out) const {

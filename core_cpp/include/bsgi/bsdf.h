@@ -115,12 +115,15 @@ private:
 // GGX microfacet reflection (Walter et al. 2007) with separable Smith masking, the model of
 // Blender's Principled BSDF and Mitsuba 3's roughconductor:
 // rho = F(wi.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o cos theta_i), Schlick's F with f0
-// (f0 = 1: a perfect mirror's Fresnel). Sampled by visible normals. Anisotropic lobes
-// (alpha_x != alpha_y) have their x axis along s_u turned by `rotation` radians about the normal
-// towards y, as Blender's Anisotropic Rotation turns its tangent.
+// (f0 = 1: a perfect mirror's Fresnel), as Cycles' metals (the Principled BSDF's F82 tint with
+// its default white tint); with `schlick` off F is f0 at every angle, as Cycles' Glossy BSDF (its
+// colour times GGX without Fresnel). Either F is affine in f0 (Scene::set_specular_texture).
+// Sampled by visible normals. Anisotropic lobes (alpha_x != alpha_y) have their x axis along s_u
+// turned by `rotation` radians about the normal towards y, as Blender's Anisotropic Rotation
+// turns its tangent.
 class GgxReflection final : public Bsdf {
 public:
-    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0);
+    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0, bool schlick = true);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
@@ -128,16 +131,18 @@ public:
     std::string name() const override { return "ggx"; }
     double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
     std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& f0) const override {
-        return std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_));
+        return std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_), schlick_);
     }
 
 private:
+    Vec3 fresnel(double cos_theta) const { return schlick_ ? fresnel_schlick(f0_, cos_theta) : f0_; }
     // Local frame <-> the lobe's frame (x along the turned tangent).
     Vec3 to_lobe(const Vec3& w) const { return {cos_ * w.x + sin_ * w.y, cos_ * w.y - sin_ * w.x, w.z}; }
     Vec3 from_lobe(const Vec3& w) const { return {cos_ * w.x - sin_ * w.y, sin_ * w.x + cos_ * w.y, w.z}; }
     GgxDistribution D_;
     Vec3 f0_;
     double cos_ = 1, sin_ = 0;
+    bool schlick_ = true;
 };
 
 // A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal:
