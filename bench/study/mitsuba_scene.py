@@ -90,7 +90,7 @@ def _obj_text(positions, triangles, tangents=None, rotation=0.0):
     return "\n".join(lines) + "\n"
 
 
-def scene_dict(description, max_depth: int = -1, two_sided=()) -> dict:
+def scene_dict(description, max_depth: int = -1, two_sided=(), pairs_only: bool = False) -> dict:
     """two_sided: names of objects rendered with `twosided` (Cycles shades both sides of every
     surface; the study's scenes leave it empty, their backs seeing no light). The area lights'
     shapes let rays through (a `null` BSDF), as Blender's lights, which cast no shadow: an opaque
@@ -113,6 +113,10 @@ def scene_dict(description, max_depth: int = -1, two_sided=()) -> dict:
             else:
                 path.write_text(_obj_text(obj.positions, tris))
             chosen_bsdf = bsdf(material)
+            if pairs_only and chosen_bsdf["type"] == "principled":
+                # Mitsuba's principled BSDF flags a back side it does not shade: drawing pairs
+                # (references.visible_pairs) would take its backs for ones that may be seen.
+                chosen_bsdf = {"type": "diffuse"}
             if obj.name in two_sided and material.transmission <= 0.5:
                 chosen_bsdf = {"type": "twosided", "bsdf": chosen_bsdf}
             shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": chosen_bsdf}
@@ -132,6 +136,8 @@ def scene_dict(description, max_depth: int = -1, two_sided=()) -> dict:
     return shapes
 
 
-def load_scene(description, max_depth: int = -1, two_sided=()):
+def load_scene(description, max_depth: int = -1, two_sided=(), pairs_only: bool = False):
+    """pairs_only: the scene for drawing visible pairs, whose BSDFs' flags say which sides may be
+    seen (see scene_dict), not for rendering."""
     mi = load_mitsuba()
-    return mi.load_dict(scene_dict(description, max_depth, two_sided), optimize=False)
+    return mi.load_dict(scene_dict(description, max_depth, two_sided, pairs_only), optimize=False)

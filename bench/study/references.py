@@ -76,7 +76,8 @@ def reference(blend, quick: bool = False, cache=CACHE, settings=None) -> dict:
     two_sided = settings.get("two_sided", ())
     description = describe(blend)
     scene = mitsuba_scene.load_scene(description, two_sided=two_sided)
-    pairs = visible_pairs(description, scene, settings["pairs"], settings["seed"], two_sided)
+    pairs = visible_pairs(description, mitsuba_scene.load_scene(description, two_sided=two_sided, pairs_only=True),
+                          settings["pairs"], settings["seed"], two_sided)
     start = time.perf_counter()
     mean, stderr = radiance_along(scene, pairs["eye"], pairs["point"], settings["spp"], seed=5)
     pairs.update(reference=mean, stderr=stderr, reference_seconds=time.perf_counter() - start,
