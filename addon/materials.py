@@ -193,6 +193,10 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
                   if socket_value(node, name) > 0]
         if socket_value(node, "Alpha", 1.0) < 1:
             layers.append("alpha (transparency)")
+        if metallic > 0 and min(socket_color(node, "Specular Tint", (1.0, 1.0, 1.0))) < 1:
+            # Cycles' metal Fresnel is its F82 tint model: Schlick's curve from the base colour,
+            # bent towards the tint near grazing; the solver has Schlick's alone (the white tint).
+            layers.append("specular tint (a metal's edge colour)")
         if layers:
             warnings.append(f"material '{material.name}': {node.name}'s {', '.join(layers)} "
                             f"{'is' if len(layers) == 1 else 'are'} not solved; the base layers are")

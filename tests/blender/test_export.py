@@ -322,6 +322,18 @@ def test_principled_unsolved_layers_are_named_in_warnings(context):
     assert any("material 'Beckmann'" in w and "Beckmann" in w and "as GGX" in w for w in warnings)
 
 
+def test_a_metals_specular_tint_is_named():
+    # Cycles' metals bend Schlick's curve towards the Specular Tint near grazing (F82 tint); the
+    # solver has Schlick's curve from the base colour, exact for the default white tint.
+    plain = principled("Gold", **{"Base Color": (1.0, 0.76, 0.33, 1), "Metallic": 1.0})
+    tinted = principled("Tinted gold", **{"Base Color": (1.0, 0.76, 0.33, 1), "Metallic": 1.0,
+                                          "Specular Tint": (1.0, 0.5, 0.5, 1)})
+    dielectric = principled("Tinted plastic", **{"Metallic": 0.0, "Specular Tint": (1.0, 0.5, 0.5, 1)})
+    assert not any("specular tint" in w for w in describe(plain)[1])
+    assert any("'Tinted gold'" in w and "specular tint" in w for w in describe(tinted)[1])
+    assert not any("specular tint" in w for w in describe(dielectric)[1])
+
+
 def test_multiscatter_ggx_is_named_where_the_lobe_is_rough(context):
     # Cycles' default distribution keeps the light scattered between microfacets; the solver's
     # single-scattering GGX does not: named for rough metals and glossy BSDFs, not for smooth
