@@ -77,6 +77,9 @@ class ObjectMesh:
     material: np.ndarray  # (T,) index into materials
     materials: list = field(default_factory=list)
     tangent: np.ndarray = None  # (T, 3) Blender's default tangent per triangle (default_tangents)
+    # (T, 3, 3) the shading normal at each triangle's corners as Cycles takes it: Blender's corner
+    # normals, the face's on a flat face, interpolated on a smooth one (a NURBS surface's).
+    normals: np.ndarray = None
 
 
 @dataclass
@@ -111,6 +114,17 @@ def default_tangents(world, triangles, radial):
     return t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
 
 
+def corner_normals(mesh, matrix) -> np.ndarray:
+    """Blender's corner normals of the mesh's loop triangles, in world space: (T, 3, 3)."""
+    normals = np.empty(len(mesh.loops) * 3)
+    mesh.corner_normals.foreach_get("vector", normals)
+    loops = np.empty(len(mesh.loop_triangles) * 3, np.int64)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    world = normals.reshape(-1, 3) @ np.linalg.inv(matrix[:3, :3])  # normals transform by the inverse transpose
+    world /= np.maximum(np.linalg.norm(world, axis=1, keepdims=True), 1e-300)
+    return world[loops].reshape(-1, 3, 3)
+
+
 def object_meshes(context) -> list:
     """Every visible geometry object as triangles (the evaluated mesh, as Cycles sees it)."""
     from bsgi_addon.geometry import GEOMETRY_TYPES
@@ -142,7 +156,8 @@ def object_meshes(context) -> list:
             mat = np.minimum(mat, len(slots) - 1)
             tris = tris.reshape(-1, 3)
             out.append(ObjectMesh(obj.name, world, tris, poly, mat, [describe(s) for s in slots],
-                                  default_tangents(world, tris, RadialTangent(m, [tuple(c) for c in obj.bound_box]))))
+                                  default_tangents(world, tris, RadialTangent(m, [tuple(c) for c in obj.bound_box])),
+                                  corner_normals(mesh, m)))
         finally:
             obj.to_mesh_clear()
     return out

@@ -74,19 +74,19 @@ def bsdf(material) -> dict:
     return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(material.albedo)}}
 
 
-def _obj_text(positions, triangles, tangents=None, rotation=0.0):
-    """OBJ text of triangles; with tangents (per triangle), each triangle gets its own corners
-    and texture coordinates along its tangent turned by `rotation` (see lobe_coordinates)."""
-    if tangents is None:
-        lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in positions]
-        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
-        return "\n".join(lines) + "\n"
+def _obj_text(positions, triangles, normals, tangents=None, rotation=0.0):
+    """OBJ text of triangles, each with its own corners and their shading normals ((T, 3, 3),
+    blend_scene.corner_normals); with tangents (per triangle), texture coordinates along its
+    tangent turned by `rotation` (see lobe_coordinates)."""
     lines = []
-    for k, (tri, tangent) in enumerate(zip(triangles, tangents)):
-        corners = positions[tri]
-        lines += [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in corners]
-        lines += [f"vt {s:.17g} {t:.17g}" for s, t in lobe_coordinates(corners, tangent, rotation)]
-        lines.append("f " + " ".join(f"{3 * k + j}/{3 * k + j}" for j in (1, 2, 3)))
+    for k, tri in enumerate(triangles):
+        lines += [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in positions[tri]]
+        lines += [f"vn {x:.17g} {y:.17g} {z:.17g}" for x, y, z in normals[k]]
+        if tangents is None:
+            lines.append("f " + " ".join(f"{3 * k + j}//{3 * k + j}" for j in (1, 2, 3)))
+        else:
+            lines += [f"vt {s:.17g} {t:.17g}" for s, t in lobe_coordinates(positions[tri], tangents[k], rotation)]
+            lines.append("f " + " ".join(f"{3 * k + j}/{3 * k + j}/{3 * k + j}" for j in (1, 2, 3)))
     return "\n".join(lines) + "\n"
 
 
@@ -108,10 +108,8 @@ def scene_dict(description, max_depth: int = -1, two_sided=(), pairs_only: bool 
             if not len(tris):
                 continue
             path = folder / f"object{k}_{m}.obj"
-            if anisotropic(material):
-                path.write_text(_obj_text(obj.positions, tris, obj.tangent[chosen], material.rotation))
-            else:
-                path.write_text(_obj_text(obj.positions, tris))
+            path.write_text(_obj_text(obj.positions, tris, obj.normals[chosen],
+                                      *((obj.tangent[chosen], material.rotation) if anisotropic(material) else ())))
             chosen_bsdf = bsdf(material)
             if pairs_only and chosen_bsdf["type"] == "principled":
                 # Mitsuba's principled BSDF flags a back side it does not shade: drawing pairs
@@ -119,7 +117,9 @@ def scene_dict(description, max_depth: int = -1, two_sided=(), pairs_only: bool 
                 chosen_bsdf = {"type": "diffuse"}
             if obj.name in two_sided and material.transmission <= 0.5:
                 chosen_bsdf = {"type": "twosided", "bsdf": chosen_bsdf}
-            shape = {"type": "obj", "filename": str(path), "face_normals": True, "bsdf": chosen_bsdf}
+            # Cycles' shading normals: a smooth surface's interpolated (flat facets made the study's
+            # NURBS spheres' highlights 4-5% off at their flanks, either way), a flat face's own.
+            shape = {"type": "obj", "filename": str(path), "bsdf": chosen_bsdf}
             if max(material.emission) > 0:
                 shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": list(material.emission)}}
             shapes[f"object{k}_{m}"] = shape
