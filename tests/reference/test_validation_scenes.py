@@ -28,8 +28,10 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 # ratio; the bounds sit within about 2x of them (the ratio's distance from 1). (Within three times,
 # 5 December: open_box 2.10%, one refinement pass, its floor and left wall 2.7% and 4.1%, now
 # 1.6% and 2.4%; table_spheres 1.52%; the others as now.)
+# table_spheres against its reference remade with Blender's smooth shading normals (6 December;
+# the flat-shaded spheres of the reference before measured 1.50%, the GGX sphere 0.9952).
 MEASURED = {"open_box": (0.0138, 0.9963),  # the block
-            "table_spheres": (0.0150, 0.9952),  # the GGX sphere
+            "table_spheres": (0.0061, 1.0003),  # the GGX sphere
             "ceiling_light": (0.0042, 1.0006),  # the floor (nothing over the target: one solve)
             "thin_occluder": (0.0050, 0.9952),  # the small wall
             "leaning_board": (0.0071, 0.9987)}  # the narrow wall
@@ -40,7 +42,7 @@ MEASURED = {"open_box": (0.0138, 0.9963),  # the block
 # with two final passes instead of four 3.51%, 1.85%, 0.42%, 1.21%, 2.78%; without the coarse
 # correction, 5 December, 3.40%, 1.72%, 0.42%, 1.18%, 2.61%, leaning_board's board 1.0064.)
 MEASURED_ONE_SOLVE = {"open_box": (0.0337, 0.9957),  # the ceiling
-                      "table_spheres": (0.0171, 0.9969),  # the GGX sphere
+                      "table_spheres": (0.0100, 1.0021),  # the GGX sphere (1.71%, 0.9969 flat-shaded)
                       "ceiling_light": (0.0042, 1.0006),  # the floor
                       "thin_occluder": (0.0118, 0.9975),  # the small wall
                       # (added 3 December: the board's back bright, the wedge behind it lit through
@@ -117,7 +119,11 @@ def test_issue_target(scene, request):
 # hits or misses by chance), but these known misses (measured geometric means):
 # (open_box's block was one, at 2.2, while the input term took one order of convergence per
 # surface; with the order local to where the gather's rays land, InputScales, 1.73.)
-KNOWN_ESTIMATE_MISSES = {("leaning_board", "Box"): 5.2}  # the input term (the floor's contact lines)
+# table_spheres' spheres, over since their reference was remade with smooth shading normals (6
+# December): their measured errors fell (0.63% and 0.93%, from 1.1-1.5% against flat facets),
+# their estimates did not (1.2-1.8% and 1.7-2.4%, the input and fit terms the most).
+KNOWN_ESTIMATE_MISSES = {("leaning_board", "Box"): 5.2,  # the input term (the floor's contact lines)
+                         ("table_spheres", "Diffuse sphere"): 2.33, ("table_spheres", "GGX sphere"): 2.12}
 # (At one set of 48 checks with the integration error added to the spline's misfit of the phase's
 # gather, six objects missed: open_box's floor 0.36, table_spheres' diffuse sphere 2.79 and table
 # 2.34, leaning_board's box 8.5 and floor 3.2; over four sets their means were 0.73, 2.48, 1.82,
