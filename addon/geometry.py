@@ -40,6 +40,39 @@ class ExportedObject:
     not_baked: str = ""
 
 
+# Cycles shades a smooth face with its corner normals interpolated, the solver with the face's own
+# normal (a NURBS surface's exact one). Named where they turn further apart than this: the cosine
+# of light 60 degrees off the normal then differs by up to a tenth across a face.
+SMOOTH_SHADING_TURN_DEGREES = 3.0
+
+
+def smooth_shading_turn(mesh) -> float:
+    """The largest angle in degrees between a face's normal and its corners' (0 on flat faces)."""
+    if not len(mesh.polygons):
+        return 0.0
+    corner = np.empty(len(mesh.loops) * 3)
+    mesh.corner_normals.foreach_get("vector", corner)
+    face = np.empty(len(mesh.polygons) * 3)
+    mesh.polygons.foreach_get("normal", face)
+    totals = np.empty(len(mesh.polygons), np.int64)
+    mesh.polygons.foreach_get("loop_total", totals)
+    starts = np.empty(len(mesh.polygons), np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    order = np.argsort(starts)  # each face's corners are the loops from its start on
+    of_corner = np.repeat(order, totals[order])
+    cosines = np.einsum("ij,ij->i", corner.reshape(-1, 3), face.reshape(-1, 3)[of_corner])
+    return float(np.degrees(np.arccos(np.clip(cosines.min(), -1.0, 1.0))))
+
+
+def _warn_smooth_shading(mesh, label: str, warnings) -> None:
+    turn = smooth_shading_turn(mesh)
+    if turn > SMOOTH_SHADING_TURN_DEGREES:
+        warnings.append(f"object '{label}': smooth shading is solved with each face's own flat normal, where Cycles "
+                        f"interpolates the normals across the faces (here up to {turn:.0f}° from a face's): its light "
+                        "and highlights show the faces; a Subdivision Surface modifier (or a NURBS surface) makes "
+                        "the faces follow the shape")
+
+
 def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | None = None,
                      pending_charts: list | None = None) -> ExportedObject:
     co = np.empty(len(mesh.vertices) * 3, np.float64)
@@ -49,6 +82,7 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
     world = co @ m[:3, :3].T + m[:3, 3]
     modified = label is None and obj.type == "MESH" and pending_charts is not None and _modifiers_change_faces(obj, mesh)
     label = label or obj.name
+    _warn_smooth_shading(mesh, label, warnings)
     materials = object_materials(obj, matrix, warnings, label, surface_options(obj))
     exported = ExportedObject(obj.name, len(mesh.polygons))
     if any(m.kind == "rough_dielectric" for m in materials.solver):

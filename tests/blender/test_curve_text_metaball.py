@@ -65,8 +65,8 @@ def test_text_and_bevelled_curve_shadow_the_floor_and_are_not_baked(context):
     assert not any("Smart UV Project" in w for w in job.export.warnings)  # a map only the solve sees
     assert [o.name for o in job.export.objects] == ["Floor"]  # only the floor is baked
     for name, kind in (("Text", "text"), ("Ring", "curve")):
-        warning = next(w for w in job.export.warnings if f"object '{name}'" in w)
-        assert "not baked" in warning and f"{kind} objects" in warning and "Object > Convert > Mesh" in warning
+        warning = next(w for w in job.export.warnings if f"object '{name}'" in w and "not baked" in w)
+        assert f"{kind} objects" in warning and "Object > Convert > Mesh" in warning
     rep = pipeline.solve_and_bake(context)
     assert any("object 'Text'" in w for w in rep["warnings"])
     assert {o.name: _curve_state(o) for o in (text, ring)} == before  # the user's curves as they were

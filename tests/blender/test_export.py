@@ -492,3 +492,32 @@ def test_principled_diffuse_albedo_is_cycles_layered_albedo(context, tmp_path, b
           f"{views[60]:.4f} (60 degrees); solved albedo {solved.albedo[0]:.4f}")
     assert solved.kind == "lambert"
     assert 0.99 * low <= solved.albedo[0] <= 1.01 * high
+
+
+def test_smooth_shading_solved_flat_is_named_where_the_normals_turn(context):
+    # Cycles interpolates a smooth face's corner normals; the solver shades each face with its own
+    # normal. A coarse smooth sphere is named with its normals' turn, the same sphere shaded flat
+    # and a fine smooth one (its normals within 2 degrees of its faces') are not.
+    from bsgi_addon import export
+    from bsgi_addon.geometry import smooth_shading_turn
+
+    def warned(segments, smooth):
+        for obj in list(bpy.data.objects):
+            bpy.data.objects.remove(obj)
+        bpy.ops.mesh.primitive_uv_sphere_add(segments=segments, ring_count=segments // 2, radius=0.5)
+        sphere = bpy.context.active_object
+        sphere.name = "Ball"
+        sphere.data.shade_smooth() if smooth else sphere.data.shade_flat()
+        bpy.context.view_layer.update()
+        turn = smooth_shading_turn(sphere.data)
+        result = export.export_scene(context.evaluated_depsgraph_get())
+        return turn, [w for w in result.warnings if "object 'Ball'" in w and "smooth shading" in w]
+
+    turn, named = warned(16, True)
+    assert 10 < turn < 20, turn  # about half a segment (22.5 degrees); measured 15.7 at the poles
+    assert len(named) == 1 and f"{turn:.0f}°" in named[0], named
+    turn, named = warned(16, False)
+    assert turn < 0.1 and not named  # float32 normals: 0.03
+    turn, named = warned(128, True)
+    print(f"\n128 segments: {turn:.2f} degrees")
+    assert turn < 3 and not named, turn
