@@ -122,7 +122,7 @@ def run_scene(blend, work, quick, cache, log, only=None, earlier=()):
     args = [sys.executable, str(HERE / "references.py"), str(blend), "--cache", str(cache)] + (["--quick"] if quick else [])
     log(f"{name}: Mitsuba 3 reference")
     subprocess.run(args, check=True)
-    from references import describe, load_cached
+    from references import describe, load_cached, relative_noise
 
     data = load_cached(blend, quick, cache)
     pairs_npz = work / "pairs.npz"
@@ -187,7 +187,7 @@ def run_scene(blend, work, quick, cache, log, only=None, earlier=()):
         rows.append((row, radiance))
     # The reference's noise over the pairs compared: the emitters' pairs, exact and bright, would
     # hide it (glossy_spheres' bulb made 0.9% look like 0.06%).
-    noise = rel_rmse(data["reference"] + data["stderr"], data["reference"], valid)
+    noise = relative_noise(data["reference"], data["stderr"], valid)
     out_rows = []
     for row, radiance in rows:
         row["reference_noise"] = round(noise, 4)

@@ -68,9 +68,10 @@ def make_references(scenes=SCENES):
 
 
 def noise(data, mask=None) -> float:
-    """The reference's relative noise: its standard error's RMS against its RMS."""
-    mask = np.ones(len(data["reference"]), bool) if mask is None else mask
-    return float(np.sqrt((data["stderr"][mask] ** 2).sum() / (data["reference"][mask] ** 2).sum()))
+    """The reference's relative noise (references.relative_noise) over the pairs in mask (all)."""
+    from references import relative_noise
+
+    return relative_noise(data["reference"], data["stderr"], np.ones(len(data["reference"]), bool) if mask is None else mask)
 
 
 def write_pairs(scene: str, data: dict, work: pathlib.Path) -> pathlib.Path:
