@@ -1163,10 +1163,12 @@ size_t error_checks_of(size_t nodes, const SolverSettings& s) {
 // caster, 0.6-0.8 kB a surface on the furnished interior at 300 and 2,000 objects, measured
 // with mallinfo2; it was counted as 8 kB a receiver with the receivers' axes copied thrice).
 size_t fixed_bytes(const Scene& scene) {
-    size_t triangles = 0, occluders = 0;
+    size_t triangles = 0, occluders = 0, grids = 0;
     for (const auto& s : scene.surfaces())
         if (s.occluder) triangles += s.surface->tessellate_for_rays().triangles.size() / 3, ++occluders;
-    return triangles * 128 + occluders * 1024 + scene.size() * 768;
+    // The solve's gatherer and the error estimate's each keep the curved emitters' grids.
+    for (const int e : scene.emitters()) grids += 2 * Gatherer::emitter_grid_bytes(*scene[e].surface);
+    return triangles * 128 + occluders * 1024 + scene.size() * 768 + grids;
 }
 
 // Samples per axis of the coarse light's residual over a node's cell (the coarse correction).

@@ -143,6 +143,10 @@ inline int nodes_along(int count, double density) { return std::max(1, int(std::
 // gather's cosine-weighted node rule.
 Vec3 directional_albedo(const Bsdf& b);
 
+// Whether an emitter's normal turns across it: a curved emitter lights itself too, and the
+// gatherer checks its cells' rule (Gatherer::emitter_cell).
+bool curved_emitter(const Surface& e);
+
 // The direct light's sources: the emitting surfaces, the lights at infinity (distant lights and
 // the world map's bright part), or both.
 enum class LightParts { Emitters, Distant, All };
@@ -164,6 +168,8 @@ private:
 class Gatherer {
 public:
     Gatherer(const Scene& scene, const SolverSettings& settings, const RayCaster& caster);
+    // The bytes a gatherer keeps of emitter e's points (a grid per cell of a curved one's domain).
+    static size_t emitter_grid_bytes(const Surface& e);
 
     // The point of the surface at node j of r.
     SurfacePoint node_point(const Receiver& r, size_t j) const {
@@ -256,10 +262,21 @@ private:
     ScatterTable& scatter_table(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const;
     // A parameter cell [s0, s1] x [t0, t1] of an emitter with its corners evaluated, in the order
     // (s0, t0), (s1, t0), (s0, t1), (s1, t1): a split evaluates only the points its quarters add.
+    // A curved emitter's points on a dyadic grid over one cell of its domain, evaluated once: the
+    // nodes of its cells down to a few splits are read, not evaluated (a point costs about what
+    // a ray does, and a curved cell is checked at its quarters' nodes too).
+    struct EmitterGrid {
+        double s0, s1, t0, t1;
+        std::vector<SurfacePoint> points;  // (kEmitterGridSteps + 1)^2, s fastest
+    };
+    static constexpr int kEmitterGridSteps = 32;
     struct EmitterCell {
         double s0, s1, t0, t1;
         std::array<SurfacePoint, 4> corner;
+        const EmitterGrid* grid;  // null on a flat emitter
     };
+    // The emitter's point at (s, t): read from the grid where it has it, else evaluated.
+    static SurfacePoint emitter_point(const Surface& emitter, const EmitterGrid* grid, double s, double t);
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, const EmitterCell& cell,
                       int depth, double ratio, std::array<bool, 2> sides, Visit&& visit, size_t& rays) const;
@@ -289,8 +306,14 @@ private:
     std::vector<int> self_lit_;  // curved emitters, which light themselves too
     // Each emitter's domain as cells between its creases (one cell for most), parallel to emitters_.
     std::vector<std::vector<EmitterCell>> emitter_domains_;
+    std::vector<std::unique_ptr<EmitterGrid>> emitter_grids_;  // the curved emitters' cells'
     QuadratureRule cell_rule_;  // on [0, 1], for one emitter cell
     std::vector<double> cell_edges_;  // the cumulative weights of cell_rule_: node p covers [edge p, edge p+1]
+    // cell_rule_ over each half of [0, 1], one node where the halves' nodes meet, and for each
+    // node the index of cell_rule_'s node at the same place (-1 if none): a curved emitter cell's
+    // rule over its quarters, from the points the cell's own rule evaluates plus the rest.
+    QuadratureRule halves_rule_;
+    std::vector<int> halves_known_;
 };
 
 }  // namespace bsgi
