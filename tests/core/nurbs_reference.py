@@ -58,6 +58,16 @@ def drop_points(radius, apex):
     return revolved_points([(0, -1, 1), (1, -1, h), (1, 0, 1), (0.5, apex / 2, 1), (0, apex, 1)], radius)
 
 
+def globe_points(radius, apex):
+    """A light bulb's globe and neck centred at the origin: a sphere's arc from its lower pole up
+    to 30 degrees above its equator (one rational quadratic piece, weight cos 60 degrees), then
+    a straight cone to an apex `apex` radii up, a crease between (convex for apex >= 1.2).
+    Its first knot span turns by 150 degrees around the axis (SPHERE_FLAGS apply)."""
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    return revolved_points([(0, -1, 1), (np.sqrt(3), -1, 0.5), (c, s, 1), (c / 2, (s + apex) / 2, 1), (0, apex, 1)],
+                           radius)
+
+
 def drop_irradiance(x, radius, apex, centre_height, n=1000):
     """E / L at (x, 0, 0) on a floor facing up, from a convex "drop": a lower hemisphere of the
     radius and a cone from its equator to an apex `apex` radii above the centre (a crease where
