@@ -103,12 +103,10 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
                 if (curved) {
                     auto g = std::make_unique<EmitterGrid>(EmitterGrid{su[a], su[a + 1], sv[b], sv[b + 1], {}});
                     const int m = kEmitterGridSteps;
-                    std::vector<SurfacePoint> points;  // evaluated while g's are empty
-                    points.reserve(size_t(m + 1) * (m + 1));
+                    g->points.reserve(size_t(m + 1) * (m + 1));
                     for (int y = 0; y <= m; ++y)
                         for (int x = 0; x <= m; ++x)
-                            points.push_back(emitter_point(e, g.get(), g->s0 + (g->s1 - g->s0) * x / m, g->t0 + (g->t1 - g->t0) * y / m));
-                    g->points = std::move(points);
+                            g->points.push_back(point_inside(e, *g, g->s0 + (g->s1 - g->s0) * x / m, g->t0 + (g->t1 - g->t0) * y / m));
                     grid = emitter_grids_.emplace_back(std::move(g)).get();
                 }
                 cells.push_back({su[a], su[a + 1], sv[b], sv[b + 1],
@@ -172,12 +170,16 @@ SurfacePoint Gatherer::emitter_point(const Surface& emitter, const EmitterGrid* 
     const int m = kEmitterGridSteps;
     const double x = (s - grid->s0) / (grid->s1 - grid->s0) * m, y = (t - grid->t0) / (grid->t1 - grid->t0) * m;
     const double i = std::round(x), j = std::round(y);
-    if (std::abs(x - i) < 1e-9 && std::abs(y - j) < 1e-9 && i >= 0 && i <= m && j >= 0 && j <= m && !grid->points.empty())
+    if (std::abs(x - i) < 1e-9 && std::abs(y - j) < 1e-9 && i >= 0 && i <= m && j >= 0 && j <= m)
         return grid->points[size_t(j) * (m + 1) + size_t(i)];
+    return point_inside(emitter, *grid, s, t);
+}
+
+SurfacePoint Gatherer::point_inside(const Surface& emitter, const EmitterGrid& grid, double s, double t) {
     // On a crease at the cell's edge the surface has two normals: the cell's points take the
     // one on its side (a bulb's equator seen with the neck's normal was never fine enough).
-    const double es = 1e-9 * (grid->s1 - grid->s0), et = 1e-9 * (grid->t1 - grid->t0);
-    return emitter.evaluate(std::clamp(s, grid->s0 + es, grid->s1 - es), std::clamp(t, grid->t0 + et, grid->t1 - et));
+    const double es = 1e-9 * (grid.s1 - grid.s0), et = 1e-9 * (grid.t1 - grid.t0);
+    return emitter.evaluate(std::clamp(s, grid.s0 + es, grid.s1 - es), std::clamp(t, grid.t0 + et, grid.t1 - et));
 }
 
 std::vector<std::pair<Vec3, double>> Gatherer::world_bright() const {

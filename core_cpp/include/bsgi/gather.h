@@ -260,8 +260,6 @@ private:
     void gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                       Incoming&& incoming, Vec3* out) const;
     ScatterTable& scatter_table(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const;
-    // A parameter cell [s0, s1] x [t0, t1] of an emitter with its corners evaluated, in the order
-    // (s0, t0), (s1, t0), (s0, t1), (s1, t1): a split evaluates only the points its quarters add.
     // A curved emitter's points on a dyadic grid over one cell of its domain, evaluated once: the
     // nodes of its cells down to a few splits are read, not evaluated (a point costs about what
     // a ray does, and a curved cell is checked at its quarters' nodes too).
@@ -270,6 +268,8 @@ private:
         std::vector<SurfacePoint> points;  // (kEmitterGridSteps + 1)^2, s fastest
     };
     static constexpr int kEmitterGridSteps = 32;
+    // A parameter cell [s0, s1] x [t0, t1] of an emitter with its corners evaluated, in the order
+    // (s0, t0), (s1, t0), (s0, t1), (s1, t1): a split evaluates only the points its quarters add.
     struct EmitterCell {
         double s0, s1, t0, t1;
         std::array<SurfacePoint, 4> corner;
@@ -277,6 +277,8 @@ private:
     };
     // The emitter's point at (s, t): read from the grid where it has it, else evaluated.
     static SurfacePoint emitter_point(const Surface& emitter, const EmitterGrid* grid, double s, double t);
+    // The point evaluated on the grid's side of a crease along its domain cell's edge.
+    static SurfacePoint point_inside(const Surface& emitter, const EmitterGrid& grid, double s, double t);
     template <typename Visit>
     void emitter_cell(const SurfacePoint& r, const Surface& emitter, const Material& light, const EmitterCell& cell,
                       int depth, double ratio, std::array<bool, 2> sides, Visit&& visit, size_t& rays) const;
