@@ -53,7 +53,7 @@ QuadratureRule emitter_quadrature(int n, int degree) {
 // A node of a cell's rule at its corner or centre (Simpson's rule has nine such nodes) is the
 // point the cell already evaluated; any other node is evaluated.
 template <typename Cell, typename Evaluate>
-SurfacePoint known_point(const Cell& cell, const SurfacePoint& centre, double x, double y, Evaluate&& evaluate) {
+const SurfacePoint& known_point(const Cell& cell, const SurfacePoint& centre, double x, double y, Evaluate&& evaluate) {
     if ((x == 0 || x == 1) && (y == 0 || y == 1)) return cell.corner[(x == 1) + 2 * (y == 1)];
     if (x == 0.5 && y == 0.5) return centre;
     return evaluate();
@@ -100,6 +100,7 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
         for (size_t a = 0; a + 1 < su.size(); ++a)
             for (size_t b = 0; b + 1 < sv.size(); ++b) {
                 const EmitterGrid* grid = nullptr;
+                SurfacePoint scratch[4];
                 if (curved) {
                     auto g = std::make_unique<EmitterGrid>(EmitterGrid{su[a], su[a + 1], sv[b], sv[b + 1], {}});
                     const int m = kEmitterGridSteps;
@@ -110,8 +111,8 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
                     grid = emitter_grids_.emplace_back(std::move(g)).get();
                 }
                 cells.push_back({su[a], su[a + 1], sv[b], sv[b + 1],
-                                 {emitter_point(e, grid, su[a], sv[b]), emitter_point(e, grid, su[a + 1], sv[b]),
-                                  emitter_point(e, grid, su[a], sv[b + 1]), emitter_point(e, grid, su[a + 1], sv[b + 1])},
+                                 {emitter_point(e, grid, su[a], sv[b], scratch[0]), emitter_point(e, grid, su[a + 1], sv[b], scratch[1]),
+                                  emitter_point(e, grid, su[a], sv[b + 1], scratch[2]), emitter_point(e, grid, su[a + 1], sv[b + 1], scratch[3])},
                                  grid});
             }
     }
@@ -165,14 +166,17 @@ Gatherer::Gatherer(const Scene& scene, const SolverSettings& settings, const Ray
     }
 }
 
-SurfacePoint Gatherer::emitter_point(const Surface& emitter, const EmitterGrid* grid, double s, double t) {
-    if (!grid) return emitter.evaluate(s, t);
+const SurfacePoint& Gatherer::emitter_point(const Surface& emitter, const EmitterGrid* grid, double s, double t,
+                                            SurfacePoint& scratch) {
+    if (!grid) return scratch = emitter.evaluate(s, t);
     const int m = kEmitterGridSteps;
     const double x = (s - grid->s0) / (grid->s1 - grid->s0) * m, y = (t - grid->t0) / (grid->t1 - grid->t0) * m;
-    const double i = std::round(x), j = std::round(y);
-    if (std::abs(x - i) < 1e-9 && std::abs(y - j) < 1e-9 && i >= 0 && i <= m && j >= 0 && j <= m)
+    // Nearest grid line by truncation (not std::round, a library call here): below -0.5 the test
+    // below fails as it should.
+    const long i = long(x + 0.5), j = long(y + 0.5);
+    if (std::abs(x - double(i)) < 1e-9 && std::abs(y - double(j)) < 1e-9 && i >= 0 && i <= m && j >= 0 && j <= m)
         return grid->points[size_t(j) * (m + 1) + size_t(i)];
-    return point_inside(emitter, *grid, s, t);
+    return scratch = point_inside(emitter, *grid, s, t);
 }
 
 SurfacePoint Gatherer::point_inside(const Surface& emitter, const EmitterGrid& grid, double s, double t) {
@@ -201,7 +205,8 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
                             int depth, double ratio, std::array<bool, 2> sides, Visit&& visit, size_t& rays) const {
     const double s0 = cell.s0, s1 = cell.s1, t0 = cell.t0, t1 = cell.t1;
     const double sm = 0.5 * (s0 + s1), tm = 0.5 * (t0 + t1);
-    const SurfacePoint centre = emitter_point(emitter, cell.grid, sm, tm);
+    SurfacePoint scratch;
+    const SurfacePoint centre = emitter_point(emitter, cell.grid, sm, tm, scratch);
     const Vec3 c = centre.p;
     double radius = 0, bend = 1;
     for (const SurfacePoint& corner : cell.corner) {
@@ -223,8 +228,8 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     const bool split = 2 * radius > limit * dist || (curved && depth < kCurvedEmitterDepth) || terminator;
     auto split_in_four = [&] {
         const EmitterGrid* g = cell.grid;
-        const SurfacePoint bottom = emitter_point(emitter, g, sm, t0), top = emitter_point(emitter, g, sm, t1);
-        const SurfacePoint left = emitter_point(emitter, g, s0, tm), right = emitter_point(emitter, g, s1, tm);
+        const SurfacePoint bottom = emitter_point(emitter, g, sm, t0, scratch), top = emitter_point(emitter, g, sm, t1, scratch);
+        const SurfacePoint left = emitter_point(emitter, g, s0, tm, scratch), right = emitter_point(emitter, g, s1, tm, scratch);
         const auto& k = cell.corner;
         emitter_cell(r, emitter, light, {s0, sm, t0, tm, {k[0], bottom, left, centre}, g}, depth + 1, ratio, sides, visit, rays);
         emitter_cell(r, emitter, light, {sm, s1, t0, tm, {bottom, k[1], centre, right}, g}, depth + 1, ratio, sides, visit, rays);
@@ -254,17 +259,20 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     };
     // The cell's points and integrand at its rule's nodes, 0 outside the domain (the mask chi
     // of (8)); per thread, reused by each leaf cell (no cell reads them after a split).
-    thread_local std::vector<SurfacePoint> points;
+    // points: the grid's, the cell's corners and centre, or those evaluated into `evaluated`.
+    thread_local std::vector<const SurfacePoint*> points;
+    thread_local std::vector<SurfacePoint> evaluated;
     thread_local std::vector<double> integrand;
-    points.resize(n * n), integrand.assign(n * n, 0.0);
+    points.resize(n * n), evaluated.resize(n * n), integrand.assign(n * n, 0.0);
     const bool checked = bend < kCheckedEmitterCellBend;
     double coarse = 0, most = 0;  // most: the cell's integral as if it faced the receiver
     for (size_t p = 0; p < n; ++p)
         for (size_t k = 0; k < n; ++k) {
             const double s = s0 + ds * nodes[p], t = t0 + dt * nodes[k];
             if (!emitter.in_domain(s, t)) continue;
-            const SurfacePoint& ep = points[p * n + k] =
-                known_point(cell, centre, nodes[p], nodes[k], [&] { return emitter_point(emitter, cell.grid, s, t); });
+            const SurfacePoint& ep = *(points[p * n + k] = &known_point(cell, centre, nodes[p], nodes[k], [&]() -> const SurfacePoint& {
+                return emitter_point(emitter, cell.grid, s, t, evaluated[p * n + k]);
+            }));
             const double w = cell_rule_.weights[p] * cell_rule_.weights[k];
             coarse += w * (integrand[p * n + k] = geometric(ep));
             if (checked) most += w * geometric(ep, true);
@@ -283,7 +291,7 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
                 const int pa = halves_known_[a], pb = halves_known_[b];
                 const double s = s0 + ds * x[a], t = t0 + dt * x[b];
                 const double g = pa >= 0 && pb >= 0 ? integrand[pa * n + pb]
-                                 : emitter.in_domain(s, t) ? geometric(emitter_point(emitter, cell.grid, s, t)) : 0.0;
+                                 : emitter.in_domain(s, t) ? geometric(emitter_point(emitter, cell.grid, s, t, scratch)) : 0.0;
                 fine += halves_rule_.weights[a] * halves_rule_.weights[b] * g;
             }
         // Relative to what the cell would give if it faced the receiver: a cell the terminator
@@ -309,7 +317,7 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
         for (size_t k = 0; k < n; ++k) {
             const double g = integrand[p * n + k];
             if (g <= 0) continue;
-            const SurfacePoint& ep = points[p * n + k];
+            const SurfacePoint& ep = *points[p * n + k];
             const Vec3 d = ep.p - r.p;
             const double facing = -dot(d, ep.frame.z), len = length(d);
             // Both ends lifted off their surfaces, and the segment stopped short of the emitter,
