@@ -13,6 +13,7 @@
 #include "bsgi/mesh_chart.h"
 #include "bsgi/nurbs_surface.h"
 #include "bsgi/ray_caster.h"
+#include "bsgi/split_piece.h"
 
 namespace py = pybind11;
 
@@ -215,6 +216,40 @@ void bind_geometry(py::module_& m) {
                  return std::make_shared<TrianglePatch>(name, Vec3{p[0], p[1], p[2]}, Vec3{p[3], p[4], p[5]}, Vec3{p[6], p[7], p[8]});
              }),
              py::arg("name"), py::arg("corners"));
+
+    py::class_<SplitPiece, Surface, std::shared_ptr<SplitPiece>>(
+        m, "SplitPiece",
+        "A piece of a surface between two curves v = lower(u), v = upper(u) over u0 <= u <= u1 of its domain (paper "
+        "section 5.1: surfaces split along the discontinuities of their light): s(a, b) = parent(u, lower(u) + b "
+        "(upper(u) - lower(u))), u = u0 + a (u1 - u0).")
+        .def(py::init([](const std::string& name, std::shared_ptr<Surface> parent, double u0, double u1, const Array& lower,
+                         const Array& upper) {
+                 return std::make_shared<SplitPiece>(name, std::move(parent), u0, u1, flat(lower), flat(upper));
+             }),
+             py::arg("name"), py::arg("parent"), py::arg("u0"), py::arg("u1"), py::arg("lower"), py::arg("upper"),
+             "lower, upper: each curve's v at equal steps of u from u0 to u1 (a cubic through them), or one value: a "
+             "constant.")
+        .def_property_readonly("u_range", [](const SplitPiece& s) { return py::make_tuple(s.u0(), s.u1()); })
+        .def(
+            "parent_parameters",
+            [](const SplitPiece& s, const Array& ab) {
+                const size_t n = rows(ab, {2}, "ab");
+                auto out = empty({py::ssize_t(n), 2});
+                for (size_t i = 0; i < n; ++i)
+                    s.parent_parameters(ab.data()[2 * i], ab.data()[2 * i + 1], out.mutable_data()[2 * i], out.mutable_data()[2 * i + 1]);
+                return out;
+            },
+            py::arg("ab"), "The parent's (u, v) at (N, 2) parameters of the piece.")
+        .def(
+            "piece_parameters",
+            [](const SplitPiece& s, const Array& uv) {
+                const size_t n = rows(uv, {2}, "uv");
+                auto out = empty({py::ssize_t(n), 2});
+                for (size_t i = 0; i < n; ++i)
+                    s.piece_parameters(uv.data()[2 * i], uv.data()[2 * i + 1], out.mutable_data()[2 * i], out.mutable_data()[2 * i + 1]);
+                return out;
+            },
+            py::arg("uv"), "The piece's (a, b) at (N, 2) parameters of the parent (clamped onto the band).");
 
     py::class_<PyRayCaster>(m, "RayCaster",
                             "Embree ray queries answering with surface id, (u, v), point and local frame; surface i is surfaces[i].")

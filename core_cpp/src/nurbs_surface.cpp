@@ -338,44 +338,7 @@ std::vector<double> NurbsSurface::grid_parameters(bool along_u) const {
 Tessellation NurbsSurface::grid(bool lifted) const {
     // Cyclic seams get their own vertices (u = 1 next to u = 0) so (u, v) interpolate without
     // wrapping.
-    const std::vector<double> pu = grid_parameters(true), pv = grid_parameters(false);
-    const size_t nu = pu.size(), nv = pv.size();
-    std::vector<Vec3> P(nu * nv), N(nu * nv);
-    for (size_t j = 0; j < nv; ++j)
-        for (size_t i = 0; i < nu; ++i) {
-            const SurfacePoint s = evaluate(pu[i], pv[j]);
-            P[j * nu + i] = s.p;
-            N[j * nu + i] = s.frame.z;
-        }
-    if (lifted) {
-        // Each cell's chord deviation along the normal at its middle, against the diagonal the
-        // cell is split along; every vertex rises by twice the largest of its cells'.
-        std::vector<double> rise(nu * nv, 0.0);
-        for (size_t j = 0; j + 1 < nv; ++j)
-            for (size_t i = 0; i + 1 < nu; ++i) {
-                const SurfacePoint mid = evaluate(0.5 * (pu[i] + pu[i + 1]), 0.5 * (pv[j] + pv[j + 1]));
-                const Vec3 chord = (P[j * nu + i] + P[(j + 1) * nu + i + 1]) * 0.5;
-                const double dev = 2 * dot(mid.p - chord, mid.frame.z);
-                for (size_t c : {j * nu + i, j * nu + i + 1, (j + 1) * nu + i, (j + 1) * nu + i + 1})
-                    if (std::abs(dev) > std::abs(rise[c])) rise[c] = dev;
-            }
-        for (size_t k = 0; k < P.size(); ++k) P[k] += N[k] * rise[k];
-    }
-    Tessellation t;
-    t.positions.reserve(3 * nu * nv);
-    t.uvs.reserve(2 * nu * nv);
-    for (size_t j = 0; j < nv; ++j)
-        for (size_t i = 0; i < nu; ++i) {
-            const Vec3& p = P[j * nu + i];
-            t.positions.insert(t.positions.end(), {p.x, p.y, p.z});
-            t.uvs.insert(t.uvs.end(), {float(pu[i]), float(pv[j])});
-        }
-    for (uint32_t j = 0; j + 1 < nv; ++j)
-        for (uint32_t i = 0; i + 1 < nu; ++i) {
-            const uint32_t a = j * uint32_t(nu) + i, b = a + 1, c = a + uint32_t(nu) + 1, d = a + uint32_t(nu);
-            t.triangles.insert(t.triangles.end(), {a, b, c, a, c, d});
-        }
-    return t;
+    return grid_tessellation(grid_parameters(true), grid_parameters(false), lifted);
 }
 
 Tessellation NurbsSurface::tessellate() const { return grid(false); }

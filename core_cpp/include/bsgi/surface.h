@@ -78,6 +78,11 @@ protected:
     void project(const Vec3& p, double& u, double& v) const;
     // Wraps periodic parameters into [0, 1), clamps the others to [0, 1].
     void into_domain(double& u, double& v) const;
+    // Triangles over the grid of parameters pu x pv (each increasing from 0 to 1), their vertices
+    // on the surface; lifted: raised to the convex side by twice the largest chord deviation of
+    // their cells, so that the triangles enclose the surface where it is convex (spheres,
+    // cylinders) and rays cannot slip between them and the surface at silhouettes.
+    Tessellation grid_tessellation(const std::vector<double>& pu, const std::vector<double>& pv, bool lifted) const;
 
     double size_ = 1;
 
