@@ -219,17 +219,20 @@ void bind_geometry(py::module_& m) {
 
     py::class_<SplitPiece, Surface, std::shared_ptr<SplitPiece>>(
         m, "SplitPiece",
-        "A piece of a surface between two curves v = lower(u), v = upper(u) over u0 <= u <= u1 of its domain (paper "
-        "section 5.1: surfaces split along the discontinuities of their light): s(a, b) = parent(u, lower(u) + b "
-        "(upper(u) - lower(u))), u = u0 + a (u1 - u0).")
-        .def(py::init([](const std::string& name, std::shared_ptr<Surface> parent, double u0, double u1, const Array& lower,
-                         const Array& upper) {
-                 return std::make_shared<SplitPiece>(name, std::move(parent), u0, u1, flat(lower), flat(upper));
+        "A piece of a surface between two curves of its domain (paper section 5.1: surfaces split along the "
+        "discontinuities of their light): v = lower(u), v = upper(u) over t0 <= u <= t1, s(a, b) = parent(u, lower(u) + "
+        "b (upper(u) - lower(u))), u = t0 + a (t1 - t0); along_v: u = lower(v), u = upper(v) over t0 <= v <= t1, "
+        "s(a, b) = parent(lower(v) + a (upper(v) - lower(v)), v), v = t0 + b (t1 - t0).")
+        .def(py::init([](const std::string& name, std::shared_ptr<Surface> parent, double t0, double t1, const Array& lower,
+                         const Array& upper, bool along_v) {
+                 return std::make_shared<SplitPiece>(name, std::move(parent), t0, t1, flat(lower), flat(upper), along_v);
              }),
-             py::arg("name"), py::arg("parent"), py::arg("u0"), py::arg("u1"), py::arg("lower"), py::arg("upper"),
-             "lower, upper: each curve's v at equal steps of u from u0 to u1 (a cubic through them), or one value: a "
+             py::arg("name"), py::arg("parent"), py::arg("t0"), py::arg("t1"), py::arg("lower"), py::arg("upper"),
+             py::arg("along_v") = false,
+             "lower, upper: each curve's value at equal steps from t0 to t1 (a cubic through them), or one value: a "
              "constant.")
-        .def_property_readonly("u_range", [](const SplitPiece& s) { return py::make_tuple(s.u0(), s.u1()); })
+        .def_property_readonly("range", [](const SplitPiece& s) { return py::make_tuple(s.t0(), s.t1()); })
+        .def_property_readonly("along_v", &SplitPiece::along_v)
         .def(
             "parent_parameters",
             [](const SplitPiece& s, const Array& ab) {

@@ -33,13 +33,14 @@ double BoundaryCurve::evaluate(double u, double& derivative) const {
     return h00 * c[i] + h10 * m0 + h01 * c[i + 1] + h11 * m1;
 }
 
-SplitPiece::SplitPiece(std::string name, std::shared_ptr<const Surface> parent, double u0, double u1,
-                       std::vector<double> lower, std::vector<double> upper)
-    : Surface(std::move(name)), parent_(std::move(parent)), u0_(u0), u1_(u1), lower_(u0, u1, lower), upper_(u0, u1, upper) {
+SplitPiece::SplitPiece(std::string name, std::shared_ptr<const Surface> parent, double t0, double t1,
+                       std::vector<double> lower, std::vector<double> upper, bool along_v)
+    : Surface(std::move(name)), parent_(std::move(parent)), t0_(t0), t1_(t1), along_v_(along_v),
+      lower_(t0, t1, lower), upper_(t0, t1, upper) {
     const std::string what = "surface '" + this->name() + "': ";
     if (!parent_) throw std::invalid_argument(what + "no parent surface");
     size_ = parent_->size();
-    if (!(0 <= u0 && u0 < u1 && u1 <= 1)) throw std::invalid_argument(what + "its u range must satisfy 0 <= u0 < u1 <= 1");
+    if (!(0 <= t0 && t0 < t1 && t1 <= 1)) throw std::invalid_argument(what + "its range must satisfy 0 <= t0 < t1 <= 1");
     if (lower.empty() || upper.empty()) throw std::invalid_argument(what + "a boundary curve has no samples");
     for (const auto* curve : {&lower, &upper})
         for (double c : *curve)
@@ -49,8 +50,8 @@ SplitPiece::SplitPiece(std::string name, std::shared_ptr<const Surface> parent, 
     const int cells = std::max(128, int(std::max(lower.size(), upper.size())) * 4);
     const double gauss[2] = {0.5 - 0.5 / std::sqrt(3.0), 0.5 + 0.5 / std::sqrt(3.0)};
     for (int i = 0; i <= 4 * cells; ++i) {
-        const double u = u0 + (u1 - u0) * i / (4.0 * cells);
-        if (lower_(u) > upper_(u) + 1e-12) throw std::invalid_argument(what + "its lower boundary curve crosses its upper one");
+        const double t = t0 + (t1 - t0) * i / (4.0 * cells);
+        if (lower_(t) > upper_(t) + 1e-12) throw std::invalid_argument(what + "its lower boundary curve crosses its upper one");
     }
     for (int i = 0; i < cells; ++i)
         for (int j = 0; j < cells; ++j)
@@ -58,31 +59,48 @@ SplitPiece::SplitPiece(std::string name, std::shared_ptr<const Surface> parent, 
                 for (double y : gauss) area_ += 0.25 / (double(cells) * cells) * evaluate((i + x) / cells, (j + y) / cells).jacobian;
 }
 
+void SplitPiece::map(double a, double b, double& u, double& v, double d[4]) const {
+    // Along u: (t, w) = (a, b) -> (u, v); along v: (t, w) = (b, a) -> (v, u).
+    const double t = along_v_ ? b : a, w = along_v_ ? a : b;
+    const double dt = t1_ - t0_, along = t0_ + t * dt;
+    double dlo, dhi;
+    const double lo = lower_.evaluate(along, dlo), hi = upper_.evaluate(along, dhi);
+    const double across = lo + w * (hi - lo);
+    const double dacross_dt = (dlo + w * (dhi - dlo)) * dt, dacross_dw = hi - lo;
+    if (!along_v_) {
+        u = along, v = across;
+        d[0] = dt, d[1] = 0, d[2] = dacross_dt, d[3] = dacross_dw;
+    } else {
+        v = along, u = across;
+        d[0] = dacross_dw, d[1] = dacross_dt, d[2] = 0, d[3] = dt;
+    }
+}
+
 void SplitPiece::parent_parameters(double a, double b, double& u, double& v) const {
-    u = u0_ + a * (u1_ - u0_);
-    const double lo = lower_(u), hi = upper_(u);
-    v = lo + b * (hi - lo);
+    double d[4];
+    map(a, b, u, v, d);
 }
 
 void SplitPiece::piece_parameters(double u, double v, double& a, double& b) const {
-    a = std::clamp((u - u0_) / (u1_ - u0_), 0.0, 1.0);
-    const double uc = u0_ + a * (u1_ - u0_), lo = lower_(uc), hi = upper_(uc);
-    b = hi > lo ? std::clamp((v - lo) / (hi - lo), 0.0, 1.0) : 0.5;
+    const double along = along_v_ ? v : u, across = along_v_ ? u : v;
+    const double t = std::clamp((along - t0_) / (t1_ - t0_), 0.0, 1.0);
+    const double at = t0_ + t * (t1_ - t0_), lo = lower_(at), hi = upper_(at);
+    const double w = hi > lo ? std::clamp((across - lo) / (hi - lo), 0.0, 1.0) : 0.5;
+    a = along_v_ ? w : t;
+    b = along_v_ ? t : w;
 }
 
 SurfacePoint SplitPiece::evaluate(double a, double b) const {
-    const double du = u1_ - u0_, u = u0_ + a * du;
-    double dlo, dhi;
-    const double lo = lower_.evaluate(u, dlo), hi = upper_.evaluate(u, dhi);
-    const double v = lo + b * (hi - lo);
+    double u, v, d[4];
+    map(a, b, u, v, d);
     const SurfacePoint s = parent_->evaluate(u, v);
     SurfacePoint out;
     out.p = s.p;
-    out.dpdu = (s.dpdu + s.dpdv * (dlo + b * (dhi - dlo))) * du;
-    out.dpdv = s.dpdv * (hi - lo);
-    // The parent's normal, up to rounding (s_a x s_b = du (hi - lo) s_u x s_v), and its side
-    // (a NURBS surface faces Blender's way, -(s_u x s_v)); where the band collapses (hi = lo),
-    // the parent's normal itself.
+    out.dpdu = s.dpdu * d[0] + s.dpdv * d[2];
+    out.dpdv = s.dpdu * d[1] + s.dpdv * d[3];
+    // The parent's normal, up to rounding (s_a x s_b = (u_a v_b - u_b v_a) s_u x s_v, the factor
+    // positive), and its side (a NURBS surface faces Blender's way, -(s_u x s_v)); where the band
+    // collapses (hi = lo), the parent's normal itself.
     Vec3 n;
     if (!normal_from_derivatives(out.dpdu, out.dpdv, size_, n)) n = s.frame.z;
     else if (dot(n, s.frame.z) < 0) n = -n;

@@ -21,12 +21,14 @@ def sphere():
     return bsgi.NurbsSurface("sphere", blender_sphere_points(RADIUS), **SPHERE_FLAGS)
 
 
-def pieces(parent):
-    """The sphere cut into five: left and right of the band, and the band's three layers."""
+def pieces(parent, along_v=False):
+    """The sphere cut into five: before and after the band, and the band's three layers (along v:
+    the curves are u(v), the band a range of v)."""
     band = [(LOWER * 0, LOWER), (LOWER, UPPER), (UPPER, UPPER * 0 + 1)]
-    out = [_core.SplitPiece("left", parent, 0.0, U0, np.array([0.0]), np.array([1.0]))]
-    out += [_core.SplitPiece(f"band {k}", parent, U0, U1, lo, hi) for k, (lo, hi) in enumerate(band)]
-    out.append(_core.SplitPiece("right", parent, U1, 1.0, np.array([0.0]), np.array([1.0])))
+    whole = dict(lower=np.array([0.0]), upper=np.array([1.0]), along_v=along_v)
+    out = [_core.SplitPiece("before", parent, 0.0, U0, **whole)]
+    out += [_core.SplitPiece(f"band {k}", parent, U0, U1, lo, hi, along_v) for k, (lo, hi) in enumerate(band)]
+    out.append(_core.SplitPiece("after", parent, U1, 1.0, **whole))
     return out
 
 
@@ -35,10 +37,11 @@ def grid(n=41):
     return np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
 
 
-def test_pieces_lie_on_the_parent_with_its_normals_and_add_up_to_its_area():
+@pytest.mark.parametrize("along_v", [False, True])
+def test_pieces_lie_on_the_parent_with_its_normals_and_add_up_to_its_area(along_v):
     parent = sphere()
     total = 0.0
-    for piece in pieces(parent):
+    for piece in pieces(parent, along_v):
         ab = grid()
         got = piece.evaluate(ab)
         uv = piece.parent_parameters(ab)
@@ -48,12 +51,13 @@ def test_pieces_lie_on_the_parent_with_its_normals_and_add_up_to_its_area():
         # The parent's side (a NURBS surface faces Blender's way, -(s_u x s_v)), to rounding.
         assert np.einsum("ij,ij->i", got["normal"], want["normal"]).min() > 1 - 1e-9
         total += piece.area
-    assert total == pytest.approx(4 * np.pi * RADIUS**2, rel=2e-6)  # 9.6e-7: kinks of the speed inside cells
-    assert total == pytest.approx(parent.area, rel=2e-6)
+    assert total == pytest.approx(4 * np.pi * RADIUS**2, rel=5e-6)  # 9.6e-7, 2.4e-6: the speed kinks at knots in cells
+    assert total == pytest.approx(parent.area, rel=5e-6)
 
 
-def test_derivatives_match_finite_differences():
-    piece = pieces(sphere())[2]
+@pytest.mark.parametrize("along_v", [False, True])
+def test_derivatives_match_finite_differences(along_v):
+    piece = pieces(sphere(), along_v)[2]
     rng = np.random.default_rng(3)
     ab = rng.uniform(0.05, 0.95, (50, 2))
     h = 1e-6
@@ -66,13 +70,16 @@ def test_derivatives_match_finite_differences():
     assert np.abs(got["jacobian"] - np.linalg.norm(np.cross(got["dpdu"], got["dpdv"]), axis=1)).max() < 1e-12
 
 
-def test_boundary_curves_pass_through_their_samples_and_parameters_map_back():
+@pytest.mark.parametrize("along_v", [False, True])
+def test_boundary_curves_pass_through_their_samples_and_parameters_map_back(along_v):
     parent = sphere()
-    lower = pieces(parent)[2]  # between LOWER and UPPER
-    a = (STEPS - U0) / (U1 - U0)
-    for b, curve in ((0.0, LOWER), (1.0, UPPER)):
-        uv = lower.parent_parameters(np.column_stack([a, np.full_like(a, b)]))
-        assert np.abs(uv[:, 0] - STEPS).max() < 1e-15 and np.abs(uv[:, 1] - curve).max() < 1e-15
+    lower = pieces(parent, along_v)[2]  # between LOWER and UPPER
+    t = (STEPS - U0) / (U1 - U0)
+    along, across = (1, 0) if along_v else (0, 1)
+    for w, curve in ((0.0, LOWER), (1.0, UPPER)):
+        ab = np.column_stack([np.full_like(t, w), t] if along_v else [t, np.full_like(t, w)])
+        uv = lower.parent_parameters(ab)
+        assert np.abs(uv[:, along] - STEPS).max() < 1e-15 and np.abs(uv[:, across] - curve).max() < 1e-15
     ab = grid(17)
     back = lower.piece_parameters(lower.parent_parameters(ab))
     assert np.abs(back - ab).max() < 1e-12
@@ -104,8 +111,8 @@ def test_rays_hit_the_piece_holding_the_parent_point():
 
 
 @pytest.mark.parametrize("u0,u1,lower,upper,message", [
-    (0.5, 0.5, [0.0], [1.0], "u0 < u1"),
-    (0.2, 1.2, [0.0], [1.0], "u0 < u1"),
+    (0.5, 0.5, [0.0], [1.0], "t0 < t1"),
+    (0.2, 1.2, [0.0], [1.0], "t0 < t1"),
     (0.2, 0.4, [-0.1, 0.2], [1.0], "leaves"),
     (0.2, 0.4, [0.0, np.nan], [1.0], "leaves"),
     (0.2, 0.4, [0.3, 0.7], [0.6, 0.5], "crosses"),

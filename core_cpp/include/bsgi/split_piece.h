@@ -6,7 +6,10 @@
 //     s(a, b) = parent(u(a), lower(u) + b (upper(u) - lower(u))),  u(a) = u0 + a (u1 - u0),
 // each curve v(u) a cubic (Catmull-Rom) through samples at equal steps of u, or a constant:
 // C1, so the piece's frame and Jacobian are continuous. Where the curves meet (the ends of a
-// closed line's inside) the edge b collapses, like a NURBS sphere's pole.
+// closed line's inside) the edge b collapses, like a NURBS sphere's pole. Along v instead, the
+// roles of u and v swap: the band v0 <= v <= v1, lower(v) <= u <= upper(v), with
+//     s(a, b) = parent(lower(v) + a (upper(v) - lower(v)), v(b)),  v(b) = v0 + b (v1 - v0),
+// so that a and b keep the parent's orientation.
 #pragma once
 #include <memory>
 #include <string>
@@ -32,10 +35,11 @@ private:
 
 class SplitPiece final : public Surface {
 public:
+    // t0, t1: the band's range of u (along_v: of v); lower, upper: the curves' samples.
     // Throws std::invalid_argument naming the piece when the band is empty or leaves [0, 1]^2:
-    // u0 >= u1, samples outside [0, 1] or NaN, or lower above upper anywhere.
-    SplitPiece(std::string name, std::shared_ptr<const Surface> parent, double u0, double u1,
-               std::vector<double> lower, std::vector<double> upper);
+    // t0 >= t1, samples outside [0, 1] or NaN, or lower above upper anywhere.
+    SplitPiece(std::string name, std::shared_ptr<const Surface> parent, double t0, double t1,
+               std::vector<double> lower, std::vector<double> upper, bool along_v = false);
 
     SurfacePoint evaluate(double a, double b) const override;
     Tessellation tessellate() const override { return grid(false); }
@@ -48,16 +52,20 @@ public:
     // (outside it, clamped onto it).
     void parent_parameters(double a, double b, double& u, double& v) const;
     void piece_parameters(double u, double v, double& a, double& b) const;
-    double u0() const { return u0_; }
-    double u1() const { return u1_; }
+    double t0() const { return t0_; }
+    double t1() const { return t1_; }
+    bool along_v() const { return along_v_; }
     const BoundaryCurve& lower() const { return lower_; }
     const BoundaryCurve& upper() const { return upper_; }
 
 private:
     Tessellation grid(bool lifted) const;
+    // The parent's (u, v) at (a, b) and their derivatives du/da, du/db, dv/da, dv/db.
+    void map(double a, double b, double& u, double& v, double d[4]) const;
 
     std::shared_ptr<const Surface> parent_;
-    double u0_, u1_;
+    double t0_, t1_;
+    bool along_v_;
     BoundaryCurve lower_, upper_;
     double area_ = 0;
 };
