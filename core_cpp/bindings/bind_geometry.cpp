@@ -254,6 +254,22 @@ void bind_geometry(py::module_& m) {
             },
             py::arg("uv"), "The piece's (a, b) at (N, 2) parameters of the parent (clamped onto the band).");
 
+    m.def(
+        "split_band_parameters",
+        [](double t0, double t1, const Array& lower, const Array& upper, bool along_v, const Array& uv) {
+            if (lower.size() == 0 || upper.size() == 0) throw std::invalid_argument("a boundary curve has no samples");
+            const BoundaryCurve lo(t0, t1, flat(lower)), hi(t0, t1, flat(upper));
+            const size_t n = rows(uv, {2}, "uv");
+            auto out = empty({py::ssize_t(n), 2});
+            for (size_t i = 0; i < n; ++i)
+                SplitPiece::band_parameters(lo, hi, t0, t1, along_v, uv.data()[2 * i], uv.data()[2 * i + 1], out.mutable_data()[2 * i],
+                                            out.mutable_data()[2 * i + 1]);
+            return out;
+        },
+        py::arg("t0"), py::arg("t1"), py::arg("lower"), py::arg("upper"), py::arg("along_v"), py::arg("uv"),
+        "A SplitPiece's (a, b) at (N, 2) parent parameters, from its band alone and not clamped: outside the band, a or "
+        "b leaves [0, 1].");
+
     py::class_<PyRayCaster>(m, "RayCaster",
                             "Embree ray queries answering with surface id, (u, v), point and local frame; surface i is surfaces[i].")
         .def(py::init([](std::vector<std::shared_ptr<Surface>> surfaces, std::map<int, double> panes) {

@@ -45,9 +45,11 @@ SplitPiece::SplitPiece(std::string name, std::shared_ptr<const Surface> parent, 
     for (const auto* curve : {&lower, &upper})
         for (double c : *curve)
             if (!(c >= 0 && c <= 1)) throw std::invalid_argument(what + "a boundary curve leaves [0, 1] (or is NaN)");
-    // The band, checked and integrated on a grid finer than the samples: two-point Gauss-Legendre
-    // per cell.
-    const int cells = std::max(128, int(std::max(lower.size(), upper.size())) * 4);
+    // The band, checked on a grid four times finer than its samples and integrated on one as fine
+    // (two-point Gauss-Legendre per cell): the area to about 1e-5 (kinks of the parent's speed at
+    // its knots fall inside cells), which the solver's uses of it (coefficients by size, weights
+    // of the estimate) need, at a few thousand evaluations.
+    const int cells = std::max(32, int(std::max(lower.size(), upper.size())));
     const double gauss[2] = {0.5 - 0.5 / std::sqrt(3.0), 0.5 + 0.5 / std::sqrt(3.0)};
     for (int i = 0; i <= 4 * cells; ++i) {
         const double t = t0 + (t1 - t0) * i / (4.0 * cells);
@@ -81,13 +83,20 @@ void SplitPiece::parent_parameters(double a, double b, double& u, double& v) con
     map(a, b, u, v, d);
 }
 
+void SplitPiece::band_parameters(const BoundaryCurve& lower, const BoundaryCurve& upper, double t0, double t1, bool along_v,
+                                 double u, double v, double& a, double& b) {
+    const double along = along_v ? v : u, across = along_v ? u : v;
+    const double t = (along - t0) / (t1 - t0);
+    const double at = t0 + std::clamp(t, 0.0, 1.0) * (t1 - t0), lo = lower(at), hi = upper(at);
+    const double w = hi > lo ? (across - lo) / (hi - lo) : across < lo ? -1.0 : across > hi ? 2.0 : 0.5;
+    a = along_v ? w : t;
+    b = along_v ? t : w;
+}
+
 void SplitPiece::piece_parameters(double u, double v, double& a, double& b) const {
-    const double along = along_v_ ? v : u, across = along_v_ ? u : v;
-    const double t = std::clamp((along - t0_) / (t1_ - t0_), 0.0, 1.0);
-    const double at = t0_ + t * (t1_ - t0_), lo = lower_(at), hi = upper_(at);
-    const double w = hi > lo ? std::clamp((across - lo) / (hi - lo), 0.0, 1.0) : 0.5;
-    a = along_v_ ? w : t;
-    b = along_v_ ? t : w;
+    band_parameters(lower_, upper_, t0_, t1_, along_v_, u, v, a, b);
+    a = std::clamp(a, 0.0, 1.0);
+    b = std::clamp(b, 0.0, 1.0);
 }
 
 SurfacePoint SplitPiece::evaluate(double a, double b) const {

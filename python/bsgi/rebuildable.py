@@ -69,6 +69,10 @@ class TrianglePatch(_Rebuildable, _core.TrianglePatch):
     __doc__ = _core.TrianglePatch.__doc__
 
 
+class SplitPiece(_Rebuildable, _core.SplitPiece):
+    __doc__ = _core.SplitPiece.__doc__
+
+
 class Lambert(_Rebuildable, _core.Lambert):
     __doc__ = _core.Lambert.__doc__
 

@@ -6,6 +6,7 @@ from typing import Callable, Optional, Protocol
 
 from . import _core
 from .refine import refined_solve
+from .split import split_scene
 
 ProgressCallback = Callable[[float, str], Optional[bool]]
 
@@ -40,9 +41,15 @@ def solve(
     and the scene solved again, under a budget (bsgi.refine); ``solution.refinement`` reports it.
     ``sides``: which sides of each surface are solved, probed already (``bsgi.probe_sides(scene,
     settings)[0]``, e.g. for bsgi.estimate_solve_bytes beforehand): not probed again.
+    With ``settings.split_crossings`` the diffuse NURBS surfaces other surfaces pass through are
+    solved in pieces split along those lines (bsgi.split); the solution still answers per surface
+    of ``scene`` (``solution.split``: surface index -> its number of pieces).
     """
     settings = settings if settings is not None else _core.SolverSettings()
     progress = progress if progress is not None else _core.Progress()
+    split = split_scene(scene) if settings.split_crossings else None
+    if split is not None:
+        scene, sides = split.scene, split.sides(sides)
 
     def solve_once(probed: Optional[list]) -> _core.Solution:
         if executor is None:
@@ -52,8 +59,10 @@ def solve(
     def solve_here() -> _core.Solution:
         if settings.refine_to_error > 0:
             probe = None if executor is None else (lambda: executor.probe_sides(scene, settings, progress))
-            return refined_solve(scene, settings, solve_once, sides, progress, probe)
-        return solve_once(sides)
+            solution = refined_solve(scene, settings, solve_once, sides, progress, probe)
+        else:
+            solution = solve_once(sides)
+        return solution if split is None else split.solution(solution)
 
     if on_progress is None:
         return solve_here()

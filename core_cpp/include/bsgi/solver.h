@@ -59,6 +59,11 @@ struct SolverSettings {
     // knots spread between them (by the probe's density with adaptive_knots). On in the final
     // and reference presets.
     bool discontinuity_knots = false;
+    // Diffuse NURBS surfaces that other surfaces pass through are split along those lines into
+    // pieces (split_piece.h), each with its own spline, so the light's jump there is not smoothed
+    // (paper section 5.1). Done by bsgi.solve in Python (bsgi/split.py), which answers for the
+    // scene it was given; the core solves whatever scene it gets. On in every preset.
+    bool split_crossings = true;
     // The coarse receivers' light from lights at infinity (a sun: Blender's, a world map's) at a
     // node as its mean weighed by the node's basis function B_i(u) B_k(v) where one of the
     // light's shadow edges crosses its support (the light at 4 x 4 points over it differs by

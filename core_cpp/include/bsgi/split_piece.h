@@ -52,6 +52,10 @@ public:
     // (outside it, clamped onto it).
     void parent_parameters(double a, double b, double& u, double& v) const;
     void piece_parameters(double u, double v, double& a, double& b) const;
+    // The band's (a, b) at a parent point without clamping (outside the band, a or b leaves
+    // [0, 1]): the parent's parameters of the curves alone, as a bake's texels are routed.
+    static void band_parameters(const BoundaryCurve& lower, const BoundaryCurve& upper, double t0, double t1, bool along_v,
+                                double u, double v, double& a, double& b);
     double t0() const { return t0_; }
     double t1() const { return t1_; }
     bool along_v() const { return along_v_; }
