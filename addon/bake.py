@@ -17,6 +17,7 @@ import bpy
 import numpy as np
 
 import bsgi
+from bsgi.split import Band, SplitRadiance
 
 from . import charts, error_view, geometry, textures, view_radiance
 from .materials import user_slots
@@ -69,7 +70,7 @@ def texture_at(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
 
 
 def _upper(radiance):
-    return radiance.upper if isinstance(radiance, bsgi.SurfaceRadiance) else radiance
+    return radiance.upper if isinstance(radiance, (bsgi.SurfaceRadiance, SplitRadiance)) else radiance
 
 
 def _splines(radiance):
@@ -558,22 +559,31 @@ def _store_splines(obj, faces) -> None:
     group = {"kinds": ",".join(kind for kind, _ in faces)}
     for i, (_, radiances) in enumerate(faces):
         for k, r in enumerate(radiances):
-            entry = {"kind": "emitter"}
-            if r is not None:
-                entry = {"kind": r.kind, "disc_radius": r.disc_radius}
-                for side in SIDES:
-                    spline = getattr(r, side)
-                    if spline is not None:
-                        arrays = bsgi.spline_to_arrays(spline)
-                        arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
-                        entry[side] = arrays
-                for texture in TEXTURES:
-                    image = getattr(r, texture)
-                    if image is not None:  # float32 texels, flat, with their shape
-                        entry[texture] = {"texels": image.astype(np.float64).ravel(),
-                                          "shape": np.array(image.shape, np.int32)}
-            group[f"{i}.{k}"] = entry
+            group[f"{i}.{k}"] = _radiance_entry(r)
     obj[PROP_RADIANCE] = group
+
+
+def _radiance_entry(r) -> dict:
+    if r is None:
+        return {"kind": "emitter"}
+    entry = {"kind": r.kind, "disc_radius": r.disc_radius}
+    if isinstance(r, SplitRadiance):  # solved in pieces (bsgi.split): each piece's entry and its band
+        entry["split"] = {str(k): {"piece": _radiance_entry(piece), "range": np.array([b.t0, b.t1]),
+                                   "lower": np.asarray(b.lower, np.float64), "upper": np.asarray(b.upper, np.float64),
+                                   "along_v": int(b.along_v)}
+                          for k, (b, piece) in enumerate(zip(r.bands, r.pieces))}
+        return entry
+    for side in SIDES:
+        spline = getattr(r, side)
+        if spline is not None:
+            arrays = bsgi.spline_to_arrays(spline)
+            arrays["degrees"] = arrays["degrees"].astype(np.int32)  # ID property ints are 32-bit
+            entry[side] = arrays
+    for texture in TEXTURES:
+        image = getattr(r, texture)
+        if image is not None:  # float32 texels, flat, with their shape
+            entry[texture] = {"texels": image.astype(np.float64).ravel(), "shape": np.array(image.shape, np.int32)}
+    return entry
 
 
 def stored_faces(obj) -> list:
@@ -600,6 +610,11 @@ def _stored_radiance(entry):
         return bsgi.SurfaceRadiance(kind, upper.axes[2].knots[-1] if upper.dims == 4 else 1.0, upper)
     if entry["kind"] == "emitter":
         return None
+    if "split" in entry:
+        parts = [entry["split"][str(k)] for k in range(len(entry["split"]))]
+        floats = lambda value: np.frombuffer(memoryview(value), np.float64).copy()  # noqa: E731
+        bands = [Band(*floats(p["range"]), floats(p["lower"]), floats(p["upper"]), bool(p["along_v"])) for p in parts]
+        return SplitRadiance(bands, [_stored_radiance(p["piece"]) for p in parts])
     textures = {t: np.frombuffer(memoryview(entry[t]["texels"]), np.float64).reshape(
                     tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
                 for t in TEXTURES if t in entry}

@@ -29,6 +29,9 @@ Errors are Python exceptions: ValueError for invalid input (knots, shapes, degre
 naming the surface), bsgi.MemoryBudgetError (a MemoryError) for splines over the memory budget,
 RuntimeError for a solve over its memory budget, bsgi.SolveCancelled for a cancelled solve.
 
+Surfaces that others pass through are solved split along those lines (bsgi.split, paper section
+5.1; ``settings.split_crossings``): a solution answers for the scene it was given.
+
 Refinement where the per-surface error estimate is high: ``settings.refine_to_error = 0.02`` before
 ``bsgi.solve`` (bsgi.refine; ``solution.refinement`` reports it).
 
@@ -78,6 +81,7 @@ from .rebuildable import (  # the compiled classes, keeping what they were built
     RoughDielectric,
     Scene,
     SmoothDielectric,
+    SplitPiece,
     TrianglePatch,
 )
 from .solution_io import StoredSolution, load_solution, save_solution, spline_from_arrays, spline_to_arrays
@@ -105,6 +109,7 @@ __all__ = [
     "Scene",
     "SmoothDielectric",
     "SidesProbe",
+    "SplitPiece",
     "SolveCancelled",
     "SolveSteps",
     "Solution",

@@ -10,6 +10,7 @@ import numpy as np
 
 from . import _core
 from .rebuildable import settings_fields, settings_from
+from .split import Band, SplitRadiance
 
 FORMAT = "bsgi-solution-1"
 
@@ -63,35 +64,51 @@ def save_solution(path, radiance: Sequence, names: Sequence[str], settings: _cor
     splines, read back as diffuse or glossy by their dimension), with the surfaces' names."""
     if len(radiance) != len(names):
         raise ValueError(f"save_solution: {len(radiance)} splines but {len(names)} names")
-    arrays, kinds, radii, two_sided = {}, [], [], []
+    arrays, kinds, radii, two_sided, pieces = {}, [], [], [], []
     for i, entry in enumerate(radiance):
-        two_sided.append(bool(entry.two_sided_emission) if isinstance(entry, _core.SurfaceRadiance) else False)
+        two_sided.append(bool(entry.two_sided_emission) if isinstance(entry, (_core.SurfaceRadiance, SplitRadiance)) else False)
+        pieces.append(len(entry.pieces) if isinstance(entry, SplitRadiance) else 0)
         if entry is None:
             kinds.append(None)
             radii.append(None)
             continue
-        surface = entry if isinstance(entry, _core.SurfaceRadiance) else None
-        upper = surface.upper if surface else entry
-        kinds.append(surface.kind if surface else ("glossy" if upper.dims == 4 else "diffuse"))
+        surface = entry if isinstance(entry, (_core.SurfaceRadiance, SplitRadiance)) else None
+        kinds.append(surface.kind if surface else ("glossy" if entry.dims == 4 else "diffuse"))
         radii.append(surface.disc_radius if surface else None)
-        sides = {"upper": upper, "lower": surface.lower if surface else None,
-                 "diffuse": surface.diffuse if surface else None,
-                 "lower_diffuse": surface.lower_diffuse if surface else None,
-                 "tint_zero": surface.tint_zero if surface else None,
-                 "lower_tint_zero": surface.lower_tint_zero if surface else None}
-        for side, spline in sides.items():
-            if spline is not None:
-                for key, value in spline_to_arrays(spline).items():
-                    arrays[f"surface{i}/{side}/{key}"] = value
-        for texture in ("albedo", "emission", "specular"):  # textured surfaces: float32 images over (u, v)
-            image = getattr(surface, texture) if surface else None
-            if image is not None:
-                arrays[f"surface{i}/{texture}"] = image
+        if isinstance(entry, SplitRadiance):  # a surface solved in pieces (bsgi.split): each piece and its band
+            for k, (band, piece) in enumerate(zip(entry.bands, entry.pieces)):
+                arrays.update(_surface_arrays(f"surface{i}/piece{k}/", piece))
+                arrays[f"surface{i}/band{k}/range"] = np.array([band.t0, band.t1])
+                arrays[f"surface{i}/band{k}/lower"] = np.asarray(band.lower, np.float64)
+                arrays[f"surface{i}/band{k}/upper"] = np.asarray(band.upper, np.float64)
+                arrays[f"surface{i}/band{k}/along_v"] = np.array([band.along_v])
+        else:
+            arrays.update(_surface_arrays(f"surface{i}/", entry))
     meta = {"format": FORMAT, "names": list(names), "settings": settings_fields(settings),
             "stats": dict(stats or {}), "solved": [k is not None for k in kinds], "kinds": kinds, "disc_radii": radii,
-            "two_sided_emission": two_sided}
+            "two_sided_emission": two_sided, "pieces": pieces}
     with open(path, "wb") as f:
         np.savez_compressed(f, meta=np.frombuffer(json.dumps(meta).encode(), np.uint8), **arrays)
+
+
+def _surface_arrays(prefix: str, entry) -> dict:
+    """One surface's splines and textures under `prefix` (a SurfaceRadiance, or an upper spline alone)."""
+    surface = entry if isinstance(entry, _core.SurfaceRadiance) else None
+    sides = {"upper": surface.upper if surface else entry, "lower": surface.lower if surface else None,
+             "diffuse": surface.diffuse if surface else None,
+             "lower_diffuse": surface.lower_diffuse if surface else None,
+             "tint_zero": surface.tint_zero if surface else None,
+             "lower_tint_zero": surface.lower_tint_zero if surface else None}
+    arrays = {}
+    for side, spline in sides.items():
+        if spline is not None:
+            for key, value in spline_to_arrays(spline).items():
+                arrays[f"{prefix}{side}/{key}"] = value
+    for texture in ("albedo", "emission", "specular"):  # textured surfaces: float32 images over (u, v)
+        image = getattr(surface, texture) if surface else None
+        if image is not None:
+            arrays[f"{prefix}{texture}"] = image
+    return arrays
 
 
 def load_solution(path) -> StoredSolution:
@@ -133,13 +150,18 @@ def _read_solution(path) -> StoredSolution:
         two_sided = meta.get("two_sided_emission")  # absent in files from before two-sided emission
         if two_sided is not None and not (isinstance(two_sided, list) and len(two_sided) == len(names)):
             raise _Refused(f"'two_sided_emission' must be a list of one entry per surface ({len(names)})")
+        pieces = meta.get("pieces") or [0] * len(names)  # absent in files from before split surfaces
+        if not (isinstance(pieces, list) and len(pieces) == len(names) and all(isinstance(n, int) for n in pieces)):
+            raise _Refused(f"'pieces' must be a list of one count per surface ({len(names)})")
         for i, is_solved in enumerate(solved):
             if not is_solved:
                 radiance.append(None)
                 surfaces.append(None)
                 continue
             try:
-                surface = _read_surface(data, i, kinds[i], radii[i], bool(two_sided[i]) if two_sided else False)
+                emits_back = bool(two_sided[i]) if two_sided else False
+                surface = (_read_split(data, i, pieces[i], kinds[i], radii[i]) if pieces[i]
+                           else _read_surface(data, f"surface{i}/", kinds[i], radii[i], emits_back))
             except _Refused as error:
                 raise _Refused(f"surface '{names[i]}': {error}") from None
             except ValueError as error:  # the core's refusal of the knots, shapes or textures
@@ -150,10 +172,23 @@ def _read_solution(path) -> StoredSolution:
     return StoredSolution(radiance, surfaces, names, settings, meta.get("stats", {}))
 
 
-def _read_surface(data, i: int, kind, radius, two_sided_emission: bool) -> _core.SurfaceRadiance:
+def _read_split(data, i: int, count: int, kind, radius) -> SplitRadiance:
+    bands, pieces = [], []
+    for k in range(count):
+        prefix = f"surface{i}/band{k}/"
+        if any(prefix + key not in data.files for key in ("range", "lower", "upper", "along_v")):
+            raise _Refused(f"piece {k} has no band (range, lower, upper, along_v)")
+        t0, t1 = (float(t) for t in np.asarray(data[prefix + "range"], np.float64))
+        bands.append(Band(t0, t1, np.asarray(data[prefix + "lower"], np.float64), np.asarray(data[prefix + "upper"], np.float64),
+                          bool(np.asarray(data[prefix + "along_v"])[0])))
+        pieces.append(_read_surface(data, f"surface{i}/piece{k}/", kind, radius, False))
+    return SplitRadiance(bands, pieces)
+
+
+def _read_surface(data, root: str, kind, radius, two_sided_emission: bool) -> _core.SurfaceRadiance:
     sides = {}
     for side in ("upper", "lower", "diffuse", "lower_diffuse", "tint_zero", "lower_tint_zero"):
-        prefix = f"surface{i}/{side}/"
+        prefix = f"{root}{side}/"
         found = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
         if not found:
             sides[side] = None
@@ -176,8 +211,7 @@ def _read_surface(data, i: int, kind, radius, two_sided_emission: bool) -> _core
         raise _Refused(f"disc radius {radius!r} is not a number")
     if not isinstance(kind, str):
         raise _Refused(f"kind {kind!r} is not a name")
-    textures = {t: data[f"surface{i}/{t}"] if f"surface{i}/{t}" in data.files else None
-                for t in ("albedo", "emission", "specular")}
+    textures = {t: data[f"{root}{t}"] if f"{root}{t}" in data.files else None for t in ("albedo", "emission", "specular")}
     return _core.SurfaceRadiance(kind, radius if radius is not None else 1.0, sides["upper"], sides["lower"],
                                  sides["diffuse"], sides["lower_diffuse"], **textures,
                                  two_sided_emission=two_sided_emission, tint_zero=sides["tint_zero"],

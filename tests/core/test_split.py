@@ -120,3 +120,17 @@ def test_pieces_follow_the_line_they_are_cut_along():
     want = 0.5 + np.tan(TURN) * (u - 0.5) if not b.along_v else None
     assert not b.along_v  # graphs over u: two pieces either way; u first
     assert np.abs(v - want).max() < 1e-6  # Embree's single-precision hits on the wall
+
+
+def test_split_solution_round_trips_through_a_solution_file(tmp_path):
+    solution = bsgi.solve(scene(), bsgi.SolverSettings.preset("draft"))
+    path = tmp_path / "split.npz"
+    bsgi.save_solution(path, solution.surfaces, ["floor", "wall", "world"][:len(solution.surfaces)],
+                       bsgi.SolverSettings.preset("draft"))
+    stored = bsgi.load_solution(path)
+    up = np.tile([0.0, 0.0, 1.0], (len(UV), 1))
+    for i in range(len(solution.surfaces)):
+        if solution.surfaces[i] is None:
+            continue
+        np.testing.assert_array_equal(stored.surfaces[i].evaluate(UV, up), solution.surfaces[i].evaluate(UV, up))
+    assert len(stored.surfaces[0].pieces) == 2
