@@ -134,3 +134,16 @@ def test_split_solution_round_trips_through_a_solution_file(tmp_path):
             continue
         np.testing.assert_array_equal(stored.surfaces[i].evaluate(UV, up), solution.surfaces[i].evaluate(UV, up))
     assert len(stored.surfaces[0].pieces) == 2
+
+
+def test_split_scene_pickles_for_ray_workers():
+    """A Ray worker rebuilds the split scene from its calls (bsgi.rebuildable): the same pieces."""
+    import pickle
+
+    split = splitting.split_scene(scene())
+    again = pickle.loads(pickle.dumps(split.scene))
+    assert len(again) == len(split.scene) == 3
+    ab = np.random.default_rng(2).uniform(0, 1, (50, 2))
+    for j, _ in split.pieces[0]:
+        assert again.name(j) == split.scene.name(j)
+        np.testing.assert_array_equal(again.surface(j).evaluate(ab)["position"], split.scene.surface(j).evaluate(ab)["position"])
