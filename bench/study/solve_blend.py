@@ -134,19 +134,24 @@ def main():
     scale = float(np.ptp(pairs["point"], axis=0).max())
     first = {}
 
-    def solve_once(sides):
-        solution = bsgi._core.solve(export.scene, settings, bsgi.Progress(), sides)
-        if not first:  # read now: the refinement changes the scene's coefficients after it
-            first.update(seconds=time.perf_counter() - start, cpu_seconds=time.process_time() - cpu,
-                         bounces=solution.stats["bounces"], coefficients=solution.stats["coefficients"],
-                         rays=solution.stats["rays"] + solution.stats["estimate_rays"])
-            write_solution(out_npz.replace(".npz", ".first.npz"), export, solution, pairs, scale)
-        return solution
-
     if spec.get("first_pass") and settings.refine_to_error > 0:
         from bsgi.refine import refined_solve
+        from bsgi.split import split_scene
 
-        solution = refined_solve(export.scene, settings, solve_once)
+        # As bsgi.solve does: split where surfaces cross, answer for the exported scene.
+        split = split_scene(export.scene) if settings.split_crossings else None
+        answer = split.solution if split else (lambda s: s)
+
+        def solve_once(sides):
+            solution = bsgi._core.solve(split.scene if split else export.scene, settings, bsgi.Progress(), sides)
+            if not first:  # read now: the refinement changes the scene's coefficients after it
+                first.update(seconds=time.perf_counter() - start, cpu_seconds=time.process_time() - cpu,
+                             bounces=solution.stats["bounces"], coefficients=solution.stats["coefficients"],
+                             rays=solution.stats["rays"] + solution.stats["estimate_rays"])
+                write_solution(out_npz.replace(".npz", ".first.npz"), export, answer(solution), pairs, scale)
+            return solution
+
+        solution = answer(refined_solve(split.scene if split else export.scene, settings, solve_once))
     else:
         solution = bsgi.solve(export.scene, settings)
     seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
