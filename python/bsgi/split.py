@@ -281,6 +281,11 @@ class SplitSpline:
     def channels(self) -> int:
         return self.splines[0].channels
 
+    @property
+    def coefficients(self) -> np.ndarray:
+        """Every piece's coefficients, (total, channels): not a tensor, for checks over all of them."""
+        return np.concatenate([np.asarray(s.coefficients).reshape(-1, s.channels) for s in self.splines])
+
 
 @dataclass
 class _Axis:

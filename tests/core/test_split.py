@@ -94,6 +94,8 @@ def test_split_solution_answers_for_the_scene_given():
     assert (bright > 2 * dark).all()
     upper = solution.radiance[0].evaluate(line + side)
     assert np.abs(upper[:, 2] - bright).max() < 1e-12
+    pieces = solution._solution.radiance
+    assert len(solution.radiance[0].coefficients) == sum(pieces[j].coefficients.size // 3 for j, _ in solution._split.pieces[0])
 
 
 def test_nothing_crossing_leaves_the_scene_whole():
