@@ -97,6 +97,16 @@ RayBatch batch(const Array& origins, const Array& directions, const std::optiona
     return b;
 }
 
+// (N, 2) parameter pairs through f(x, y, out_x, out_y): a SplitPiece's maps between its (a, b)
+// and its parent's (u, v).
+template <typename F>
+py::array_t<double> map_pairs(const Array& in, const char* what, F&& f) {
+    const size_t n = rows(in, {2}, what);
+    auto out = empty({py::ssize_t(n), 2});
+    for (size_t i = 0; i < n; ++i) f(in.data()[2 * i], in.data()[2 * i + 1], out.mutable_data()[2 * i], out.mutable_data()[2 * i + 1]);
+    return out;
+}
+
 }  // namespace
 
 void bind_geometry(py::module_& m) {
@@ -236,21 +246,13 @@ void bind_geometry(py::module_& m) {
         .def(
             "parent_parameters",
             [](const SplitPiece& s, const Array& ab) {
-                const size_t n = rows(ab, {2}, "ab");
-                auto out = empty({py::ssize_t(n), 2});
-                for (size_t i = 0; i < n; ++i)
-                    s.parent_parameters(ab.data()[2 * i], ab.data()[2 * i + 1], out.mutable_data()[2 * i], out.mutable_data()[2 * i + 1]);
-                return out;
+                return map_pairs(ab, "ab", [&](double a, double b, double& u, double& v) { s.parent_parameters(a, b, u, v); });
             },
             py::arg("ab"), "The parent's (u, v) at (N, 2) parameters of the piece.")
         .def(
             "piece_parameters",
             [](const SplitPiece& s, const Array& uv) {
-                const size_t n = rows(uv, {2}, "uv");
-                auto out = empty({py::ssize_t(n), 2});
-                for (size_t i = 0; i < n; ++i)
-                    s.piece_parameters(uv.data()[2 * i], uv.data()[2 * i + 1], out.mutable_data()[2 * i], out.mutable_data()[2 * i + 1]);
-                return out;
+                return map_pairs(uv, "uv", [&](double u, double v, double& a, double& b) { s.piece_parameters(u, v, a, b); });
             },
             py::arg("uv"), "The piece's (a, b) at (N, 2) parameters of the parent (clamped onto the band).");
 
@@ -259,12 +261,9 @@ void bind_geometry(py::module_& m) {
         [](double t0, double t1, const Array& lower, const Array& upper, bool along_v, const Array& uv) {
             if (lower.size() == 0 || upper.size() == 0) throw std::invalid_argument("a boundary curve has no samples");
             const BoundaryCurve lo(t0, t1, flat(lower)), hi(t0, t1, flat(upper));
-            const size_t n = rows(uv, {2}, "uv");
-            auto out = empty({py::ssize_t(n), 2});
-            for (size_t i = 0; i < n; ++i)
-                SplitPiece::band_parameters(lo, hi, t0, t1, along_v, uv.data()[2 * i], uv.data()[2 * i + 1], out.mutable_data()[2 * i],
-                                            out.mutable_data()[2 * i + 1]);
-            return out;
+            return map_pairs(uv, "uv", [&](double u, double v, double& a, double& b) {
+                SplitPiece::band_parameters(lo, hi, t0, t1, along_v, u, v, a, b);
+            });
         },
         py::arg("t0"), py::arg("t1"), py::arg("lower"), py::arg("upper"), py::arg("along_v"), py::arg("uv"),
         "A SplitPiece's (a, b) at (N, 2) parent parameters, from its band alone and not clamped: outside the band, a or "

@@ -268,14 +268,7 @@ class SplitSpline:
                            splines[0].axes[a].degree) for a in (0, 1)]
 
     def evaluate(self, points: np.ndarray) -> np.ndarray:
-        points = np.asarray(points, np.float64)
-        out = np.zeros((len(points), self.splines[0].channels))
-        piece, ab = locate(self.bands, points[:, :2])
-        for k, spline in enumerate(self.splines):
-            rows = piece == k
-            if rows.any():
-                out[rows] = spline.evaluate(np.ascontiguousarray(ab[rows]))
-        return out
+        return _by_piece(self.bands, points, self.channels, lambda k, ab, rows: self.splines[k].evaluate(ab))
 
     @property
     def channels(self) -> int:
@@ -317,6 +310,18 @@ def locate(bands: list, uv: np.ndarray) -> tuple:
     return piece, np.clip(ab, 0.0, 1.0)
 
 
+def _by_piece(bands: list, uv: np.ndarray, channels: int, evaluate) -> np.ndarray:
+    """(N, channels): evaluate(k, (a, b) rows, their row mask) for the rows each piece k holds."""
+    uv = np.asarray(uv, np.float64)
+    out = np.zeros((len(uv), channels))
+    piece, ab = locate(bands, uv[:, :2])
+    for k in range(len(bands)):
+        rows = piece == k
+        if rows.any():
+            out[rows] = evaluate(k, np.ascontiguousarray(ab[rows]), rows)
+    return out
+
+
 class SplitRadiance:
     """A split surface's radiance as a SurfaceRadiance of its own (u, v) (diffuse: 2D, no textures)."""
 
@@ -332,14 +337,9 @@ class SplitRadiance:
         self.lower = SplitSpline(bands, lowers) if all(s is not None for s in lowers) else None
 
     def evaluate(self, uv: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        uv = np.asarray(uv, np.float64)
-        out = np.zeros((len(uv), 3))
-        piece, ab = locate(self.bands, uv)
-        for k, r in enumerate(self.pieces):
-            rows = piece == k
-            if rows.any():
-                out[rows] = r.evaluate(np.ascontiguousarray(ab[rows]), np.ascontiguousarray(directions[rows], np.float64))
-        return out
+        directions = np.asarray(directions, np.float64)
+        return _by_piece(self.bands, uv, 3, lambda k, ab, rows: self.pieces[k].evaluate(
+            ab, np.ascontiguousarray(directions[rows])))
 
 
 class SplitSolution:
@@ -378,8 +378,9 @@ class SplitSolution:
     @property
     def reports(self) -> list:
         """One per original surface, in the split solve's order (a split surface where its first
-        piece's stood): its pieces' estimated errors merged as the RMS over their areas."""
+        piece's stood): its pieces' estimated errors merged (_merged_report)."""
         inner = self._solution.reports
+        radiance = self._solution.radiance
         by_name = {r["name"]: r for r in inner}
         scene = self._split.scene
         parent_of, out = {}, []
@@ -395,7 +396,7 @@ class SplitSolution:
                 done.add(i)
                 # Each piece weighs by its area and its light's mean square (its coefficients'):
                 # the relative RMS error of the whole surface, where a dark piece's counts little.
-                parts = [(scene.area(j) * _mean_square(self._solution.radiance[j]), by_name[scene.name(j)])
+                parts = [(scene.area(j) * _mean_square(radiance[j]), by_name[scene.name(j)])
                          for j, _ in self._split.pieces[i]]
                 out.append(_merged_report(r["name"].rsplit(" / piece ", 1)[0], parts))
         return out

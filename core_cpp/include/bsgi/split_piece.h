@@ -26,7 +26,6 @@ public:
     double operator()(double u) const { double d; return evaluate(u, d); }
     // Value and derivative dc/du.
     double evaluate(double u, double& derivative) const;
-    const std::vector<double>& samples() const { return samples_; }
 
 private:
     double u0_, u1_;
@@ -47,7 +46,6 @@ public:
     void refine_parameters(const Vec3& p, double& a, double& b) const override { project(p, a, b); }
     double area() const override { return area_; }
 
-    const Surface& parent() const { return *parent_; }
     // The parent's (u, v) at the piece's (a, b), and back: (a, b) of a parent point in the band
     // (outside it, clamped onto it).
     void parent_parameters(double a, double b, double& u, double& v) const;
@@ -59,8 +57,6 @@ public:
     double t0() const { return t0_; }
     double t1() const { return t1_; }
     bool along_v() const { return along_v_; }
-    const BoundaryCurve& lower() const { return lower_; }
-    const BoundaryCurve& upper() const { return upper_; }
 
 private:
     Tessellation grid(bool lifted) const;
