@@ -40,18 +40,31 @@ class ExportedObject:
     not_baked: str = ""
 
 
-# Cycles shades a smooth face with its corner normals interpolated, the solver with the face's own
-# normal (a NURBS surface's exact one). Named where they turn further apart than this: the cosine
-# of light 60 degrees off the normal then differs by up to a tenth across a face.
+# Cycles shades a smooth face with its corner normals interpolated; so does the solver's Lambertian
+# reflection (the cosine of the light reads the interpolated normal). A glossy lobe, and light
+# through a surface, keep each face's own normal: named where the normals turn further apart than
+# this (the cosine of light 60 degrees off the normal then differs by up to a tenth across a face).
 SMOOTH_SHADING_TURN_DEGREES = 3.0
+# Corner normals this close to their face's are a flat face (float32 normals differ by 0.03).
+FLAT_FACE_DEGREES = 0.1
 
 
-def smooth_shading_turn(mesh) -> float:
-    """The largest angle in degrees between a face's normal and its corners' (0 on flat faces)."""
-    if not len(mesh.polygons):
-        return 0.0
+@dataclass
+class CornerNormals:
+    """A mesh's corner normals in world space (loops, 3), turned to the solver's winding of its
+    faces (world corners in loop order), and the angle in degrees each face's turn from its own."""
+
+    normals: np.ndarray
+    turn: np.ndarray  # per polygon
+
+    def smooth(self, polygon: int) -> bool:
+        return bool(self.turn[polygon] > FLAT_FACE_DEGREES)
+
+
+def corner_normals(mesh, matrix=None) -> CornerNormals:
     corner = np.empty(len(mesh.loops) * 3)
     mesh.corner_normals.foreach_get("vector", corner)
+    corner = corner.reshape(-1, 3)
     face = np.empty(len(mesh.polygons) * 3)
     mesh.polygons.foreach_get("normal", face)
     totals = np.empty(len(mesh.polygons), np.int64)
@@ -60,17 +73,34 @@ def smooth_shading_turn(mesh) -> float:
     mesh.polygons.foreach_get("loop_start", starts)
     order = np.argsort(starts)  # each face's corners are the loops from its start on
     of_corner = np.repeat(order, totals[order])
-    cosines = np.einsum("ij,ij->i", corner.reshape(-1, 3), face.reshape(-1, 3)[of_corner])
-    return float(np.degrees(np.arccos(np.clip(cosines.min(), -1.0, 1.0))))
+    cosines = np.einsum("ij,ij->i", corner, face.reshape(-1, 3)[of_corner])
+    turn = np.zeros(len(mesh.polygons))
+    if len(cosines):
+        np.maximum.at(turn, of_corner, np.degrees(np.arccos(np.clip(cosines, -1.0, 1.0))))
+    if matrix is not None:
+        # Normals go by the inverse transpose; a mirroring matrix reverses the winding of the
+        # world corners, whose normal the solver's front follows: the normals turn with it.
+        linear = np.array(matrix, float)[:3, :3]
+        corner = corner @ np.linalg.inv(linear) * np.sign(np.linalg.det(linear))
+        corner /= np.maximum(np.linalg.norm(corner, axis=1, keepdims=True), 1e-300)
+    return CornerNormals(corner, turn)
 
 
-def _warn_smooth_shading(mesh, label: str, warnings) -> None:
-    turn = smooth_shading_turn(mesh)
+def smooth_shading_turn(mesh) -> float:
+    """The largest angle in degrees between a face's normal and its corners' (0 on flat faces)."""
+    return float(corner_normals(mesh).turn.max(initial=0.0))
+
+
+def _warn_smooth_glossy(normals: CornerNormals, slots, materials: ObjectMaterials, label: str, warnings) -> None:
+    """Names the smooth-shaded faces whose glossy lobe (or transmission) reads the face's own normal."""
+    turns = [t for t, slot in zip(normals.turn, slots) if materials.solver[min(slot, len(materials.solver) - 1)].kind != "lambert"]
+    turn = max(turns, default=0.0)
     if turn > SMOOTH_SHADING_TURN_DEGREES:
-        warnings.append(f"object '{label}': smooth shading is solved with each face's own flat normal, where Cycles "
-                        f"interpolates the normals across the faces (here up to {turn:.0f}° from a face's): its light "
-                        "and highlights show the faces; a Subdivision Surface modifier (or a NURBS surface) makes "
-                        "the faces follow the shape")
+        warnings.append(f"object '{label}': the glossy reflection of its smooth-shaded faces is solved with each face's "
+                        f"own flat normal, where Cycles interpolates the normals across the faces (here up to "
+                        f"{turn:.0f}° from a face's; its diffuse light follows the interpolated normals): its highlights "
+                        "show the faces; a Subdivision Surface modifier (or a NURBS surface) makes the faces follow the "
+                        "shape")
 
 
 def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | None = None,
@@ -82,8 +112,11 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
     world = co @ m[:3, :3].T + m[:3, 3]
     modified = label is None and obj.type == "MESH" and pending_charts is not None and _modifiers_change_faces(obj, mesh)
     label = label or obj.name
-    _warn_smooth_shading(mesh, label, warnings)
     materials = object_materials(obj, matrix, warnings, label, surface_options(obj))
+    normals = corner_normals(mesh, matrix)
+    slots = np.zeros(len(mesh.polygons), np.int64)
+    mesh.polygons.foreach_get("material_index", slots)
+    _warn_smooth_glossy(normals, slots, materials, label, warnings)
     exported = ExportedObject(obj.name, len(mesh.polygons))
     if any(m.kind == "rough_dielectric" for m in materials.solver):
         thin = materials.use_glass(glass_shape(world, mesh), glass_choice(obj), warnings)
@@ -99,28 +132,32 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
         # to them: one chart, or no bake.
         problem = _chart_refusal(obj, mesh, user_slots(obj))
         if not problem:
-            pending_charts.append(_chart_job(exported, mesh, world, materials, label, base=obj.original))
+            pending_charts.append(_chart_job(exported, mesh, world, materials, label, normals, base=obj.original))
             return exported
         exported.not_baked = f"its modifiers ({modifier_names(obj)}) change its faces and {problem}; {APPLY_ADVICE}"
     elif not pane and pending_charts is not None and _wants_chart(obj, mesh, user_slots(obj), label, warnings):
-        pending_charts.append(_chart_job(exported, mesh, world, materials, label))
+        pending_charts.append(_chart_job(exported, mesh, world, materials, label, normals))
         return exported
     ngon_tris = {}
     if any(p.loop_total > 4 for p in mesh.polygons):
         mesh.calc_loop_triangles()
         for tri in mesh.loop_triangles:
-            ngon_tris.setdefault(tri.polygon_index, []).append(tuple(tri.vertices))
+            ngon_tris.setdefault(tri.polygon_index, []).append((tuple(tri.vertices), tuple(tri.loops)))
     for poly in mesh.polygons:
         name = f"{label}: face {poly.index}"
         verts = list(poly.vertices)
         first = len(scene)
+        loops = list(range(poly.loop_start, poly.loop_start + poly.loop_total))
         if len(verts) <= 4:
-            pieces, kind = [(name, verts)], "quad" if len(verts) == 4 else "triangle"
+            pieces, kind = [(name, verts, loops)], "quad" if len(verts) == 4 else "triangle"
         else:
-            pieces, kind = [(f"{name} triangle {k}", list(tri)) for k, tri in enumerate(ngon_tris[poly.index])], "ngon"
+            pieces, kind = [(f"{name} triangle {k}", list(tri), list(tri_loops))
+                            for k, (tri, tri_loops) in enumerate(ngon_tris[poly.index])], "ngon"
+        smooth = normals.smooth(poly.index)
         try:
-            for piece, corners in pieces:
-                surface = (bsgi.BilinearPatch if len(corners) == 4 else bsgi.TrianglePatch)(piece, world[corners])
+            for piece, corners, corner_loops in pieces:
+                surface = (bsgi.BilinearPatch if len(corners) == 4 else bsgi.TrianglePatch)(
+                    piece, world[corners], normals=normals.normals[corner_loops] if smooth else None)
                 materials.add(scene, poly.material_index, surface)
         except ValueError as error:
             raise ExportError(str(error)) from None
@@ -235,9 +272,10 @@ class _ChartJob:
     base: object = None
     base_uvs: np.ndarray | None = None  # per loop of the user's mesh, for the bake
     loop_count: int = 0  # of the evaluated mesh
+    normals: np.ndarray | None = None  # per loop, world (smooth shading), or None: flat faces
 
 
-def _chart_job(exported, mesh, world, materials, label, base=None) -> _ChartJob:
+def _chart_job(exported, mesh, world, materials, label, normals: CornerNormals, base=None) -> _ChartJob:
     triangles, loops = charts.loop_triangles(mesh)
     name, found = charts.suitable_uv_map(mesh, loops)
     if base is not None and name is not None and base.data.uv_layers.get(name) is None:
@@ -248,8 +286,10 @@ def _chart_job(exported, mesh, world, materials, label, base=None) -> _ChartJob:
     polygons = [tuple(p.vertices) for p in mesh.polygons] if name is None else []
     # The user's UV map as their own mesh holds it: the modifiers carry it to the faces solved.
     base_uvs = charts.layer_uvs(base.data, name) if base is not None and name is not None else None
+    smooth = normals.turn.max(initial=0.0) > FLAT_FACE_DEGREES
     return _ChartJob(exported, label, world, triangles, loops, polygons, found if name is not None else None,
-                     materials, int(indices[0]), [] if name is not None else found, base, base_uvs, len(mesh.loops))
+                     materials, int(indices[0]), [] if name is not None else found, base, base_uvs, len(mesh.loops),
+                     normals.normals if smooth else None)
 
 
 def build_chart(scene, job: _ChartJob, warnings) -> None:
@@ -270,7 +310,8 @@ def build_chart(scene, job: _ChartJob, warnings) -> None:
                               "Mesh Surfaces (Object Properties > B-spline GI) to Per Face")
     first = len(scene)
     try:
-        chart = bsgi.MeshChart(f"{job.label}: chart 0", job.world, job.triangles, uvs[job.triangle_loops])
+        chart = bsgi.MeshChart(f"{job.label}: chart 0", job.world, job.triangles, uvs[job.triangle_loops],
+                               corner_normals=None if job.normals is None else job.normals[job.triangle_loops])
         job.materials.add(scene, job.slot, chart)
     except ValueError as error:
         raise ExportError(str(error)) from None

@@ -46,9 +46,10 @@ py::dict evaluate_many(const Surface& s, const Array& uv) {
     const size_t n = rows(uv, {2}, "uv");
     auto p = empty({py::ssize_t(n), 3}), du = empty({py::ssize_t(n), 3}), dv = empty({py::ssize_t(n), 3});
     auto x = empty({py::ssize_t(n), 3}), y = empty({py::ssize_t(n), 3}), z = empty({py::ssize_t(n), 3});
+    auto shading = empty({py::ssize_t(n), 3});
     auto jac = py::array_t<double>(py::ssize_t(n));
     double *pp = p.mutable_data(), *pdu = du.mutable_data(), *pdv = dv.mutable_data(), *px = x.mutable_data(),
-           *py_ = y.mutable_data(), *pz = z.mutable_data(), *pj = jac.mutable_data();
+           *py_ = y.mutable_data(), *pz = z.mutable_data(), *ps = shading.mutable_data(), *pj = jac.mutable_data();
     const double* in = uv.data();
     {
         py::gil_scoped_release release;
@@ -57,11 +58,13 @@ py::dict evaluate_many(const Surface& s, const Array& uv) {
             const SurfacePoint sp = s.evaluate(in[2 * i], in[2 * i + 1]);
             put(pp + 3 * i, sp.p), put(pdu + 3 * i, sp.dpdu), put(pdv + 3 * i, sp.dpdv);
             put(px + 3 * i, sp.frame.x), put(py_ + 3 * i, sp.frame.y), put(pz + 3 * i, sp.frame.z);
+            put(ps + 3 * i, shading_normal(sp));
             pj[i] = sp.jacobian;
         }
     }
     py::dict d;
-    d["position"] = p, d["dpdu"] = du, d["dpdv"] = dv, d["x"] = x, d["y"] = y, d["normal"] = z, d["jacobian"] = jac;
+    d["position"] = p, d["dpdu"] = du, d["dpdv"] = dv, d["x"] = x, d["y"] = y, d["normal"] = z, d["shading_normal"] = shading,
+    d["jacobian"] = jac;
     return d;
 }
 
@@ -107,6 +110,16 @@ py::array_t<double> map_pairs(const Array& in, const char* what, F&& f) {
     return out;
 }
 
+// N rows of 3 as N points or vectors, the surface named where there are not N.
+template <size_t N>
+std::array<Vec3, N> corners(const std::string& name, const Array& a, const char* what) {
+    if (rows(a, {3}, "surface '" + name + "': " + what) != N)
+        throw std::invalid_argument("surface '" + name + "': " + std::to_string(N) + " " + what + " needed");
+    std::array<Vec3, N> out;
+    for (size_t i = 0; i < N; ++i) out[i] = {a.data()[3 * i], a.data()[3 * i + 1], a.data()[3 * i + 2]};
+    return out;
+}
+
 }  // namespace
 
 void bind_geometry(py::module_& m) {
@@ -133,7 +146,8 @@ void bind_geometry(py::module_& m) {
         .def_property_readonly("size", &Surface::size)
         .def_property_readonly("tessellation_is_exact", &Surface::tessellation_is_exact)
         .def("evaluate", &evaluate_many, py::arg("uv"),
-             "Position, s_u, s_v, local frame (x, y, normal) of (1)-(3) and |s_u x s_v| at (N, 2) parameters.")
+             "Position, s_u, s_v, local frame (x, y, normal) of (1)-(3), the shading normal a diffuse receiver's cosine "
+             "reads (the normal but on smooth-shaded faces) and |s_u x s_v| at (N, 2) parameters.")
         .def(
             "in_domain",
             [](const Surface& s, const Array& uv) {
@@ -187,7 +201,7 @@ void bind_geometry(py::module_& m) {
     py::class_<MeshChart, Surface, std::shared_ptr<MeshChart>>(
         m, "MeshChart", "A triangle mesh with a UV map as one surface; chi of (8) masks the area outside the UV triangles.")
         .def(py::init([](const std::string& name, const Array& positions, py::array_t<int64_t, py::array::c_style | py::array::forcecast> triangles,
-                         const Array& corner_uvs) {
+                         const Array& corner_uvs, const std::optional<Array>& corner_normals) {
                  if (positions.ndim() != 2 || positions.shape(1) != 3)
                      throw std::invalid_argument("surface '" + name + "': positions must have shape (N, 3)");
                  if (triangles.ndim() != 2 || triangles.shape(1) != 3)
@@ -199,33 +213,37 @@ void bind_geometry(py::module_& m) {
                      tris[i] = uint32_t(t);
                  }
                  std::vector<double> uvs(corner_uvs.data(), corner_uvs.data() + corner_uvs.size());
+                 const std::vector<double> normals = corner_normals ? flat(*corner_normals) : std::vector<double>{};
                  std::shared_ptr<MeshChart> chart;
                  {
                      py::gil_scoped_release release;
-                     chart = std::make_shared<MeshChart>(name, flat(positions), std::move(tris), std::move(uvs));
+                     chart = std::make_shared<MeshChart>(name, flat(positions), std::move(tris), std::move(uvs), normals);
                  }
                  return chart;
              }),
-             py::arg("name"), py::arg("positions"), py::arg("triangles"), py::arg("corner_uvs"),
-             "corner_uvs: (M, 3, 2) or (3M, 2), one UV per triangle corner, in [0, 1]^2.")
+             py::arg("name"), py::arg("positions"), py::arg("triangles"), py::arg("corner_uvs"), py::arg("corner_normals") = py::none(),
+             "corner_uvs: (M, 3, 2) or (3M, 2), one UV per triangle corner, in [0, 1]^2. corner_normals: None (flat faces) "
+             "or (M, 3, 3) / (3M, 3), one normal per triangle corner (smooth shading, interpolated as Cycles does).")
         .def_property_readonly("triangle_count", &MeshChart::triangle_count)
         .def_property_readonly("degenerate_uv_triangles", &MeshChart::degenerate_uv_triangles);
 
     py::class_<BilinearPatch, Surface, std::shared_ptr<BilinearPatch>>(m, "BilinearPatch", "Quads and parallelograms.")
-        .def(py::init([](const std::string& name, const Array& c) {
-                 if (rows(c, {3}, "surface '" + name + "': corners") != 4) throw std::invalid_argument("surface '" + name + "': 4 corners needed");
-                 const double* p = c.data();
-                 return std::make_shared<BilinearPatch>(name, Vec3{p[0], p[1], p[2]}, Vec3{p[3], p[4], p[5]}, Vec3{p[6], p[7], p[8]},
-                                                        Vec3{p[9], p[10], p[11]});
+        .def(py::init([](const std::string& name, const Array& c, const std::optional<Array>& normals) {
+                 const std::array<Vec3, 4> p = corners<4>(name, c, "corners");
+                 if (!normals) return std::make_shared<BilinearPatch>(name, p[0], p[1], p[2], p[3]);
+                 return std::make_shared<BilinearPatch>(name, p[0], p[1], p[2], p[3], corners<4>(name, *normals, "normals"));
              }),
-             py::arg("name"), py::arg("corners"), "corners p00, p10, p11, p01.");
+             py::arg("name"), py::arg("corners"), py::arg("normals") = py::none(),
+             "corners p00, p10, p11, p01; normals: None (flat) or the corners' normals (smooth shading, interpolated "
+             "bilinearly).");
     py::class_<TrianglePatch, Surface, std::shared_ptr<TrianglePatch>>(m, "TrianglePatch", "A triangle as the unit square with u = 0 collapsed.")
-        .def(py::init([](const std::string& name, const Array& c) {
-                 if (rows(c, {3}, "surface '" + name + "': corners") != 3) throw std::invalid_argument("surface '" + name + "': 3 corners needed");
-                 const double* p = c.data();
-                 return std::make_shared<TrianglePatch>(name, Vec3{p[0], p[1], p[2]}, Vec3{p[3], p[4], p[5]}, Vec3{p[6], p[7], p[8]});
+        .def(py::init([](const std::string& name, const Array& c, const std::optional<Array>& normals) {
+                 const std::array<Vec3, 3> p = corners<3>(name, c, "corners");
+                 if (!normals) return std::make_shared<TrianglePatch>(name, p[0], p[1], p[2]);
+                 return std::make_shared<TrianglePatch>(name, p[0], p[1], p[2], corners<3>(name, *normals, "normals"));
              }),
-             py::arg("name"), py::arg("corners"));
+             py::arg("name"), py::arg("corners"), py::arg("normals") = py::none(),
+             "normals: None (flat) or the corners' normals (smooth shading, interpolated barycentrically).");
 
     py::class_<SplitPiece, Surface, std::shared_ptr<SplitPiece>>(
         m, "SplitPiece",

@@ -12,6 +12,24 @@ namespace bsgi {
 
 namespace {
 
+// On a smooth-shaded face the cosine-weighted rule's directions (local, upper hemisphere) carry
+// the shading normal's cosine instead of the geometric one: max(0, n_s . w) / w.z, with the back
+// side's directions mirrored through the surface as its gather traces them.
+class ShadingCosine {
+public:
+    ShadingCosine(const SurfacePoint& p, int side) : smooth_(smooth_shaded(p)) {
+        if (!smooth_) return;
+        n_ = p.frame.to_local(p.shading);
+        if (side == 1) n_ = {-n_.x, -n_.y, n_.z};
+    }
+    double factor(const Vec3& w) const { return smooth_ ? std::max(dot(n_, w), 0.0) / w.z : 1.0; }
+
+private:
+    bool smooth_;
+    Vec3 n_{0, 0, 1};
+};
+
+
 constexpr double kPi = 3.14159265358979323846;
 // Emitter cells whose normals turn by more than about 45 degrees are split down to a tenth of
 // their distance from the receiver, and, however far they are, at least kCurvedEmitterDepth
@@ -249,13 +267,14 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
     // arrives (emitters radiate from their front, and their back if two-sided).
     auto geometric = [&](const SurfacePoint& ep, bool facing_receiver = false) {
         const Vec3 d = ep.p - r.p;
-        const double cos_r = dot(d, r.frame.z), facing = -dot(d, ep.frame.z);
+        const double cos_g = dot(d, r.frame.z), facing = -dot(d, ep.frame.z);
         const double d2 = dot(d, d);
         // facing_receiver: as if the emitter faced the receiver (cos_e = 1): the most it could give.
         const double cos_e = facing_receiver ? std::sqrt(d2) : light.two_sided_emission ? std::abs(facing) : facing;
-        if (cos_e <= 0 || cos_r == 0 || !sides[cos_r < 0]) return 0.0;
+        if (cos_e <= 0 || cos_g == 0 || !sides[cos_g < 0]) return 0.0;
+        const double cos_r = receiver_cosine(r, d);  // the shading normal's, on a smooth face
         const double cone = light.cone ? light.cone->factor(-d / std::sqrt(d2)) : 1.0;  // a spot light's
-        return cone <= 0 ? 0.0 : cone * std::abs(cos_r) * cos_e / (d2 * d2) * ep.jacobian;
+        return cone <= 0 ? 0.0 : cone * cos_r * cos_e / (d2 * d2) * ep.jacobian;
     };
     // The cell's points and integrand at its rule's nodes, 0 outside the domain (the mask chi
     // of (8)); per thread, reused by each leaf cell (no cell reads them after a split).
@@ -362,7 +381,7 @@ void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, doub
         ++rays;
         const double pass = caster_.transmittance(caster_.spawn(r.p, r.frame.z, d.direction), d.direction);
         if (pass <= 0) continue;
-        visit(d.direction, d.irradiance * (pass * std::abs(cos_r)));
+        visit(d.direction, d.irradiance * (pass * receiver_cosine(r, d.direction)));
     }
 }
 
@@ -476,7 +495,8 @@ void Gatherer::direct_over_support(const Receiver& r, size_t j, const std::vecto
     for (size_t c = 0; c < n; ++c) out[c] += sun[c];
 }
 
-void Gatherer::direct_at(const Receiver& r, const SurfacePoint& p, LightParts parts, Vec3* out, size_t& rays) const {
+void Gatherer::direct_at(const Receiver& r, const SurfacePoint& at, LightParts parts, Vec3* out, size_t& rays) const {
+    const SurfacePoint p = receiver_point(r, at);
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     // Glossy receivers: emitter cells no wider than a fraction of the lobe, seen from here.
@@ -638,7 +658,7 @@ void Gatherer::trace_from(const SurfacePoint& p, const Vec3* dirs, size_t n, Vis
 template <typename Incoming>
 void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&& radiance_along, Vec3* out,
                           size_t& rays) const {
-    const SurfacePoint p = node_point(r, j);
+    const SurfacePoint p = receiver_point(r, node_point(r, j));
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     const int nt = nodes_along(settings_.hemisphere_nodes_theta, density), np = nodes_along(settings_.hemisphere_nodes_phi, density);
@@ -670,7 +690,8 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
             L.resize(size_t(rule.size()));
             incoming(rule.directions(), L.size(), side == 1, L.data());
             Vec3 sum{0, 0, 0};
-            for (int m = 0; m < rule.size(); ++m) sum += L[m] * rule.weight(m);
+            const ShadingCosine shading(p, side);
+            for (int m = 0; m < rule.size(); ++m) sum += L[m] * (rule.weight(m) * shading.factor(rule.direction(m)));
             out[side * r.per_node] = r.bsdf->eval({0, 0, 1}, {0, 0, 1}) * kPi * sum / double(rule.size());
             continue;
         }
@@ -771,9 +792,10 @@ void basis_terms(const TensorSpline& s, const double* x, std::vector<std::pair<s
 
 void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const std::vector<const Receiver*>& receiver_of,
                              std::vector<TransportTerm>& row, size_t& rays) const {
-    const SurfacePoint p = node_point(r, j);
+    const SurfacePoint p = receiver_point(r, node_point(r, j));
     const int nt = settings_.hemisphere_nodes_theta, np = settings_.hemisphere_nodes_phi;
     const CosineRule& rule = cosine_rule(nt, np);
+    const ShadingCosine shading(p, side_out);
     std::vector<std::pair<size_t, double>> terms;
     std::vector<TransportTerm> raw;
     thread_local std::vector<Vec3> dirs;
@@ -786,7 +808,8 @@ void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const st
     // Through window panes too: the terms of each surface seen, weighted by what the panes pass.
     trace_from(p, dirs.data(), dirs.size(), [&](size_t m, const SurfaceHit& hit, const Vec3& d, double pass) {
         if (hit.surface < 0 || !receiver_of[hit.surface]) return;
-        const double scale = kPi * rule.weight(int(m)) / rule.size();  // rho/pi * pi * mean; albedo applied later
+        // rho/pi * pi * mean; albedo applied later
+        const double scale = kPi * rule.weight(int(m)) * shading.factor(rule.direction(int(m))) / rule.size();
         const Vec3 local = hit.frame.to_local(-d);
         const int side = local.z >= 0 ? 0 : 1;
         for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {

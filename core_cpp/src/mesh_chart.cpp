@@ -19,7 +19,7 @@ double cross2(double ax, double ay, double bx, double by) { return ax * by - ay 
 }  // namespace
 
 MeshChart::MeshChart(std::string name, std::vector<double> positions, std::vector<uint32_t> triangles,
-                     std::vector<double> corner_uvs)
+                     std::vector<double> corner_uvs, const std::vector<double>& corner_normals)
     : Surface(std::move(name)) {
     auto fail = [&](const std::string& what) { throw std::invalid_argument("surface '" + this->name() + "': " + what); };
     if (positions.size() % 3 != 0) fail("positions must have 3 values per vertex");
@@ -30,6 +30,14 @@ MeshChart::MeshChart(std::string name, std::vector<double> positions, std::vecto
         std::ostringstream msg;
         msg << "expected 2 UV values for each of the " << 3 * nt << " triangle corners, got " << corner_uvs.size();
         fail(msg.str());
+    }
+    if (!corner_normals.empty()) {
+        if (corner_normals.size() != 9 * nt)
+            fail("expected 3 normal values for each of the " + std::to_string(3 * nt) + " triangle corners, got " +
+                 std::to_string(corner_normals.size()));
+        std::vector<Vec3> given(3 * nt);
+        for (size_t c = 0; c < 3 * nt; ++c) given[c] = {corner_normals[3 * c], corner_normals[3 * c + 1], corner_normals[3 * c + 2]};
+        corner_normals_ = checked_corner_normals(this->name(), given.data(), int(given.size()));
     }
     Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
     positions_.resize(nv);
@@ -214,6 +222,10 @@ SurfacePoint MeshChart::point_on(const Triangle& T, double b1, double b2) const 
     s.dpdv = T.dpdv;
     s.jacobian = length(cross(T.dpdu, T.dpdv));
     s.frame = frame_with_normal(T.normal, T.dpdu, T.dpdv);
+    if (!corner_normals_.empty()) {
+        const double w[3] = {1 - b1 - b2, b1, b2};
+        s.shading = interpolated_shading(&corner_normals_[3 * size_t(&T - tris_.data())], w, 3, s.frame.z);
+    }
     return s;
 }
 

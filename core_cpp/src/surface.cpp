@@ -23,6 +23,26 @@ void check_area(const std::string& name, double area, double size) {
 
 }  // namespace
 
+Vec3 interpolated_shading(const Vec3* corner_normals, const double* w, int corners, const Vec3& geometric) {
+    Vec3 n{0, 0, 0};
+    for (int c = 0; c < corners; ++c) n += corner_normals[c] * w[c];
+    const double l = length(n);
+    // (Opposite corner normals cancel; custom normals may point behind the face: flat there.)
+    if (!(l > 1e-6) || !(dot(n, geometric) > 1e-6 * l)) return {0, 0, 0};
+    return n / l;
+}
+
+std::vector<Vec3> checked_corner_normals(const std::string& name, const Vec3* normals, int corners) {
+    std::vector<Vec3> out(normals, normals + corners);
+    for (Vec3& n : out) {
+        const double l = length(n);
+        if (!is_finite(n) || !(l > 0))
+            throw std::invalid_argument("surface '" + name + "': a corner normal is zero, NaN or infinite");
+        n = n / l;
+    }
+    return out;
+}
+
 Frame Surface::frame_from_derivatives(const Vec3& su, const Vec3& sv, const Vec3& fallback_normal) const {
     return local_frame(su, sv, size_, fallback_normal);
 }
@@ -173,6 +193,12 @@ BilinearPatch::BilinearPatch(std::string name, const Vec3& p00, const Vec3& p10,
     parallelogram_ = length((p11 - p10) - (p01 - p00)) <= 1e-12 * size_;
 }
 
+BilinearPatch::BilinearPatch(std::string name, const Vec3& p00, const Vec3& p10, const Vec3& p11, const Vec3& p01,
+                             const std::array<Vec3, 4>& corner_normals)
+    : BilinearPatch(std::move(name), p00, p10, p11, p01) {
+    corner_normals_ = checked_corner_normals(this->name(), corner_normals.data(), 4);
+}
+
 SurfacePoint BilinearPatch::evaluate(double u, double v) const {
     SurfacePoint s;
     s.p = p00_ * ((1 - u) * (1 - v)) + p10_ * (u * (1 - v)) + p11_ * (u * v) + p01_ * ((1 - u) * v);
@@ -180,6 +206,10 @@ SurfacePoint BilinearPatch::evaluate(double u, double v) const {
     s.dpdv = (p01_ - p00_) * (1 - u) + (p11_ - p10_) * u;
     s.jacobian = length(cross(s.dpdu, s.dpdv));
     s.frame = frame_from_derivatives(s.dpdu, s.dpdv, mean_normal_);
+    if (!corner_normals_.empty()) {
+        const double w[4] = {(1 - u) * (1 - v), u * (1 - v), u * v, (1 - u) * v};
+        s.shading = interpolated_shading(corner_normals_.data(), w, 4, s.frame.z);
+    }
     return s;
 }
 
@@ -230,6 +260,12 @@ TrianglePatch::TrianglePatch(std::string name, const Vec3& p0, const Vec3& p1, c
     normal_ = normalize(n);
 }
 
+TrianglePatch::TrianglePatch(std::string name, const Vec3& p0, const Vec3& p1, const Vec3& p2,
+                             const std::array<Vec3, 3>& corner_normals)
+    : TrianglePatch(std::move(name), p0, p1, p2) {
+    corner_normals_ = checked_corner_normals(this->name(), corner_normals.data(), 3);
+}
+
 SurfacePoint TrianglePatch::evaluate(double u, double v) const {
     SurfacePoint s;
     s.p = p0_ + (p1_ - p0_) * u + (p2_ - p1_) * (u * v);
@@ -237,6 +273,11 @@ SurfacePoint TrianglePatch::evaluate(double u, double v) const {
     s.dpdv = (p2_ - p1_) * u;
     s.jacobian = length(cross(s.dpdu, s.dpdv));
     s.frame = frame_from_derivatives(s.dpdu, s.dpdv, normal_);
+    if (!corner_normals_.empty()) {
+        // s = (1 - u) p0 + u (1 - v) p1 + u v p2: the barycentric weights.
+        const double w[3] = {1 - u, u * (1 - v), u * v};
+        s.shading = interpolated_shading(corner_normals_.data(), w, 3, s.frame.z);
+    }
     return s;
 }
 

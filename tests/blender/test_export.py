@@ -494,30 +494,68 @@ def test_principled_diffuse_albedo_is_cycles_layered_albedo(context, tmp_path, b
     assert 0.99 * low <= solved.albedo[0] <= 1.01 * high
 
 
-def test_smooth_shading_solved_flat_is_named_where_the_normals_turn(context):
-    # Cycles interpolates a smooth face's corner normals; the solver shades each face with its own
-    # normal. A coarse smooth sphere is named with its normals' turn, the same sphere shaded flat
-    # and a fine smooth one (its normals within 2 degrees of its faces') are not.
+def test_smooth_shading_reaches_the_solver_and_only_glossy_lobes_are_named(context):
+    # Cycles interpolates a smooth face's corner normals. The exported faces (per face, and as one
+    # UV chart) carry Blender's corner normals (world space, the object turned and scaled
+    # unevenly) and interpolate them for the diffuse light's cosine; a glossy lobe keeps each
+    # face's own normal, named with the normals' turn on a coarse sphere, not on a fine one
+    # (within 3 degrees) nor a flat one.
     from bsgi_addon import export
     from bsgi_addon.geometry import smooth_shading_turn
 
-    def warned(segments, smooth):
+    def exported(segments, smooth, material=None, surfaces="FACES"):
         for obj in list(bpy.data.objects):
             bpy.data.objects.remove(obj)
         bpy.ops.mesh.primitive_uv_sphere_add(segments=segments, ring_count=segments // 2, radius=0.5)
         sphere = bpy.context.active_object
         sphere.name = "Ball"
+        sphere.rotation_euler = (0.3, 0.2, 0.1)
+        sphere.scale = (1.0, 2.0, 0.5)
+        sphere.bsgi.mesh_surfaces = surfaces
+        if material:
+            sphere.data.materials.append(material)
         sphere.data.shade_smooth() if smooth else sphere.data.shade_flat()
         bpy.context.view_layer.update()
-        turn = smooth_shading_turn(sphere.data)
         result = export.export_scene(context.evaluated_depsgraph_get())
-        return turn, [w for w in result.warnings if "object 'Ball'" in w and "smooth shading" in w]
+        named = [w for w in result.warnings if "object 'Ball'" in w and "smooth-shaded" in w]
+        (ball,) = [o for o in result.objects if o.name == "Ball"]
+        return sphere, result, ball, smooth_shading_turn(sphere.data), named
 
-    turn, named = warned(16, True)
-    assert 10 < turn < 20, turn  # about half a segment (22.5 degrees); measured 15.7 at the poles
-    assert len(named) == 1 and f"{turn:.0f}°" in named[0], named
-    turn, named = warned(16, False)
+    def world_corner_normals(sphere, poly):
+        normal_matrix = np.linalg.inv(np.array(sphere.matrix_world)[:3, :3]).T
+        n = np.array([normal_matrix @ np.array(sphere.data.corner_normals[k].vector)
+                      for k in range(poly.loop_start, poly.loop_start + poly.loop_total)])
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+    sphere, result, ball, turn, named = exported(16, True)
+    assert 10 < turn < 20 and not named, (turn, named)  # about half a segment; measured 15.7 at the poles
+    worst = 0.0
+    for poly in list(sphere.data.polygons)[::7]:
+        kind, first, count = ball.patches[poly.index]
+        surface = result.scene.surface(first)
+        # The patches' corners: a quad's (u, v) (0, 0), (1, 0), (1, 1), (0, 1); a triangle's
+        # p0 at u = 0, p1 at (1, 0), p2 at (1, 1).
+        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]] if kind == "quad" else [[0, 0.5], [1, 0], [1, 1]], float)
+        worst = max(worst, np.abs(surface.evaluate(uv)["shading_normal"] - world_corner_normals(sphere, poly)).max())
+        middle = surface.evaluate(np.array([[0.5, 0.5]]))
+        assert np.degrees(np.arccos(np.clip(np.dot(middle["shading_normal"][0], middle["normal"][0]), -1, 1))) < turn
+    sphere, result, ball, turn, named = exported(16, True, surfaces="CHART")
+    assert ball.kind == "chart"
+    chart = result.scene.surface(ball.patches[0][1])
+    for poly in list(sphere.data.polygons)[::7]:
+        loops = range(poly.loop_start, poly.loop_start + poly.loop_total)
+        # Just inside each corner (a vertex is shared with the neighbouring faces).
+        centre = ball.solve_uvs[list(loops)].mean(axis=0)
+        uv = ball.solve_uvs[list(loops)] * (1 - 1e-7) + centre * 1e-7
+        worst = max(worst, np.abs(chart.evaluate(uv)["shading_normal"] - world_corner_normals(sphere, poly)).max())
+    assert worst < 1e-4, worst
+    sphere, result, ball, turn, named = exported(16, False)
     assert turn < 0.1 and not named  # float32 normals: 0.03
-    turn, named = warned(128, True)
+    at = result.scene.surface(0).evaluate(np.array([[0.2, 0.7]]))
+    assert np.array_equal(at["shading_normal"], at["normal"])  # flat faces: none given
+    metal = scenes.metal_material("Metal", 0.4)
+    sphere, result, ball, turn, named = exported(16, True, metal)
+    assert len(named) == 1 and f"{turn:.0f}°" in named[0], named
+    sphere, result, ball, turn, named = exported(128, True, metal)
     print(f"\n128 segments: {turn:.2f} degrees")
     assert turn < 3 and not named, turn

@@ -290,6 +290,12 @@ private:
                                  Visit&& visit, size_t& rays, LightParts parts = LightParts::All) const;
     // direct() at point p of r's surface, from the lights `parts`.
     void direct_at(const Receiver& r, const SurfacePoint& p, LightParts parts, Vec3* out, size_t& rays) const;
+    // The point as r's gather reads it: smooth shading's normal for Lambertian reflection only (a
+    // glossy lobe and light through a surface keep the geometric frame; the add-on names them).
+    static SurfacePoint receiver_point(const Receiver& r, SurfacePoint p) {
+        if (r.kind != Representation::Diffuse || r.bsdf->transmits()) p.shading = {0, 0, 0};
+        return p;
+    }
 
     // A direction of a distant light's disc, and the irradiance it brings to a surface facing it.
     struct DistantSample {

@@ -17,9 +17,10 @@ public:
     // front. corner_uvs: 2 per triangle corner (3 corners per triangle, in triangle order), as
     // Blender stores UVs per face corner; all in [0, 1]^2. Throws std::invalid_argument naming
     // the surface for empty meshes, indices out of range, NaN/infinite values, UVs outside
-    // [0, 1]^2 or a UV map without area.
+    // [0, 1]^2 or a UV map without area. corner_normals: empty (flat faces), or 3 per triangle
+    // corner (smooth shading: interpolated barycentrically, as Cycles does).
     MeshChart(std::string name, std::vector<double> positions, std::vector<uint32_t> triangles,
-              std::vector<double> corner_uvs);
+              std::vector<double> corner_uvs, const std::vector<double>& corner_normals = {});
 
     // On the triangle holding (u, v); outside the domain, at the nearest domain point.
     SurfacePoint evaluate(double u, double v) const override;
@@ -51,6 +52,7 @@ private:
 
     std::vector<Vec3> positions_;
     std::vector<Triangle> tris_;
+    std::vector<Vec3> corner_normals_;  // 3 per triangle; empty: flat
     size_t degenerate_uv_ = 0;
     double area_ = 0;
     // Uniform grid over [0, 1]^2 listing the chart triangles overlapping each cell.

@@ -1,6 +1,8 @@
 // Parametric surfaces s(u, v) on [0, 1]^2 with derivatives and the local frame (1)-(3).
 #pragma once
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -16,7 +18,26 @@ struct SurfacePoint {
     Vec3 dpdu, dpdv;  // s_u, s_v
     Frame frame;      // x along s_u, z along s_u x s_v (paper (1)-(3)); orthonormal even where degenerate
     double jacobian;  // |s_u x s_v|: area element of (8)
+    // Smooth shading (Cycles' interpolated corner normals of a mesh face): the unit normal on the
+    // front side that a Lambertian receiver's cosine reads; zero where the surface has none (the
+    // frame's normal). Only the cosine changes: rays still leave the geometric surface.
+    Vec3 shading{0, 0, 0};
 };
+
+inline bool smooth_shaded(const SurfacePoint& s) { return s.shading.x != 0 || s.shading.y != 0 || s.shading.z != 0; }
+
+// The normal a diffuse receiver's cosine reads at s (front side).
+inline const Vec3& shading_normal(const SurfacePoint& s) { return smooth_shaded(s) ? s.shading : s.frame.z; }
+
+// |cos| between direction d (any length: the cosine is scaled by |d|) and the receiver's normal
+// on the side d points into: the geometric side (the sign of d . frame.z) with the shading
+// normal's cosine, 0 where the shading normal turns away from d (as Cycles' max(N . L, 0)).
+inline double receiver_cosine(const SurfacePoint& s, const Vec3& d) {
+    const double geometric = dot(d, s.frame.z);
+    if (!smooth_shaded(s)) return std::abs(geometric);
+    const double c = dot(d, s.shading);
+    return std::max(geometric < 0 ? -c : c, 0.0);
+}
 
 // Triangles with the surface parameters at their corners, for the ray caster.
 struct Tessellation {
@@ -94,6 +115,9 @@ private:
 class BilinearPatch final : public Surface {
 public:
     BilinearPatch(std::string name, const Vec3& p00, const Vec3& p10, const Vec3& p11, const Vec3& p01);
+    // With smooth shading: the corners' normals (as the corners), interpolated bilinearly.
+    BilinearPatch(std::string name, const Vec3& p00, const Vec3& p10, const Vec3& p11, const Vec3& p01,
+                  const std::array<Vec3, 4>& corner_normals);
     SurfacePoint evaluate(double u, double v) const override;
     Tessellation tessellate() const override;
     void refine_parameters(const Vec3& p, double& u, double& v) const override;
@@ -105,6 +129,7 @@ private:
     bool parallelogram_;
     Vec3 mean_normal_;
     double area_;
+    std::vector<Vec3> corner_normals_;  // p00's, p10's, p11's, p01's; empty: flat
 };
 
 // s(u, v) = p0 + u (p1 - p0) + u v (p2 - p1): the unit square onto a triangle, the edge u = 0
@@ -112,6 +137,8 @@ private:
 class TrianglePatch final : public Surface {
 public:
     TrianglePatch(std::string name, const Vec3& p0, const Vec3& p1, const Vec3& p2);
+    // With smooth shading: the corners' normals, interpolated barycentrically (as Cycles does).
+    TrianglePatch(std::string name, const Vec3& p0, const Vec3& p1, const Vec3& p2, const std::array<Vec3, 3>& corner_normals);
     SurfacePoint evaluate(double u, double v) const override;
     Tessellation tessellate() const override;
     void refine_parameters(const Vec3& p, double& u, double& v) const override;
@@ -121,6 +148,14 @@ private:
     Vec3 p0_, p1_, p2_;
     Vec3 normal_;
     double area_;
+    std::vector<Vec3> corner_normals_;  // p0's, p1's, p2's; empty: flat
 };
+
+// The unit shading normal from corner normals weighted by w (the point's interpolation weights),
+// or zero (flat) where the interpolation vanishes or turns to the back of the geometric normal.
+Vec3 interpolated_shading(const Vec3* corner_normals, const double* w, int corners, const Vec3& geometric);
+// The corner normals given to a surface, checked (finite, non-zero) and made unit; names the
+// surface in the error.
+std::vector<Vec3> checked_corner_normals(const std::string& name, const Vec3* normals, int corners);
 
 }  // namespace bsgi
