@@ -154,3 +154,12 @@ def test_bad_corner_normals_are_refused_by_name():
     with pytest.raises(ValueError, match="surface 'chart': expected 3 normal values"):
         bsgi.MeshChart("chart", FLOOR, np.array([[0, 1, 2]]), np.array([[0, 0], [1, 0], [1, 1]], float),
                        corner_normals=DOME[:2])
+
+
+def test_corner_normals_survive_pickling():
+    # Ray's workers rebuild the scene's surfaces from their recorded arguments.
+    import pickle
+
+    patch = bsgi.BilinearPatch("floor", FLOOR, normals=DOME)
+    copy = pickle.loads(pickle.dumps(patch))
+    np.testing.assert_array_equal(copy.evaluate(UV)["shading_normal"], patch.evaluate(UV)["shading_normal"])
