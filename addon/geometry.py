@@ -78,11 +78,17 @@ def corner_normals(mesh, matrix=None) -> CornerNormals:
     if len(cosines):
         np.maximum.at(turn, of_corner, np.degrees(np.arccos(np.clip(cosines, -1.0, 1.0))))
     if matrix is not None:
-        # Normals go by the inverse transpose; a mirroring matrix reverses the winding of the
-        # world corners, whose normal the solver's front follows: the normals turn with it.
-        linear = np.array(matrix, float)[:3, :3]
-        corner = corner @ np.linalg.inv(linear) * np.sign(np.linalg.det(linear))
-        corner /= np.maximum(np.linalg.norm(corner, axis=1, keepdims=True), 1e-300)
+        # Normals go by the cofactor matrix det(M) M^-T: the inverse transpose, turned with the
+        # winding of the world corners where M mirrors (the solver's front follows the winding),
+        # and defined where M is singular (an object scaled flat, refused by name elsewhere).
+        c = np.array(matrix, float)[:3, :3].T  # rows: the images of the axes
+        cofactor = np.array([np.cross(c[1], c[2]), np.cross(c[2], c[0]), np.cross(c[0], c[1])])
+        corner = corner @ cofactor
+        length = np.linalg.norm(corner, axis=1, keepdims=True)
+        collapsed = length[:, 0] <= 1e-12 * max(np.abs(cofactor).max(), 1e-300)
+        corner /= np.where(length > 0, length, 1.0)
+        if collapsed.any():  # no normal left: those faces flat
+            turn[np.unique(of_corner[collapsed])] = 0.0
     return CornerNormals(corner, turn)
 
 

@@ -374,7 +374,7 @@ class SolverMaterial:
 
     albedo: tuple
     emission: tuple
-    kind: str = "lambert"  # "lambert" | "ggx" | "rough_dielectric"
+    kind: str = "lambert"  # "lambert" | "ggx" | "diffuse_ggx" | "rough_dielectric"
     alpha: float = 0.0  # roughness^2 (clamped), the isotropic GGX alpha
     alpha_x: float = 0.0  # "ggx": along the tangent ds/du turned by `rotation` radians about the normal
     alpha_y: float = 0.0
@@ -393,6 +393,9 @@ class SolverMaterial:
     specular_textured: bool = False
     specular: tuple = (0.0, 0.0, 0.0)
     pass_weight: tuple = (1.0, 1.0, 1.0)  # Cycles' diffuse-colour pass over the base colour
+    # "diffuse_ggx" (a Principled BSDF's base under its coat): the coat folded into one Lambertian
+    # albedo, for an object whose representation is set to diffuse.
+    folded_albedo: tuple | None = None
     # Glass ("rough_dielectric"): the user's roughness, what shadow rays get (the Light Path
     # trick, or None), and the warnings that hold only if it is solved as a rough dielectric.
     roughness: float = 0.0
@@ -469,18 +472,50 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         return SolverMaterial((0, 0, 0), described.emission, "ggx", alpha=alpha, alpha_x=ax, alpha_y=ay,
                               rotation=described.rotation, f0=f0, schlick=described.schlick,
                               bsdf=bsgi.GgxReflection(ax, ay, f0, rotation=described.rotation, schlick=described.schlick))
-    if glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
-        warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
-                        f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")
     # Cycles layers the specular lobe over the diffuse base, which gets the energy the lobe leaves:
-    # albedo = base (1 - E) + E, E the lobe's hemispherical albedo (a rough lobe reflects far less
-    # than its f0: roughness 1 leaves 0.016 of f0 0.04).
+    # folded into one Lambertian albedo, base (1 - E) + E, E the lobe's hemispherical albedo (a
+    # rough lobe reflects far less than its f0: roughness 1 leaves 0.016 of f0 0.04).
     lobe = layer_albedo(tuple(described.specular), described.roughness)
     albedo = tuple(min(1.0, max(0.0, a * (1 - e) + e)) for a, e in zip(described.albedo, lobe))
+    visible = glossy > 0 and coat_peak_ratio(described.specular, described.roughness, described.albedo) >= VISIBLE_COAT
+    if visible and not (described.albedo_textured or described.specular_textured or max(described.emission) > 0
+                        or described.stretch != 1):
+        # Its highlight shows: the layered coat itself (2D base + 4D coat, (38)); `albedo` is the
+        # folded Lambertian, for an object set to a diffuse representation.
+        alpha = _alpha(name, described.roughness, warnings)
+        f0 = tuple(min(1.0, max(0.0, c)) for c in described.specular)
+        base = tuple(min(1.0, max(0.0, c)) for c in described.albedo)
+        # Cycles' coat reflects with a dielectric's Fresnel curve (the IOR of its f0), not Schlick's.
+        root = math.sqrt(min(max(sum(f0) / 3, 1e-6), 0.99))
+        eta = (1 + root) / (1 - root)
+        return SolverMaterial(base, described.emission, "diffuse_ggx", alpha=alpha, alpha_x=alpha, alpha_y=alpha, f0=f0,
+                              eta=eta, bsdf=bsgi.DiffuseGgx(base, alpha, alpha, f0, layered=True, eta=eta),
+                              specular=lobe, folded_albedo=albedo)
+    if visible or glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
+        warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
+                        f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")
     # Cycles' diffuse-colour pass (textures.py bakes it) is the base seen along the normal, under
     # the lobe's albedo in that direction.
     seen = layer_albedo(tuple(described.specular), described.roughness, normal_only=True)
     return SolverMaterial(albedo, described.emission, specular=lobe, pass_weight=tuple(1 - e for e in seen))
+
+
+# A Principled BSDF's dielectric coat is solved (bsgi.DiffuseGgx, layered as Cycles layers it: a 2D
+# base and a 4D coat) where its highlight reaches this fraction of the base's radiance, its peak at
+# normal incidence against base / pi; elsewhere it is folded into a Lambertian albedo. With the
+# default IOR over a light base (0.8): roughness below about 0.85 (the highlight at 0.85 is 2.4%,
+# at 1.0 1.2%; the default 0.5 20%, which the folded albedo lost: 8% mean per-pixel difference
+# from Cycles on a floor and wall under an area light, tests/blender/test_principled_coat.py).
+VISIBLE_COAT = 0.025
+
+
+def coat_peak_ratio(f0, roughness: float, base) -> float:
+    """The coat's BSDF along the normal, lit along the normal, against the base's albedo / pi."""
+    r = min(max(roughness, MIN_ROUGHNESS), 1.0)
+    coat = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0])
+    normal = np.array([[0.0, 0.0, 1.0]])
+    peak = float(coat.eval(normal, normal).max())
+    return peak / (max(sum(base) / 3, 1e-3) / math.pi)
 
 
 # Every object's slots are described anew (solver_material per object): the same few materials
@@ -529,6 +564,8 @@ def _slot_materials(obj, warnings) -> list:
 
 
 def _material_keywords(material: SolverMaterial, options: dict) -> dict:
+    if material.kind == "diffuse_ggx" and options.get("representation") == "diffuse":
+        return dict(albedo=material.folded_albedo, emission=material.emission, bsdf=None, **options)
     return dict(albedo=material.albedo, emission=material.emission, bsdf=material.bsdf, **options)
 
 

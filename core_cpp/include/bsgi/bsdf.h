@@ -12,6 +12,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "bsgi/microfacet.h"
 #include "bsgi/vec3.h"
@@ -123,7 +124,9 @@ private:
 // turns its tangent.
 class GgxReflection final : public Bsdf {
 public:
-    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0, bool schlick = true);
+    // Fresnel: Schlick's from f0 (schlick), f0 at every angle (not), or with eta > 1 a dielectric's
+    // curve remapped to start at f0 (fresnel_dielectric_remapped; schlick is then not read).
+    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0, bool schlick = true, double eta = 0);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
@@ -131,11 +134,14 @@ public:
     std::string name() const override { return "ggx"; }
     double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
     std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& f0) const override {
-        return std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_), schlick_);
+        return std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_), schlick_, eta_);
     }
 
 private:
-    Vec3 fresnel(double cos_theta) const { return schlick_ ? fresnel_schlick(f0_, cos_theta) : f0_; }
+    Vec3 fresnel(double cos_theta) const {
+        if (eta_ > 0) return fresnel_dielectric_remapped(f0_, cos_theta, eta_);
+        return schlick_ ? fresnel_schlick(f0_, cos_theta) : f0_;
+    }
     // Local frame <-> the lobe's frame (x along the turned tangent).
     Vec3 to_lobe(const Vec3& w) const { return {cos_ * w.x + sin_ * w.y, cos_ * w.y - sin_ * w.x, w.z}; }
     Vec3 from_lobe(const Vec3& w) const { return {cos_ * w.x - sin_ * w.y, sin_ * w.x + cos_ * w.y, w.z}; }
@@ -143,27 +149,52 @@ private:
     Vec3 f0_;
     double cos_ = 1, sin_ = 0;
     bool schlick_ = true;
+    double eta_ = 0;
 };
 
-// A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal:
-// rho = albedo / pi + GGX(alpha_x, alpha_y, f0). Sampled by choosing the lobe in proportion to
-// the albedo and f0. The sum is what the decomposition (38) of the radiance splits. Uncoupled:
-// at grazing angles the coat's Fresnel rises while the base stays, so the albedo can pass 1 there.
+// The directional albedo E(mu) of a lobe (its largest channel: the integral of rho cos over the
+// incoming directions, light leaving at cos theta = mu), tabulated from the lobe's own sampling
+// and read linearly between the table's nodes.
+class DirectionalAlbedo {
+public:
+    explicit DirectionalAlbedo(const Bsdf& lobe);
+    double operator()(double mu) const;
+
+private:
+    std::vector<double> table_;  // at mu = k / (n - 1)
+};
+
+// A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal.
+// Uncoupled (layered false): rho = albedo / pi + GGX(alpha_x, alpha_y, f0); at grazing angles the
+// coat's Fresnel rises while the base stays, so the albedo can pass 1 there. Layered (Cycles'
+// Principled BSDF): the base gets what the coat leaves along the view, rho = (1 - E(mu_o))
+// albedo / pi + GGX, E the coat's directional albedo: energy is conserved (albedo 1 reflects all
+// of the light, at every angle). Sampled by choosing the lobe in proportion to the albedo and
+// f0. The sum is what the decomposition (38) of the radiance splits: D the whole base, albedo /
+// pi, and glossy_part() the rest, the coat less E(mu_o) albedo / pi where layered (S then goes
+// negative where the coat reflects little: D + S is the surface's light).
 class DiffuseGgx final : public Bsdf {
 public:
-    DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0);
+    // eta: the coat's Fresnel (GgxReflection's; 0: Schlick's from f0).
+    DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0, bool layered = false, double eta = 0);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
-    std::string name() const override { return "diffuse_ggx"; }
+    std::string name() const override { return coat_albedo_ ? "layered_diffuse_ggx" : "diffuse_ggx"; }
     double lobe_width() const override { return coat_->lobe_width(); }
     Vec3 diffuse_albedo() const override { return albedo_; }
-    std::shared_ptr<const Bsdf> glossy_part() const override { return coat_; }
+    std::shared_ptr<const Bsdf> glossy_part() const override { return glossy_; }
+
+    bool layered() const { return bool(coat_albedo_); }
 
 private:
+    // The base's share along the view: 1 - E(mu_o) if layered, else 1.
+    double base_weight(double mu_o) const { return coat_albedo_ ? 1 - (*coat_albedo_)(mu_o) : 1.0; }
     Vec3 albedo_;
     std::shared_ptr<const GgxReflection> coat_;
+    std::shared_ptr<const DirectionalAlbedo> coat_albedo_;  // layered only
+    std::shared_ptr<const Bsdf> glossy_;
     double p_diffuse_;
 };
 

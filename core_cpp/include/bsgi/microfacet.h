@@ -26,6 +26,17 @@ inline double fresnel_dielectric(double cos_i, double eta, double& cos_t) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
+// A dielectric's Fresnel curve remapped to start at f0 (per channel) and rise to 1 at grazing:
+// f0 + (1 - f0) (F(cos, eta) - F0(eta)) / (1 - F0(eta)), F0(eta) = ((eta - 1) / (eta + 1))^2. With
+// f0 = F0(eta) it is the dielectric's own reflectance (Cycles' Principled BSDF: its generalized
+// Schlick with the real Fresnel's exponent, which differs from Schlick's by a fifth at 60 degrees).
+inline Vec3 fresnel_dielectric_remapped(const Vec3& f0, double cos, double eta) {
+    double cos_t;
+    const double f0_eta = (eta - 1) * (eta - 1) / ((eta + 1) * (eta + 1));
+    const double rise = (fresnel_dielectric(cos, eta, cos_t) - f0_eta) / (1 - f0_eta);
+    return f0 + (Vec3{1, 1, 1} - f0) * std::clamp(rise, 0.0, 1.0);
+}
+
 // Schlick's approximation F0 + (1 - F0)(1 - cos)^5, per channel.
 inline Vec3 fresnel_schlick(const Vec3& f0, double cos) {
     const double c = std::clamp(1 - std::abs(cos), 0.0, 1.0);
