@@ -71,6 +71,9 @@ def main(argv=None) -> int:
                         help="spatial coefficients from each surface's size and its light's detail, within TOLERANCE "
                         "of its brightest light (e.g. 0.005; 0: off, the preset's everywhere; default: the scene's "
                         "setting, at first the preset's: preview adapts at 0.005)")
+    parser.add_argument("--coats", choices=["quality", "all", "folded"],
+                        help="Principled BSDF glossy coats: solved where the quality says (default), all of them, or "
+                        "folded into the diffuse colour (the scene's Glossy Coats)")
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="solve on a Ray cluster: 'auto' (the cluster this machine joined with `ray start`), "
                              "'ray://host:10001' or host:port (needs `pip install ray`, and bsgi on every node)")
@@ -111,6 +114,8 @@ def main(argv=None) -> int:
         context.scene.bsgi.refine_passes = args.refine_passes
     if args.refine_budget is not None:
         context.scene.bsgi.refine_cost = args.refine_budget
+    if args.coats:
+        context.scene.bsgi.coats = args.coats.upper()
     if args.adaptive_coefficients is not None:
         context.scene.bsgi.adaptive_coefficients = "TOLERANCE" if args.adaptive_coefficients > 0 else "OFF"
         context.scene.bsgi.detail_tolerance = args.adaptive_coefficients

@@ -8,6 +8,7 @@ from contextlib import contextmanager
 from functools import lru_cache
 from dataclasses import dataclass, field
 
+import bpy
 import numpy as np
 from mathutils import Matrix
 
@@ -47,6 +48,9 @@ class SurfaceMaterial:
     # How the glossy lobe's reflectance rises towards grazing angles in Cycles: Schlick's Fresnel
     # from `specular` (a metallic Principled BSDF), or not at all (a Glossy BSDF: its colour times GGX).
     schlick: bool = True
+    # A lone Principled BSDF with neither metal nor transmission: its specular is a dielectric coat
+    # over the base, which Cycles layers (a scaled or mixed shader is not: its parts fold).
+    coat: bool = False
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
@@ -208,7 +212,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
                                roughness=_scalar(material, node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
                                rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
-                               specular_textured=specular_textured, **textured)
+                               specular_textured=specular_textured, coat=metallic == 0 and transmission == 0, **textured)
     if kind == "ADD_SHADER":
         return _shader(linked_node(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(linked_node(node.inputs[1]), material, warnings, depth + 1))
@@ -477,9 +481,9 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
     # rough lobe reflects far less than its f0: roughness 1 leaves 0.016 of f0 0.04).
     lobe = layer_albedo(tuple(described.specular), described.roughness)
     albedo = tuple(min(1.0, max(0.0, a * (1 - e) + e)) for a, e in zip(described.albedo, lobe))
-    visible = glossy > 0 and coat_peak_ratio(described.specular, described.roughness, described.albedo) >= VISIBLE_COAT
-    if visible and not (described.albedo_textured or described.specular_textured or max(described.emission) > 0
-                        or described.stretch != 1):
+    visible = glossy > 0 and coat_peak_ratio(described.specular, described.roughness, described.albedo) >= coat_threshold()
+    if visible and described.coat and not (described.albedo_textured or described.specular_textured
+                                           or max(described.emission) > 0 or described.stretch != 1):
         # Its highlight shows: the layered coat itself (2D base + 4D coat, (38)); `albedo` is the
         # folded Lambertian, for an object set to a diffuse representation.
         alpha = _alpha(name, described.roughness, warnings)
@@ -501,12 +505,30 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
 
 
 # A Principled BSDF's dielectric coat is solved (bsgi.DiffuseGgx, layered as Cycles layers it: a 2D
-# base and a 4D coat) where its highlight reaches this fraction of the base's radiance, its peak at
-# normal incidence against base / pi; elsewhere it is folded into a Lambertian albedo. With the
-# default IOR over a light base (0.8): roughness below about 0.85 (the highlight at 0.85 is 2.4%,
-# at 1.0 1.2%; the default 0.5 20%, which the folded albedo lost: 8% mean per-pixel difference
-# from Cycles on a floor and wall under an area light, tests/blender/test_principled_coat.py).
-VISIBLE_COAT = 0.025
+# base and a 4D coat) where its highlight reaches a fraction of the base's radiance (its peak at
+# normal incidence against base / pi), per the scene's Glossy Coats; elsewhere it is folded into a
+# Lambertian albedo. Folded, a floor and wall under an area light (tests/blender/test_principled_coat.py,
+# preview, mean per-pixel difference from Cycles) were off by about 0.4-0.7 times that fraction:
+# 0.83% at 0.012 (roughness 1 over base 0.8), 1.55% at 0.024 (0.85 over 0.8), 1.59% at 0.040 (1.0
+# over 0.25), 3.2% at 0.052 (0.7 over 0.8), 3.85% at 0.077 (0.85 over 0.25), 8.0% at 0.20 (the
+# default material, 0.5 over 0.8); layered 0.55-0.87% on each. Layered costs 2-6 times the solve of
+# the folded (the furnished interior at preview with its roughness-1 dark woods and books layered:
+# 162 s against 31 s). Draft and Preview fold up to 5% (about 3% off), Final and Reference up to
+# 1.5% (about 1%).
+COAT_THRESHOLDS = {"fast": 0.05, "accurate": 0.015}
+
+
+def coat_threshold() -> float:
+    """The highlight fraction from which the current scene's coats are solved (materials are
+    described per export: the scene's Glossy Coats and quality)."""
+    settings = getattr(bpy.context.scene, "bsgi", None) if bpy.context.scene is not None else None
+    if settings is None:
+        return COAT_THRESHOLDS["fast"]
+    if settings.coats == "FOLDED":
+        return math.inf
+    if settings.coats == "ALL":
+        return 0.0
+    return COAT_THRESHOLDS["accurate" if settings.preset in ("FINAL", "REFERENCE") else "fast"]
 
 
 def coat_peak_ratio(f0, roughness: float, base) -> float:

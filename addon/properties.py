@@ -49,6 +49,18 @@ REFINEMENTS = [
     ("TO_ERROR", "To Error", "Refine to the error, passes and budget below", "NONE", 2),
 ]
 
+# A Principled BSDF's glossy coat over its diffuse base (materials.py): solved as Cycles layers it
+# (2D base + 4D coat) where its highlight is strong enough for the quality, else folded into the
+# diffuse colour (2D); the thresholds and their measured errors are materials.COAT_THRESHOLDS'.
+COATS = [
+    ("QUALITY", "As the Quality", "Draft and Preview solve a Principled BSDF's glossy coat where its highlight "
+     "reaches 5% of its base's light (the default material's: 20%) and fold weaker ones into the diffuse colour "
+     "(up to about 3% off); Final and Reference from 1.5% (folded: under 1% off)", "NONE", 0),
+    ("ALL", "Every Coat", "Solve every Principled coat, however rough (a 4D spline on each such surface)", "NONE", 1),
+    ("FOLDED", "Folded", "Fold every coat into the diffuse colour: 2D only, fastest; highlights are lost (the default "
+     "material under a lamp: 8% off)", "NONE", 2),
+]
+
 ADAPTIVE_COEFFICIENTS = [
     ("QUALITY", "As the Quality", "Preview gives each surface coefficients from its size and the detail of its light "
      "(tolerance 0.005); the other qualities give every surface the quality's", "NONE", 0),
@@ -96,6 +108,10 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="With Refinement To Error: the solves after the first may trace at most this many times the "
         "first's rays; where refining every surface over Refine to Error would overrun it, those with the highest "
         "estimated errors are refined first. 0: no limit")
+    coats: EnumProperty(
+        name="Glossy Coats", items=COATS, default="QUALITY",
+        description="Which Principled BSDF coats (the highlight of a dielectric over its base colour) are solved "
+        "view-dependent, as Cycles shows them, and which are folded into the diffuse colour")
     adaptive_coefficients: EnumProperty(
         name="Adaptive Coefficients", items=ADAPTIVE_COEFFICIENTS, default="QUALITY",
         description="Whether small or evenly lit surfaces get fewer spatial coefficients than the quality's "
