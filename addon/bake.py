@@ -195,8 +195,9 @@ class Layout:
 
 
 def _world_points(obj):
-    """The evaluated mesh of obj (what the exporter solved): world vertex positions, and per
-    polygon its vertex indices and (n-gons) its triangles."""
+    """The evaluated mesh of obj (what the exporter solved): world vertex positions, per polygon
+    its vertex indices and (n-gons) its triangles, and per polygon its corners' normals where it
+    is smooth (else None), as the solve's faces had them."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     evaluated = obj.evaluated_get(depsgraph)
     mesh = evaluated.to_mesh()
@@ -210,15 +211,18 @@ def _world_points(obj):
         first_triangle = {}
         for tri in mesh.loop_triangles:
             first_triangle.setdefault(tri.polygon_index, list(tri.vertices))
-        return world, polygons, first_triangle
+        normals = geometry.corner_normals(mesh, evaluated.matrix_world)
+        corner_normals = [normals.normals[list(p.loop_indices)] if normals.smooth(p.index) else None for p in mesh.polygons]
+        return world, polygons, first_triangle, corner_normals
     finally:
         evaluated.to_mesh_clear()
 
 
 def _evaluated_chart(obj):
-    """The chart as the exporter solved it: the evaluated mesh's world positions, triangles and
+    """The chart as the exporter solved it: the evaluated mesh's world positions, triangles,
     their corners' UVs in the bake's UV map, which the modifiers carry from the user's mesh (the
-    two differ when modifiers change the faces)."""
+    two differ when modifiers change the faces), and their corners' normals where it is smooth
+    (else None)."""
     evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
     mesh = evaluated.to_mesh()
     try:
@@ -226,7 +230,10 @@ def _evaluated_chart(obj):
         mesh.vertices.foreach_get("co", co)
         m = np.array(evaluated.matrix_world, float)
         triangles, loops = charts.loop_triangles(mesh)
-        return co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3], triangles, charts.layer_uvs(mesh, UV_NAME)[loops]
+        normals = geometry.corner_normals(mesh, evaluated.matrix_world)
+        smooth = normals.turn.max(initial=0.0) > geometry.FLAT_FACE_DEGREES
+        return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3], triangles, charts.layer_uvs(mesh, UV_NAME)[loops],
+                normals.normals[loops] if smooth else None)
     finally:
         evaluated.to_mesh_clear()
 
@@ -286,7 +293,7 @@ def _mesh_layout(obj, faces):
     face = np.full((height, width), -1)
     uv = np.zeros((height, width, 2))
     uvs = np.zeros((len(mesh.loops), 2), np.float32)
-    world, polygons, first_triangle = _world_points(obj)
+    world, polygons, first_triangle, corner_normals = _world_points(obj)
     surfaces = []
     for index, (kind, _) in enumerate(faces):
         (ox, oy), t = origins[index], sides[index]
@@ -297,7 +304,8 @@ def _mesh_layout(obj, faces):
             uvs[loop] = corner
         corners = world[polygons[index] if kind != "ngon" else first_triangle[index]]
         name = f"{obj.name}: face {index}"
-        surfaces.append(bsgi.BilinearPatch(name, corners) if kind == "quad" else bsgi.TrianglePatch(name, corners))
+        normals = corner_normals[index] if kind != "ngon" else None  # (an n-gon's tile: its first triangle, flat)
+        surfaces.append((bsgi.BilinearPatch if kind == "quad" else bsgi.TrianglePatch)(name, corners, normals=normals))
     if mesh.uv_layers.get(UV_NAME) is None:
         mesh.uv_layers.new(name=UV_NAME, do_init=False)
     mesh.uv_layers[UV_NAME].data.foreach_set("uv", uvs.ravel())  # looked up by name again after creating it
@@ -331,8 +339,8 @@ def _chart_layout(obj, radiance):
     point of the chart), so filtering at an island's border never mixes in a neighbour's light."""
     n = chart_image_size(radiance)
     u, v = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
-    world, triangles, corner_uvs = _evaluated_chart(obj)
-    surface = bsgi.MeshChart(f"{obj.name}: chart 0", world, triangles, corner_uvs)
+    world, triangles, corner_uvs, corner_normals = _evaluated_chart(obj)
+    surface = bsgi.MeshChart(f"{obj.name}: chart 0", world, triangles, corner_uvs, corner_normals=corner_normals)
     return Layout(np.zeros((n, n), int), np.stack([u, v], axis=2), [surface], UV_NAME)
 
 
@@ -345,7 +353,8 @@ def frame_pixels(layout: Layout):
     for index, surface in enumerate(layout.surfaces):
         mask = layout.face == index
         frames = surface.evaluate(np.ascontiguousarray(layout.uv[mask]))
-        tangent[mask, :3], normal[mask, :3] = frames["x"], frames["normal"]
+        # The radiance frame: the splines' directions are in the shading frame on smooth faces.
+        tangent[mask, :3], normal[mask, :3] = frames["shading_x"], frames["shading_normal"]
     return tangent, normal
 
 

@@ -507,7 +507,7 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
 # A Principled BSDF's dielectric coat is solved (bsgi.DiffuseGgx, layered as Cycles layers it: a 2D
 # base and a 4D coat) where its highlight reaches a fraction of the base's radiance (its peak at
 # normal incidence against base / pi), per the scene's Glossy Coats; elsewhere it is folded into a
-# Lambertian albedo. Folded, a floor and wall under an area light (tests/blender/test_principled_coat.py,
+# Lambertian albedo. Folded, a floor and wall under an area light (tests/blender/test_principled_materials.py,
 # preview, mean per-pixel difference from Cycles) were off by about 0.4-0.7 times that fraction:
 # 0.83% at 0.012 (roughness 1 over base 0.8), 1.55% at 0.024 (0.85 over 0.8), 1.59% at 0.040 (1.0
 # over 0.25), 3.2% at 0.052 (0.7 over 0.8), 3.85% at 0.077 (0.85 over 0.25), 8.0% at 0.20 (the

@@ -77,12 +77,10 @@ def radiance_at_pairs(export, solution, pairs, tolerance):
     ok = (hit["surface"] >= 0) & (np.abs(hit["t"] - dist) < tolerance)
     out = np.full((len(eye), 3), np.nan)
     seen = np.full(len(eye), -1)
-    frames = hit["frame"]
     for s in np.unique(hit["surface"][ok]):
         rows = np.nonzero(ok & (hit["surface"] == s))[0]
-        toward_eye = -d[rows]
-        local = np.einsum("nij,nj->ni", frames[rows], toward_eye)  # rows of the frame: x, y, normal
-        out[rows] = solution.surfaces[int(index[s])].evaluate(hit["uv"][rows], local)
+        # Towards the eye, in the surface's radiance frame (the shading frame on smooth faces).
+        out[rows] = solution.surfaces[int(index[s])].evaluate(hit["uv"][rows], hit["leaving"][rows])
         seen[rows] = index[s]
     return out, seen
 

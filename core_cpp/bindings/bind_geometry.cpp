@@ -46,10 +46,11 @@ py::dict evaluate_many(const Surface& s, const Array& uv) {
     const size_t n = rows(uv, {2}, "uv");
     auto p = empty({py::ssize_t(n), 3}), du = empty({py::ssize_t(n), 3}), dv = empty({py::ssize_t(n), 3});
     auto x = empty({py::ssize_t(n), 3}), y = empty({py::ssize_t(n), 3}), z = empty({py::ssize_t(n), 3});
-    auto shading = empty({py::ssize_t(n), 3});
+    auto shading = empty({py::ssize_t(n), 3}), shading_x = empty({py::ssize_t(n), 3}), shading_y = empty({py::ssize_t(n), 3});
     auto jac = py::array_t<double>(py::ssize_t(n));
     double *pp = p.mutable_data(), *pdu = du.mutable_data(), *pdv = dv.mutable_data(), *px = x.mutable_data(),
-           *py_ = y.mutable_data(), *pz = z.mutable_data(), *ps = shading.mutable_data(), *pj = jac.mutable_data();
+           *py_ = y.mutable_data(), *pz = z.mutable_data(), *ps = shading.mutable_data(), *psx = shading_x.mutable_data(),
+           *psy = shading_y.mutable_data(), *pj = jac.mutable_data();
     const double* in = uv.data();
     {
         py::gil_scoped_release release;
@@ -58,12 +59,14 @@ py::dict evaluate_many(const Surface& s, const Array& uv) {
             const SurfacePoint sp = s.evaluate(in[2 * i], in[2 * i + 1]);
             put(pp + 3 * i, sp.p), put(pdu + 3 * i, sp.dpdu), put(pdv + 3 * i, sp.dpdv);
             put(px + 3 * i, sp.frame.x), put(py_ + 3 * i, sp.frame.y), put(pz + 3 * i, sp.frame.z);
-            put(ps + 3 * i, shading_normal(sp));
+            const Frame rf = radiance_frame(sp);
+            put(ps + 3 * i, rf.z), put(psx + 3 * i, rf.x), put(psy + 3 * i, rf.y);
             pj[i] = sp.jacobian;
         }
     }
     py::dict d;
-    d["position"] = p, d["dpdu"] = du, d["dpdv"] = dv, d["x"] = x, d["y"] = y, d["normal"] = z, d["shading_normal"] = shading,
+    d["position"] = p, d["dpdu"] = du, d["dpdv"] = dv, d["x"] = x, d["y"] = y, d["normal"] = z, d["shading_normal"] = shading, d["shading_x"] = shading_x,
+    d["shading_y"] = shading_y,
     d["jacobian"] = jac;
     return d;
 }
@@ -146,8 +149,10 @@ void bind_geometry(py::module_& m) {
         .def_property_readonly("size", &Surface::size)
         .def_property_readonly("tessellation_is_exact", &Surface::tessellation_is_exact)
         .def("evaluate", &evaluate_many, py::arg("uv"),
-             "Position, s_u, s_v, local frame (x, y, normal) of (1)-(3), the shading normal a diffuse receiver's cosine "
-             "reads (the normal but on smooth-shaded faces) and |s_u x s_v| at (N, 2) parameters.")
+             "Position, s_u, s_v, local frame (x, y, normal) of (1)-(3), the radiance frame (shading_x, shading_y, "
+             "shading_normal: the frame but on smooth-shaded faces, where its normal is the interpolated one that the "
+             "light's cosine and a glossy lobe read, and its splines' directions are in it) and |s_u x s_v| at (N, 2) "
+             "parameters.")
         .def(
             "in_domain",
             [](const Surface& s, const Array& uv) {
@@ -338,7 +343,7 @@ void bind_geometry(py::module_& m) {
                     d = *out;
                 } else {
                     d["surface"] = py::array_t<int32_t>(n), d["t"] = py::array_t<double>(n), d["uv"] = empty({n, 2});
-                    d["position"] = empty({n, 3}), d["frame"] = empty({n, 3, 3});
+                    d["position"] = empty({n, 3}), d["frame"] = empty({n, 3, 3}), d["leaving"] = empty({n, 3});
                 }
                 // Writable C-contiguous arrays of the right shape, or the key is skipped.
                 auto target = [&](const char* key, std::vector<py::ssize_t> shape, auto* tag) {
@@ -353,7 +358,7 @@ void bind_geometry(py::module_& m) {
                 };
                 HitArrays arrays{target("surface", {n}, (int32_t*)nullptr), target("t", {n}, (double*)nullptr),
                                  target("uv", {n, 2}, (double*)nullptr), target("position", {n, 3}, (double*)nullptr),
-                                 target("frame", {n, 3, 3}, (double*)nullptr)};
+                                 target("frame", {n, 3, 3}, (double*)nullptr), target("leaving", {n, 3}, (double*)nullptr)};
                 {
                     py::gil_scoped_release release;
                     r.caster->closest_hit_batch(b, arrays, threads);
@@ -363,7 +368,8 @@ void bind_geometry(py::module_& m) {
             py::arg("origins"), py::arg("directions"), py::arg("tnear") = py::none(), py::arg("tfar") = py::none(),
             py::arg("threads") = 0, py::arg("out") = py::none(),
             "Closest hits of rays origin + t dir: surface (-1: none), t (inf: none), uv, position, frame (N, 3, 3) with rows "
-            "x, y, normal. `out`: a dict of preallocated arrays to fill instead (keys left out are not computed). "
+            "x, y, normal, and leaving: -dir as the hit surface's radiance evaluate() takes it (in its radiance frame: the "
+            "shading frame on smooth-shaded faces, the side the geometric one). `out`: a dict of preallocated arrays to fill instead (keys left out are not computed). "
             "Releases the GIL; threads=0 uses all.")
         .def(
             "closest_hits_from",

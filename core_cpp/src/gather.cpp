@@ -506,8 +506,9 @@ void Gatherer::direct_at(const Receiver& r, const SurfacePoint& at, LightParts p
     // Light arrives on the sides solved, or on both where the surface transmits.
     const bool transmits = r.bsdf->transmits();
     const std::array<bool, 2> sides{transmits || r.solves(0), transmits || r.solves(1)};
+    const Frame frame = radiance_frame(p);  // the BSDF's frame: the shading frame on a smooth face
     for_each_emitter_sample(r.surface, p, ratio, sides, [&](const Vec3& wi_world, const Vec3& value) {
-        const Vec3 wi = p.frame.to_local(wi_world);
+        const Vec3 wi = frame.to_local(wi_world);
         for (int side = 0; side < r.sides; ++side)
             if (r.solves(side))
                 for (size_t a = 0; a < r.per_node; ++a) out[side * r.per_node + a] += r.scatter(side, a, wi) * value;
@@ -534,7 +535,7 @@ Vec3 Gatherer::seen_radiance(const Receiver& h, Receiver::Splines which, const S
     const Texture* detail = h.albedo ? h.albedo : h.tint;
     const Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
     // A tinted pair: f0 = 1 weighed by the texel, f0 = 0 by its complement.
-    return h.radiance(which, hit.u, hit.v, hit.frame.to_local(-dir), texel, h.tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
+    return h.radiance(which, hit.u, hit.v, leaving_local(hit, dir), texel, h.tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
 }
 
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
@@ -663,12 +664,16 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
     std::fill(out, out + n, Vec3{0, 0, 0});
     const int nt = nodes_along(settings_.hemisphere_nodes_theta, density), np = nodes_along(settings_.hemisphere_nodes_phi, density);
     // Incoming radiance L[m] along each local direction local[m] (pointing away from the
-    // surface; mirrored below it for an opaque back side's gather, see Receiver::scatter).
+    // surface; mirrored below it for an opaque back side's gather, see Receiver::scatter). A
+    // lobe's directions are in the radiance frame (the shading frame on a smooth face: Cycles
+    // turns the BSDF with the shading normal; those below the face itself meet the object's
+    // inside, as Cycles' do); the Lambertian rule's in the geometric frame (ShadingCosine).
+    const Frame frame = r.kind == Representation::Diffuse ? p.frame : radiance_frame(p);
     thread_local std::vector<Vec3> dirs;
     auto incoming = [&](const Vec3* local, size_t count, bool mirror, Vec3* L) {
         dirs.resize(count);
         for (size_t m = 0; m < count; ++m) {
-            dirs[m] = p.frame.to_world(mirror ? Vec3{local[m].x, local[m].y, -local[m].z} : local[m]);
+            dirs[m] = frame.to_world(mirror ? Vec3{local[m].x, local[m].y, -local[m].z} : local[m]);
             L[m] = {0, 0, 0};
         }
         trace_from(p, dirs.data(), count, [&](size_t m, const SurfaceHit& hit, const Vec3& d, double w) {
@@ -810,7 +815,7 @@ void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const st
         if (hit.surface < 0 || !receiver_of[hit.surface]) return;
         // rho/pi * pi * mean; albedo applied later
         const double scale = kPi * rule.weight(int(m)) * shading.factor(rule.direction(int(m))) / rule.size();
-        const Vec3 local = hit.frame.to_local(-d);
+        const Vec3 local = leaving_local(hit, d);
         const int side = local.z >= 0 ? 0 : 1;
         for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
             if (!h->solves(side)) continue;

@@ -31,7 +31,7 @@ inline void put(double* dst, double x) {
 #endif
 }
 
-void write(const HitArrays& out, size_t i, const SurfaceHit& h) {
+void write(const HitArrays& out, size_t i, const SurfaceHit& h, const Vec3& dir) {
     if (out.surface) out.surface[i] = h.surface;
     if (out.t) put(out.t + i, h.surface >= 0 ? h.t : std::numeric_limits<double>::infinity());
     if (out.uv) put(out.uv + 2 * i, h.u), put(out.uv + 2 * i + 1, h.v);
@@ -43,6 +43,10 @@ void write(const HitArrays& out, size_t i, const SurfaceHit& h) {
         double* f = out.frame + 9 * i;
         const Vec3* axes[3] = {&h.frame.x, &h.frame.y, &h.frame.z};
         for (int a = 0; a < 3; ++a) put(f + 3 * a, axes[a]->x), put(f + 3 * a + 1, axes[a]->y), put(f + 3 * a + 2, axes[a]->z);
+    }
+    if (out.leaving) {
+        const Vec3 w = h.surface >= 0 ? leaving_local(h, dir) : Vec3{0, 0, 0};
+        put(out.leaving + 3 * i, w.x), put(out.leaving + 3 * i + 1, w.y), put(out.leaving + 3 * i + 2, w.z);
     }
 }
 
@@ -67,10 +71,12 @@ RayCaster::RayCaster(std::vector<const Surface*> surfaces, std::vector<std::opti
     : surfaces_(std::move(surfaces)), panes_(std::move(panes)) {
     for (size_t i = 0; i < panes_.size() && i < surfaces_.size(); ++i) has_panes_ = has_panes_ || (panes_[i] && surfaces_[i]);
     exact_.assign(surfaces_.size(), 0);
+    smooth_.assign(surfaces_.size(), 0);
     for (size_t i = 0; i < surfaces_.size(); ++i) {
         if (!surfaces_[i]) continue;
         rays_.add(int(i), surfaces_[i]->tessellate_for_rays());
         exact_[i] = surfaces_[i]->tessellation_is_exact();
+        smooth_[i] = surfaces_[i]->has_shading_normals();
         all_exact_ = all_exact_ && exact_[i];
     }
     rays_.commit();
@@ -81,10 +87,16 @@ RayCaster::RayCaster(std::vector<const Surface*> surfaces, std::vector<std::opti
     offset_ = kOffsetRelative * magnitude_;
 }
 
+SurfaceHit RayCaster::exact_hit(const RayHit& h, const Vec3& o, const Vec3& d) const {
+    SurfaceHit out = on_tessellation(h, o, d);
+    if (smooth_[h.surface]) out.shading = surfaces_[h.surface]->evaluate(h.u, h.v).shading;
+    return out;
+}
+
 SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tnear, double tfar) const {
     double t_self = -1;
     for (int attempt = 0; attempt < 16 && h.surface >= 0; ++attempt) {
-        if (exact_[h.surface]) return on_tessellation(h, o, d);
+        if (exact_[h.surface]) return exact_hit(h, o, d);
         const Surface& s = *surfaces_[h.surface];
         SurfaceHit out;
         out.surface = h.surface;
@@ -93,7 +105,7 @@ SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tne
         double u = h.u, v = h.v, t = h.t;
         if (s.intersect(o, d, u, v, t) && t > t_self && t < tfar) {
             const SurfacePoint sp = s.evaluate(u, v);
-            out.t = t, out.u = u, out.v = v, out.p = sp.p, out.frame = sp.frame;
+            out.t = t, out.u = u, out.v = v, out.p = sp.p, out.frame = sp.frame, out.shading = sp.shading;
             return out;
         }
         // The ray passes this triangle without meeting the surface, or meets it behind its
@@ -117,7 +129,7 @@ void RayCaster::closest_hits_from(const Vec3& o, const Vec3* dirs, size_t n, Sur
         for (size_t k = 0; k < m; ++k) {
             const RayHit& h = raw[k];
             hits[start + k] = h.surface >= 0 && exact_[h.surface]
-                                  ? on_tessellation(h, o, dirs[start + k])
+                                  ? exact_hit(h, o, dirs[start + k])
                                   : resolve(h, o, dirs[start + k], 0.0, std::numeric_limits<double>::infinity());
         }
     }
@@ -162,7 +174,8 @@ void RayCaster::closest_hit_batch(const RayBatch& rays, const HitArrays& out, in
                 const double* d = rays.directions + 3 * i;
                 const double tnear = rays.tnear ? std::max(0.0, rays.tnear[i]) : 0.0;
                 const double tfar = rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity();
-                write(out, i, resolve(hits[k], {o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar));
+                const Vec3 dir{d[0], d[1], d[2]};
+                write(out, i, resolve(hits[k], {o[0], o[1], o[2]}, dir, tnear, tfar), dir);
             }
         }
 #if defined(__x86_64__)

@@ -153,7 +153,7 @@ def test_diffuse_dominated_principled_is_a_coat_over_its_base_or_lambertian(cont
     got, warnings = solver_material(principled("Plaster", **{"Base Color": (0.5, 0.5, 0.5, 1), "Roughness": 1.0}))
     assert got.kind == "lambert" and got.bsdf is None and 0.5 < got.albedo[0] < 0.52
     assert not warnings
-    # Where its highlight shows, the coat itself (test_principled_coat.py), without a warning.
+    # Where its highlight shows, the coat itself (test_principled_materials.py), without a warning.
     for roughness in (0.5, 0.1):
         got, warnings = solver_material(principled("Plastic", **{"Base Color": (0.5, 0.5, 0.5, 1), "Roughness": roughness}))
         assert got.kind == "diffuse_ggx" and got.bsdf.layered and got.albedo == pytest.approx((0.5, 0.5, 0.5))
@@ -502,7 +502,7 @@ def test_principled_diffuse_albedo_is_cycles_layered_albedo(context, tmp_path, b
 def test_smooth_shading_reaches_the_solver_and_only_glossy_lobes_are_named(context):
     # Cycles interpolates a smooth face's corner normals. The exported faces (per face, and as one
     # UV chart) carry Blender's corner normals (world space, the object turned and scaled
-    # unevenly) and interpolate them for the diffuse light's cosine; a glossy lobe keeps each
+    # unevenly) and interpolate them for the light's cosine and a lobe's frame; glass keeps each
     # face's own normal, named with the normals' turn on a coarse sphere, not on a fine one
     # (within 3 degrees) nor a flat one.
     from bsgi_addon import export
@@ -558,9 +558,11 @@ def test_smooth_shading_reaches_the_solver_and_only_glossy_lobes_are_named(conte
     assert turn < 0.1 and not named  # float32 normals: 0.03
     at = result.scene.surface(0).evaluate(np.array([[0.2, 0.7]]))
     assert np.array_equal(at["shading_normal"], at["normal"])  # flat faces: none given
-    metal = scenes.metal_material("Metal", 0.4)
-    sphere, result, ball, turn, named = exported(16, True, metal)
-    assert len(named) == 1 and f"{turn:.0f}°" in named[0], named
-    sphere, result, ball, turn, named = exported(128, True, metal)
+    sphere, result, ball, turn, named = exported(16, True, scenes.metal_material("Metal", 0.4))
+    assert not named  # a glossy lobe turns with the shading normal too (test_smooth_meshes.py)
+    glass = principled("Frosted", **{"Transmission Weight": 1.0, "Roughness": 0.5})
+    sphere, result, ball, turn, named = exported(16, True, glass)
+    assert len(named) == 1 and f"{turn:.0f}°" in named[0] and "glass" in named[0], named
+    sphere, result, ball, turn, named = exported(128, True, glass)
     print(f"\n128 segments: {turn:.2f} degrees")
     assert turn < 3 and not named, turn

@@ -1,7 +1,9 @@
-"""Smooth shading (surface.h SurfacePoint::shading, gather.cpp ShadingCosine): a smooth-shaded face's
-Lambertian reflection reads the corner normals interpolated, as Cycles shades it, while its rays
-leave the geometric surface. Against closed forms: a sky seen by a tilted normal, an area light by
-Lambert's polygon formula and a sun, each at the normal interpolated across the face."""
+"""Smooth shading (surface.h SurfacePoint::shading, radiance_frame; gather.cpp ShadingCosine): a
+smooth-shaded face reflects with the corner normals interpolated, as Cycles shades it (the light's
+cosine, and a glossy lobe in the shading frame, the frame its splines are in), while its rays leave
+the geometric surface. Against closed forms: a sky seen by a tilted normal, an area light by
+Lambert's polygon formula and a sun, each at the normal interpolated across the face, and a GGX
+lobe turned with the shading normal."""
 import math
 
 import numpy as np
@@ -133,17 +135,36 @@ def test_triangles_and_charts_interpolate_their_corners_normals_barycentrically(
     assert np.abs(chart.evaluate(at)["shading_normal"] - want).max() < 1e-12
 
 
-def test_a_glossy_lobe_keeps_the_geometric_normal():
-    # Only Lambertian reflection reads the shading normal (the add-on names glossy smooth faces).
-    lamp = np.array([[-0.3, -0.3, 1.2], [-0.3, 0.3, 1.2], [0.3, 0.3, 1.2], [0.3, -0.3, 1.2]], float)
-    coefficients = []
-    for normals in (None, DOME):
-        scene = bsgi.Scene()
-        scene.add_surface(bsgi.BilinearPatch("floor", FLOOR, normals=normals), albedo=[0] * 3, emission=[0] * 3,
-                          bsdf=bsgi.GgxReflection(0.4, 0.4, [0.9] * 3))
-        scene.add_bilinear_patch("lamp", lamp, albedo=[0] * 3, emission=[3.0] * 3, receiver=False, occluder=False)
-        coefficients.append(bsgi.solve(scene, settings("draft", max_bounces=0)).radiance[0].coefficients)
-    assert np.array_equal(coefficients[0], coefficients[1])
+def test_a_glossy_lobe_turns_with_the_shading_normal():
+    # A GGX floor whose shading normal leans 20 degrees, under a sun: Cycles evaluates the lobe in
+    # the shading frame, L(w_o) = f(w_o, l) E (n_s . l) with both directions in that frame (the
+    # radiance frame its splines are in, Surface.evaluate's shading_x, shading_y, shading_normal).
+    # Measured at preview over directions around the highlight: RMS 1.1% of its peak; the lobe in
+    # the geometric frame (as before) would put the highlight 40 degrees away: 25% of the peak.
+    sun, irradiance, alpha = tilted(30, 180), 2.0, 0.3
+    lobe = bsgi.GgxReflection(alpha, alpha, [0.9] * 3)
+    scene = bsgi.Scene()
+    patch = bsgi.BilinearPatch("floor", FLOOR, normals=np.tile(tilted(20, 0), (4, 1)))
+    scene.add_surface(patch, albedo=[0] * 3, emission=[0] * 3, bsdf=lobe)
+    scene.add_distant_light("sun", sun, [irradiance] * 3, 0.0)
+    radiance = bsgi.solve(scene, settings(max_bounces=0)).surfaces[0]
+    uv = np.full((1, 2), 0.5)
+    f = patch.evaluate(uv)
+    frame = np.stack([f["shading_x"][0], f["shading_y"][0], f["shading_normal"][0]])
+    sun_local = frame @ sun
+    mirror = np.array([-sun_local[0], -sun_local[1], sun_local[2]])
+    rng = np.random.default_rng(8)
+    out = mirror + rng.normal(scale=0.35, size=(200, 3))
+    out[:, 2] = np.abs(out[:, 2]) + 0.05
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    got = radiance.evaluate(np.repeat(uv, len(out), axis=0), out)[:, 0]
+    want = lobe.eval(out, np.tile(sun_local, (len(out), 1)))[:, 0] * irradiance * sun_local[2]
+    geometric = lobe.eval(out, np.tile(sun, (len(out), 1)))[:, 0] * irradiance * sun[2]
+    rms = np.sqrt(np.mean((got - want) ** 2)) / want.max()
+    apart = np.sqrt(np.mean((geometric - want) ** 2)) / want.max()
+    print(f"\nGGX lobe in the shading frame: RMS {rms:.3f} of the peak (the geometric frame's lobe {apart:.2f} away)")
+    assert apart > 0.15
+    assert rms < 0.025
 
 
 def test_bad_corner_normals_are_refused_by_name():

@@ -290,10 +290,11 @@ private:
                                  Visit&& visit, size_t& rays, LightParts parts = LightParts::All) const;
     // direct() at point p of r's surface, from the lights `parts`.
     void direct_at(const Receiver& r, const SurfacePoint& p, LightParts parts, Vec3* out, size_t& rays) const;
-    // The point as r's gather reads it: smooth shading's normal for Lambertian reflection only (a
-    // glossy lobe and light through a surface keep the geometric frame; the add-on names them).
+    // The point as r's gather reads it: smooth shading's normal for reflection (a Lambertian
+    // cosine, a lobe's frame); light through a surface keeps the geometric frame (the add-on
+    // names it).
     static SurfacePoint receiver_point(const Receiver& r, SurfacePoint p) {
-        if (r.kind != Representation::Diffuse || r.bsdf->transmits()) p.shading = {0, 0, 0};
+        if (r.bsdf->transmits()) p.shading = {0, 0, 0};
         return p;
     }
 

@@ -30,6 +30,7 @@ public:
     void refine_parameters(const Vec3&, double&, double&) const override {}
     double area() const override { return area_; }
     bool tessellation_is_exact() const override { return true; }
+    bool has_shading_normals() const override { return !corner_normals_.empty(); }
 
     size_t triangle_count() const { return tris_.size(); }
     // Triangles whose UVs have no area: they block rays but are not part of the chart.

@@ -10,6 +10,7 @@
 // one where the ray passes the triangle without meeting the surface (see
 // Surface::tessellate_for_rays).
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -27,7 +28,22 @@ struct SurfaceHit {
     double u = 0, v = 0;
     Vec3 p;
     Frame frame;
+    Vec3 shading{0, 0, 0};  // the shading normal on a smooth-shaded face (SurfacePoint::shading)
 };
+
+// The frame the hit surface's radiance splines are in (SurfacePoint's radiance_frame).
+inline Frame radiance_frame(const SurfaceHit& h) { return radiance_frame(h.frame, h.shading); }
+
+// Light leaving the hit towards -dir, as the hit surface's radiance splines read it: its side the
+// geometric one, its angles in the radiance frame (a direction between the face and its shading
+// plane keeps its side, at the angle of its mirror image).
+inline Vec3 leaving_local(const SurfaceHit& h, const Vec3& dir) {
+    const Vec3 geometric = h.frame.to_local(-dir);
+    if (h.shading.x == 0 && h.shading.y == 0 && h.shading.z == 0) return geometric;
+    Vec3 local = radiance_frame(h).to_local(-dir);
+    local.z = std::copysign(std::abs(local.z), geometric.z);
+    return local;
+}
 
 // Outputs of a batch of closest-hit queries; null pointers are skipped. frame holds 9 values
 // per hit, x, y, z = normal.
@@ -37,6 +53,7 @@ struct HitArrays {
     double* uv = nullptr;
     double* position = nullptr;
     double* frame = nullptr;
+    double* leaving = nullptr;  // 3 per hit: -dir as the hit surface's radiance reads it (leaving_local)
 };
 
 class RayCaster {
@@ -93,6 +110,9 @@ private:
     RayScene rays_;
     bool all_exact_ = true;
     std::vector<uint8_t> exact_;  // per surface: its tessellation is the surface (a byte, not a virtual call, per hit)
+    std::vector<uint8_t> smooth_;  // per surface: it has shading normals, which its hits look up
+    // A hit on an exact tessellation, with the surface's shading normal where it has them.
+    SurfaceHit exact_hit(const RayHit& h, const Vec3& o, const Vec3& d) const;
     double magnitude_ = 1, offset_ = 1e-5;
 };
 

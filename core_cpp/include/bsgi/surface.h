@@ -29,6 +29,16 @@ inline bool smooth_shaded(const SurfacePoint& s) { return s.shading.x != 0 || s.
 // The normal a diffuse receiver's cosine reads at s (front side).
 inline const Vec3& shading_normal(const SurfacePoint& s) { return smooth_shaded(s) ? s.shading : s.frame.z; }
 
+// The frame a surface's radiance splines are in at s (its glossy ones' angular coordinates): the
+// shading frame on a smooth-shaded face (its normal the shading normal, x the frame's x turned
+// into its plane), else the frame (1)-(3). The side a direction leaves from stays the geometric
+// one (which side of the surface it is on).
+inline Frame radiance_frame(const Frame& frame, const Vec3& shading) {
+    if (shading.x == 0 && shading.y == 0 && shading.z == 0) return frame;
+    return frame_with_normal(shading, frame.x, frame.y);
+}
+inline Frame radiance_frame(const SurfacePoint& s) { return radiance_frame(s.frame, s.shading); }
+
 // |cos| between direction d (any length: the cosine is scaled by |d|) and the receiver's normal
 // on the side d points into: the geometric side (the sign of d . frame.z) with the shading
 // normal's cosine, 0 where the shading normal turns away from d (as Cycles' max(N . L, 0)).
@@ -79,6 +89,8 @@ public:
     // Parameter values (normalised, inside (0, 1)) of the lines u = c (first) and v = c (second)
     // across which the normal jumps, a crease of the surface: integrals over it split there.
     virtual std::array<std::vector<double>, 2> creases() const { return {}; }
+    // True where evaluate() gives shading normals (smooth-shaded faces): ray hits then look them up.
+    virtual bool has_shading_normals() const { return false; }
 
     // Intersection of the ray o + t d with the exact surface near the guess (u, v, t), by
     // Newton's method on s(u, v) = o + t d. Returns false (leaving the guess) when it does not
@@ -123,6 +135,7 @@ public:
     void refine_parameters(const Vec3& p, double& u, double& v) const override;
     double area() const override { return area_; }
     bool tessellation_is_exact() const override { return parallelogram_; }
+    bool has_shading_normals() const override { return !corner_normals_.empty(); }
 
 private:
     Vec3 p00_, p10_, p11_, p01_;
@@ -143,6 +156,7 @@ public:
     Tessellation tessellate() const override;
     void refine_parameters(const Vec3& p, double& u, double& v) const override;
     double area() const override { return area_; }
+    bool has_shading_normals() const override { return !corner_normals_.empty(); }
 
 private:
     Vec3 p0_, p1_, p2_;
