@@ -107,10 +107,14 @@ def open_and_export(blend, spec: dict):
     import bpy
 
     blend_scene.load_addon()
+    from bsgi_addon import properties
     from bsgi_addon.export import export_scene
 
     bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(blend).resolve()))
     settings = settings_of(spec)
+    # The quality also says which Principled coats are solved (materials.coat_threshold).
+    if spec["preset"].upper() in {p[0] for p in properties.PRESETS}:
+        bpy.context.scene.bsgi.preset = spec["preset"].upper()
     knob_overrides_objects(bpy.context, spec.get("overrides", {}))
     return export_scene(bpy.context.evaluated_depsgraph_get()), settings
 

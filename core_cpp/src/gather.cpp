@@ -530,12 +530,19 @@ double Gatherer::ray_solid_angle(double density) const {
     return 2 * kPi / (double(nodes_along(settings_.hemisphere_nodes_theta, density)) * nodes_along(settings_.hemisphere_nodes_phi, density));
 }
 
+Vec3 Gatherer::leaving(const Receiver& h, const SurfaceHit& hit, const Vec3& dir) const {
+    if (h.kind == Representation::Diffuse && !h.partner) return hit.frame.to_local(-dir);  // (its side alone)
+    SurfaceHit shaded = hit;
+    caster_.look_up_shading(shaded);
+    return leaving_local(shaded, dir);
+}
+
 Vec3 Gatherer::seen_radiance(const Receiver& h, Receiver::Splines which, const SurfaceHit& hit, const Vec3& dir,
                              double solid_angle) const {
     const Texture* detail = h.albedo ? h.albedo : h.tint;
     const Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
     // A tinted pair: f0 = 1 weighed by the texel, f0 = 0 by its complement.
-    return h.radiance(which, hit.u, hit.v, leaving_local(hit, dir), texel, h.tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
+    return h.radiance(which, hit.u, hit.v, leaving(h, hit, dir), texel, h.tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
 }
 
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,
@@ -815,7 +822,7 @@ void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const st
         if (hit.surface < 0 || !receiver_of[hit.surface]) return;
         // rho/pi * pi * mean; albedo applied later
         const double scale = kPi * rule.weight(int(m)) * shading.factor(rule.direction(int(m))) / rule.size();
-        const Vec3 local = leaving_local(hit, d);
+        const Vec3 local = leaving(*receiver_of[hit.surface], hit, d);
         const int side = local.z >= 0 ? 0 : 1;
         for (const Receiver* h = receiver_of[hit.surface]; h; h = h->is_partner ? nullptr : h->partner) {
             if (!h->solves(side)) continue;

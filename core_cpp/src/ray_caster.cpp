@@ -87,16 +87,10 @@ RayCaster::RayCaster(std::vector<const Surface*> surfaces, std::vector<std::opti
     offset_ = kOffsetRelative * magnitude_;
 }
 
-SurfaceHit RayCaster::exact_hit(const RayHit& h, const Vec3& o, const Vec3& d) const {
-    SurfaceHit out = on_tessellation(h, o, d);
-    if (smooth_[h.surface]) out.shading = surfaces_[h.surface]->evaluate(h.u, h.v).shading;
-    return out;
-}
-
 SurfaceHit RayCaster::resolve(RayHit h, const Vec3& o, const Vec3& d, double tnear, double tfar) const {
     double t_self = -1;
     for (int attempt = 0; attempt < 16 && h.surface >= 0; ++attempt) {
-        if (exact_[h.surface]) return exact_hit(h, o, d);
+        if (exact_[h.surface]) return on_tessellation(h, o, d);
         const Surface& s = *surfaces_[h.surface];
         SurfaceHit out;
         out.surface = h.surface;
@@ -129,7 +123,7 @@ void RayCaster::closest_hits_from(const Vec3& o, const Vec3* dirs, size_t n, Sur
         for (size_t k = 0; k < m; ++k) {
             const RayHit& h = raw[k];
             hits[start + k] = h.surface >= 0 && exact_[h.surface]
-                                  ? exact_hit(h, o, dirs[start + k])
+                                  ? on_tessellation(h, o, dirs[start + k])
                                   : resolve(h, o, dirs[start + k], 0.0, std::numeric_limits<double>::infinity());
         }
     }
@@ -175,7 +169,9 @@ void RayCaster::closest_hit_batch(const RayBatch& rays, const HitArrays& out, in
                 const double tnear = rays.tnear ? std::max(0.0, rays.tnear[i]) : 0.0;
                 const double tfar = rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity();
                 const Vec3 dir{d[0], d[1], d[2]};
-                write(out, i, resolve(hits[k], {o[0], o[1], o[2]}, dir, tnear, tfar), dir);
+                SurfaceHit hit = resolve(hits[k], {o[0], o[1], o[2]}, dir, tnear, tfar);
+                if (out.leaving) look_up_shading(hit);
+                write(out, i, hit, dir);
             }
         }
 #if defined(__x86_64__)

@@ -63,6 +63,12 @@ public:
     // pane (thin glass): it blocks closest_hit() like any surface, but transmittance() lets
     // light through it.
     explicit RayCaster(std::vector<const Surface*> surfaces, std::vector<std::optional<ThinGlass>> panes = {});
+    // Fills h.shading where the hit surface has shading normals (smooth faces): what reading its
+    // glossy radiance needs (leaving_local). Hits on meshes do not look it up unasked (a
+    // Lambertian surface's light is read without it); hits refined on curved surfaces have it.
+    void look_up_shading(SurfaceHit& h) const {
+        if (h.surface >= 0 && smooth_[size_t(h.surface)]) h.shading = surfaces_[size_t(h.surface)]->evaluate(h.u, h.v).shading;
+    }
 
     // Distance by which spawn() lifts ray origins off a surface: it scales with the scene's
     // extent (Embree works in float, relative to the scene's centre).
@@ -110,9 +116,7 @@ private:
     RayScene rays_;
     bool all_exact_ = true;
     std::vector<uint8_t> exact_;  // per surface: its tessellation is the surface (a byte, not a virtual call, per hit)
-    std::vector<uint8_t> smooth_;  // per surface: it has shading normals, which its hits look up
-    // A hit on an exact tessellation, with the surface's shading normal where it has them.
-    SurfaceHit exact_hit(const RayHit& h, const Vec3& o, const Vec3& d) const;
+    std::vector<uint8_t> smooth_;  // per surface: it has shading normals (look_up_shading)
     double magnitude_ = 1, offset_ = 1e-5;
 };
 
