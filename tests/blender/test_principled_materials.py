@@ -2,6 +2,9 @@
 bsgi.DiffuseGgx where its highlight shows, folded into a Lambertian albedo where it does not): a
 floor and a wall of the default Principled BSDF under an area light, baked and rendered, against
 Cycles' render of the same camera."""
+import pathlib
+import sys
+
 import bpy
 import numpy as np
 import pytest
@@ -10,6 +13,8 @@ from mathutils import Vector
 import scenes
 from bsgi_addon import materials, pipeline
 from test_pipeline import lit_relative_difference, render_exr
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def principled(name, rgb=(0.8, 0.8, 0.8), **inputs):
@@ -102,3 +107,62 @@ def test_default_principled_floor_baked_matches_cycles(context, tmp_path):
     assert lit > 0.8 * 96 * 96
     assert layered < 0.017
     assert folded > 3 * layered
+
+
+def _directional_albedo(bsdf_eval, mu, n=300):
+    """pi * mean of f(w_o, w_i) over a cosine-weighted midpoint rule in cos^2 theta and phi, light
+    leaving at cos theta = mu: the BSDF's directional albedo."""
+    g = (np.arange(n) + 0.5) / n
+    c2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n), indexing="ij")
+    ci, si = np.sqrt(c2).ravel(), np.sqrt(1 - c2).ravel()
+    wi = np.stack([si * np.cos(phi.ravel()), si * np.sin(phi.ravel()), ci], 1)
+    wo = np.ascontiguousarray(np.broadcast_to([np.sqrt(1 - mu * mu), 0.0, mu], wi.shape))
+    return np.pi * float(np.mean(bsdf_eval(wo, wi)))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("roughness,base", [(0.5, 0.8), (0.5, 0.12), (1.0, 0.12)])
+def test_layered_coat_reflects_what_cycles_principled_bsdf_does(context, tmp_path, roughness, base):
+    # Cycles' own directional albedo of a plane of the Principled BSDF under a white world, seen
+    # along its normal and 60 degrees off it, against the core's layered DiffuseGgx (what the
+    # add-on solves it with) and a Mitsuba plugin of it for the references
+    # (bench/study/cycles_principled.py; the study's converter still maps such materials to
+    # Mitsuba's roughplastic, which reflects 0.60 of a base of 0.8 at roughness 0.5 where Cycles
+    # reflects 0.81). Measured: base 0.8 within 0.1% (both); base 0.12 the core 0.2-0.8% low, the
+    # plugin 0.2-0.85% low (Cycles' Multiscatter GGX adds the energy single scattering loses); at
+    # roughness 1, 60 degrees off, the core 2.4% low: its GGX shadowing is Smith's separable form,
+    # Cycles' (and the plugin's) height-correlated.
+    import bsgi
+    from test_export import _cycles_directional_albedo
+
+    mi = pytest.importorskip("mitsuba")
+    sys.path.insert(0, str(ROOT / "bench" / "study"))
+    sys.path.insert(0, str(ROOT / "tests"))
+    import cycles_principled
+    from reference.mitsuba_reference import load_mitsuba
+
+    mi = load_mitsuba()
+    cycles_principled.register(mi)
+    plugin = mi.load_dict(cycles_principled.bsdf_dict((base,) * 3, roughness, 0.04))
+    core = bsgi.DiffuseGgx([base] * 3, roughness**2, roughness**2, [0.04] * 3, layered=True, eta=1.5)
+
+    def plugin_eval(wo, wi):
+        import drjit as dr
+
+        si = dr.zeros(mi.SurfaceInteraction3f, len(wi))
+        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+        si.wi = mi.Vector3f(*(float(c) for c in wo[0]))
+        value = plugin.eval(mi.BSDFContext(), si, mi.Vector3f(wi[:, 0], wi[:, 1], wi[:, 2]))
+        return np.array(value[0]) / wi[:, 2]  # eval carries the cosine
+
+    rows = []
+    for tilt in (0, 60):
+        cycles, _ = _cycles_directional_albedo(context, tmp_path, base, roughness, tilt)
+        mu = np.cos(np.radians(tilt))
+        rows.append((tilt, cycles, _directional_albedo(lambda wo, wi: core.eval(wo, wi)[:, 0], mu),
+                     _directional_albedo(plugin_eval, mu)))
+    print(f"\nroughness {roughness}, base {base}: (tilt, Cycles, core, plugin) "
+          f"{[tuple(round(x, 4) for x in r) for r in rows]}")
+    for tilt, cycles, core_albedo, plugin_albedo in rows:
+        assert abs(plugin_albedo / cycles - 1) < 0.017
+        assert abs(core_albedo / cycles - 1) < 0.04
