@@ -66,6 +66,8 @@ class Material:
     rotation: float = 0.0
     # The lobe's Fresnel in Cycles: Schlick's from `specular` (metals) or none (a Glossy BSDF's colour).
     schlick: bool = True
+    # A lone dielectric Principled BSDF: `specular` is a coat over the base, layered as Cycles does.
+    coat: bool = False
 
 
 @dataclass
@@ -96,7 +98,8 @@ def describe(material) -> Material:
     from bsgi_addon.materials import describe_material
 
     d = describe_material(material, [])
-    return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation, d.schlick)
+    return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation, d.schlick,
+                    d.coat)
 
 
 def default_tangents(world, triangles, radial):

@@ -17,6 +17,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from reference.mitsuba_reference import lobe_coordinates, load_mitsuba  # noqa: E402
 
+import cycles_principled  # noqa: E402  (beside this file)
+
 # Below this roughness Mitsuba's smooth models are used (GGX with alpha -> 0 is the mirror).
 SMOOTH_ROUGHNESS = 0.02
 
@@ -67,6 +69,10 @@ def bsdf(material) -> dict:
         if smooth:
             return {"type": "conductor", **conductor}
         return {"type": "roughconductor", "distribution": "ggx", **lobe, **conductor}
+    if glossy > 0 and getattr(material, "coat", False):
+        # Cycles' Principled dielectric: its base under the coat, layered as Cycles layers it
+        # (roughplastic reflected 0.60 of a base of 0.8 at roughness 0.5, Cycles 0.81).
+        return cycles_principled.bsdf_dict(material.albedo, material.roughness, float(np.mean(material.specular)))
     if glossy > 0.01:
         return {"type": "roughplastic", "distribution": "ggx", "alpha": max(alpha, 1e-4),
                 "int_ior": max(material.ior, 1.0 + 1e-3),
@@ -98,6 +104,7 @@ def scene_dict(description, max_depth: int = -1, two_sided=(), pairs_only: bool 
     rays still stop at them: with one light per scene only rays towards that light, which end
     short of it.)"""
     mi = load_mitsuba()
+    cycles_principled.register(mi)
     folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-study-"))
     atexit.register(shutil.rmtree, folder, ignore_errors=True)  # the dict names its files: kept until exit
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
