@@ -125,10 +125,9 @@ def _directional_albedo(bsdf_eval, mu, n=300):
 def test_layered_coat_reflects_what_cycles_principled_bsdf_does(context, tmp_path, roughness, base):
     # Cycles' own directional albedo of a plane of the Principled BSDF under a white world, seen
     # along its normal and 60 degrees off it, against the core's layered DiffuseGgx (what the
-    # add-on solves it with) and a Mitsuba plugin of it for the references
-    # (bench/study/cycles_principled.py; the study's converter still maps such materials to
-    # Mitsuba's roughplastic, which reflects 0.60 of a base of 0.8 at roughness 0.5 where Cycles
-    # reflects 0.81). Measured: base 0.8 within 0.1% (both); base 0.12 the core 0.2-0.8% low, the
+    # add-on solves it with) and the study's Mitsuba plugin of it (bench/study/cycles_principled.py;
+    # Mitsuba's roughplastic, which the references used before, reflects 0.60 of a base of 0.8 at
+    # roughness 0.5 where Cycles reflects 0.81). Measured: base 0.8 within 0.1% (both); base 0.12 the core 0.2-0.8% low, the
     # plugin 0.2-0.85% low (Cycles' Multiscatter GGX adds the energy single scattering loses); at
     # roughness 1, 60 degrees off, the core 2.4% low: its GGX shadowing is Smith's separable form,
     # Cycles' (and the plugin's) height-correlated.
