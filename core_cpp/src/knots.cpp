@@ -260,6 +260,9 @@ std::vector<double> KnotVector::schoenberg_nodes() const {
                 s = 0;
                 for (int k = 1; k <= degree_; ++k) s += knots_[i + k] / degree_;
             }
+            // An average lies within its knots; the rounding of a sum of thirds of the largest
+            // double does not (it rounded to infinity).
+            s = std::clamp(s, knots_[i + 1], knots_[i + degree_]);
         }
         nodes[i] = periodic_ ? to_domain(s) : s;
     }
