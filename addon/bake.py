@@ -212,8 +212,7 @@ def _world_points(obj):
         for tri in mesh.loop_triangles:
             first_triangle.setdefault(tri.polygon_index, list(tri.vertices))
         normals = geometry.corner_normals(mesh, evaluated.matrix_world)
-        corner_normals = [normals.normals[list(p.loop_indices)] if normals.smooth(p.index) else None for p in mesh.polygons]
-        return world, polygons, first_triangle, corner_normals
+        return world, polygons, first_triangle, [normals.at(p.index, p.loop_indices) for p in mesh.polygons]
     finally:
         evaluated.to_mesh_clear()
 
@@ -230,10 +229,9 @@ def _evaluated_chart(obj):
         mesh.vertices.foreach_get("co", co)
         m = np.array(evaluated.matrix_world, float)
         triangles, loops = charts.loop_triangles(mesh)
-        normals = geometry.corner_normals(mesh, evaluated.matrix_world)
-        smooth = normals.turn.max(initial=0.0) > geometry.FLAT_FACE_DEGREES
+        normals = geometry.corner_normals(mesh, evaluated.matrix_world).of_mesh()
         return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3], triangles, charts.layer_uvs(mesh, UV_NAME)[loops],
-                normals.normals[loops] if smooth else None)
+                None if normals is None else normals[loops])
     finally:
         evaluated.to_mesh_clear()
 

@@ -60,6 +60,14 @@ class CornerNormals:
     def smooth(self, polygon: int) -> bool:
         return bool(self.turn[polygon] > FLAT_FACE_DEGREES)
 
+    def at(self, polygon: int, loops):
+        """The normals of these corners of the polygon where it is smooth, else None (flat)."""
+        return self.normals[list(loops)] if self.smooth(polygon) else None
+
+    def of_mesh(self):
+        """All corners' normals where any face is smooth (a chart's), else None."""
+        return self.normals if self.turn.max(initial=0.0) > FLAT_FACE_DEGREES else None
+
 
 def corner_normals(mesh, matrix=None) -> CornerNormals:
     corner = np.empty(len(mesh.loops) * 3)
@@ -159,11 +167,10 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
         else:
             pieces, kind = [(f"{name} triangle {k}", list(tri), list(tri_loops))
                             for k, (tri, tri_loops) in enumerate(ngon_tris[poly.index])], "ngon"
-        smooth = normals.smooth(poly.index)
         try:
             for piece, corners, corner_loops in pieces:
                 surface = (bsgi.BilinearPatch if len(corners) == 4 else bsgi.TrianglePatch)(
-                    piece, world[corners], normals=normals.normals[corner_loops] if smooth else None)
+                    piece, world[corners], normals=normals.at(poly.index, corner_loops))
                 materials.add(scene, poly.material_index, surface)
         except ValueError as error:
             raise ExportError(str(error)) from None
@@ -292,10 +299,9 @@ def _chart_job(exported, mesh, world, materials, label, normals: CornerNormals, 
     polygons = [tuple(p.vertices) for p in mesh.polygons] if name is None else []
     # The user's UV map as their own mesh holds it: the modifiers carry it to the faces solved.
     base_uvs = charts.layer_uvs(base.data, name) if base is not None and name is not None else None
-    smooth = normals.turn.max(initial=0.0) > FLAT_FACE_DEGREES
     return _ChartJob(exported, label, world, triangles, loops, polygons, found if name is not None else None,
                      materials, int(indices[0]), [] if name is not None else found, base, base_uvs, len(mesh.loops),
-                     normals.normals if smooth else None)
+                     normals.of_mesh())
 
 
 def build_chart(scene, job: _ChartJob, warnings) -> None:

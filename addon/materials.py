@@ -493,8 +493,7 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         root = math.sqrt(min(max(sum(f0) / 3, 1e-6), 0.99))
         eta = (1 + root) / (1 - root)
         return SolverMaterial(base, described.emission, "diffuse_ggx", alpha=alpha, alpha_x=alpha, alpha_y=alpha, f0=f0,
-                              eta=eta, bsdf=bsgi.DiffuseGgx(base, alpha, alpha, f0, layered=True, eta=eta),
-                              specular=lobe, folded_albedo=albedo)
+                              eta=eta, bsdf=layered_coat(base, alpha, f0, eta), specular=lobe, folded_albedo=albedo)
     if visible or glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
         warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
                         f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")
@@ -529,6 +528,13 @@ def coat_threshold() -> float:
     if settings.coats == "ALL":
         return 0.0
     return COAT_THRESHOLDS["accurate" if settings.preset in ("FINAL", "REFERENCE") else "fast"]
+
+
+# Every object's slots are described anew: a layered coat tabulates its directional albedo when
+# made (5 ms), so the same few materials' coats are made once and shared.
+@lru_cache(maxsize=1024)
+def layered_coat(base: tuple, alpha: float, f0: tuple, eta: float):
+    return bsgi.DiffuseGgx(base, alpha, alpha, f0, layered=True, eta=eta)
 
 
 def coat_peak_ratio(f0, roughness: float, base) -> float:

@@ -29,7 +29,6 @@ private:
     Vec3 n_{0, 0, 1};
 };
 
-
 constexpr double kPi = 3.14159265358979323846;
 // Emitter cells whose normals turn by more than about 45 degrees are split down to a tenth of
 // their distance from the receiver, and, however far they are, at least kCurvedEmitterDepth
@@ -734,7 +733,7 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
     L.resize(wi.size());
     incoming(wi.data(), wi.size(), mirror, L.data());
     for (size_t t = 0; t < nodes; ++t) {
-        if (L[t].x == 0 && L[t].y == 0 && L[t].z == 0) continue;  // (a regather's change is signed)
+        if (is_zero(L[t])) continue;  // (a regather's change is signed)
         const ScatterTable::Term* terms = table.terms(t);
         for (size_t v = 0; v < values; ++v)
             if (terms[v].scale != 0) sides_out[v] += L[t] * terms[v].f * terms[v].scale;
@@ -745,7 +744,7 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
             const ScatterTable::Sample& s = samples[v * nb + m];
             if (s.kind == ScatterTable::Sample::Kind::None) continue;
             const Vec3& Ls = L[next++];
-            if (Ls.x == 0 && Ls.y == 0 && Ls.z == 0) continue;
+            if (is_zero(Ls)) continue;
             sides_out[v] += s.kind == ScatterTable::Sample::Kind::Delta ? Ls * s.f / double(nb) : Ls * s.f * s.scale;
         }
 }

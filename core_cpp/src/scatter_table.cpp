@@ -111,8 +111,7 @@ void ScatterTable::fill(size_t t, Term* row) const {
         term.f = bsdf_->eval_pdf(outgoing_[v], wi, pb);
         // (weight |cos| / pdf > 0 at every cosine node: 0 marks a term without light; a layered
         // coat's glossy part is negative where it takes more from the base than it reflects.)
-        const bool scatters = term.f.x != 0 || term.f.y != 0 || term.f.z != 0;
-        term.scale = scatters ? node_weight_[t] * std::abs(wi.z) / (pc + nb_ * pb) : 0;
+        term.scale = !is_zero(term.f) ? node_weight_[t] * std::abs(wi.z) / (pc + nb_ * pb) : 0;
     }
 }
 

@@ -161,7 +161,7 @@ public:
     double operator()(double mu) const;
 
 private:
-    std::vector<double> table_;  // at mu = k / (n - 1)
+    std::vector<double> table_;  // at mu = (k / (n - 1))^2
 };
 
 // A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal.

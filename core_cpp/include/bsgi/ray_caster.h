@@ -39,7 +39,7 @@ inline Frame radiance_frame(const SurfaceHit& h) { return radiance_frame(h.frame
 // plane keeps its side, at the angle of its mirror image).
 inline Vec3 leaving_local(const SurfaceHit& h, const Vec3& dir) {
     const Vec3 geometric = h.frame.to_local(-dir);
-    if (h.shading.x == 0 && h.shading.y == 0 && h.shading.z == 0) return geometric;
+    if (is_zero(h.shading)) return geometric;
     Vec3 local = radiance_frame(h).to_local(-dir);
     local.z = std::copysign(std::abs(local.z), geometric.z);
     return local;

@@ -19,22 +19,19 @@ struct SurfacePoint {
     Frame frame;      // x along s_u, z along s_u x s_v (paper (1)-(3)); orthonormal even where degenerate
     double jacobian;  // |s_u x s_v|: area element of (8)
     // Smooth shading (Cycles' interpolated corner normals of a mesh face): the unit normal on the
-    // front side that a Lambertian receiver's cosine reads; zero where the surface has none (the
-    // frame's normal). Only the cosine changes: rays still leave the geometric surface.
+    // front side that the light's cosine and a glossy lobe's frame read (radiance_frame); zero
+    // where the surface has none (the frame's normal). Rays still leave the geometric surface.
     Vec3 shading{0, 0, 0};
 };
 
-inline bool smooth_shaded(const SurfacePoint& s) { return s.shading.x != 0 || s.shading.y != 0 || s.shading.z != 0; }
-
-// The normal a diffuse receiver's cosine reads at s (front side).
-inline const Vec3& shading_normal(const SurfacePoint& s) { return smooth_shaded(s) ? s.shading : s.frame.z; }
+inline bool smooth_shaded(const SurfacePoint& s) { return !is_zero(s.shading); }
 
 // The frame a surface's radiance splines are in at s (its glossy ones' angular coordinates): the
 // shading frame on a smooth-shaded face (its normal the shading normal, x the frame's x turned
 // into its plane), else the frame (1)-(3). The side a direction leaves from stays the geometric
 // one (which side of the surface it is on).
 inline Frame radiance_frame(const Frame& frame, const Vec3& shading) {
-    if (shading.x == 0 && shading.y == 0 && shading.z == 0) return frame;
+    if (is_zero(shading)) return frame;
     return frame_with_normal(shading, frame.x, frame.y);
 }
 inline Frame radiance_frame(const SurfacePoint& s) { return radiance_frame(s.frame, s.shading); }

@@ -28,6 +28,7 @@ inline constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
 inline double length(const Vec3& a) { return std::sqrt(dot(a, a)); }
 inline Vec3 normalize(const Vec3& a) { return a / length(a); }
 inline bool is_finite(const Vec3& a) { return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z); }
+inline bool is_zero(const Vec3& a) { return a.x == 0 && a.y == 0 && a.z == 0; }
 inline double max_component(const Vec3& a) { return std::fmax(a.x, std::fmax(a.y, a.z)); }
 
 // Orthonormal frame (x, y, z) of paper eqs. (1)-(3): z is the surface normal.
