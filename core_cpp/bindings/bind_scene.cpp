@@ -412,7 +412,8 @@ void bind_scene(py::module_& m) {
                          std::optional<TensorSpline> lower, std::optional<TensorSpline> diffuse,
                          std::optional<TensorSpline> lower_diffuse, std::optional<Image> albedo,
                          std::optional<Image> emission, bool two_sided_emission, std::optional<Image> specular,
-                         std::optional<TensorSpline> tint_zero, std::optional<TensorSpline> lower_tint_zero) {
+                         std::optional<TensorSpline> tint_zero, std::optional<TensorSpline> lower_tint_zero,
+                         std::optional<Array> coat_share, std::optional<Array> coat_albedo) {
                  const Representation r = kind == "glossy" ? Representation::Glossy
                                           : kind == "decomposed" ? Representation::Decomposed
                                           : kind == "diffuse" ? Representation::Diffuse
@@ -449,13 +450,50 @@ void bind_scene(py::module_& m) {
                      out.lower_tint_zero = std::move(lower_tint_zero);
                  }
                  out.two_sided_emission = two_sided_emission;
+                 if (bool(coat_share) != bool(coat_albedo) || (coat_share && (!albedo || r != Representation::Decomposed)))
+                     throw std::invalid_argument("SurfaceRadiance: a coat's base (coat_share with coat_albedo) needs an "
+                                                 "albedo texture on a decomposed surface");
+                 if (coat_share) {
+                     if (coat_share->ndim() != 1) throw std::invalid_argument("SurfaceRadiance: coat_share must be 1D");
+                     const double* e = coat_share->data();
+                     out.coat = CoatedBase{std::make_shared<DirectionalAlbedo>(std::vector<double>(e, e + coat_share->shape(0))),
+                                           rgb(*coat_albedo, "SurfaceRadiance: coat_albedo")};
+                 }
                  return out;
              }),
              py::arg("kind"), py::arg("disc_radius"), py::arg("upper"), py::arg("lower") = std::nullopt,
              py::arg("diffuse") = std::nullopt, py::arg("lower_diffuse") = std::nullopt, py::arg("albedo") = std::nullopt,
              py::arg("emission") = std::nullopt, py::arg("two_sided_emission") = false, py::arg("specular") = std::nullopt,
              py::arg("tint_zero") = std::nullopt, py::arg("lower_tint_zero") = std::nullopt,
+             py::arg("coat_share") = std::nullopt, py::arg("coat_albedo") = std::nullopt,
              "Rebuilds a solved surface's radiance (as a solution file stores it).")
+        .def_property_readonly("coat_share", [](const SurfaceRadiance& r) -> py::object {
+                                   if (!r.coat) return py::none();
+                                   const auto& t = r.coat->share->table();
+                                   return py::array_t<double>(py::ssize_t(t.size()), t.data());
+                               },
+                               "An albedo texture under a layered coat: the coat's directional albedo E at "
+                               "mu = (k / (n - 1))^2 (its texels show as T + E(mu_o) (coat_albedo - T)), or None.")
+        .def_property_readonly("coat_albedo", [](const SurfaceRadiance& r) -> py::object {
+                                   return r.coat ? py::object(vec(r.coat->albedo)) : py::none();
+                               },
+                               "The albedo at which the coat's S took its share of the base, or None.")
+        .def(
+            "coated_texels",
+            [](const SurfaceRadiance& r, const Array& texels, const Array& mu) {
+                if (!r.coat) throw std::invalid_argument("coated_texels: the surface has no albedo texture under a layered coat");
+                if (texels.ndim() != 2 || texels.shape(1) != 3 || mu.ndim() != 1 || mu.shape(0) != texels.shape(0))
+                    throw std::invalid_argument("coated_texels: texels must be (N, 3) and mu (N,)");
+                py::array_t<double> out({texels.shape(0), py::ssize_t(3)});
+                for (py::ssize_t i = 0; i < texels.shape(0); ++i) {
+                    const double* t = texels.data() + 3 * i;
+                    const Vec3 c = r.coat->texel({t[0], t[1], t[2]}, mu.data()[i]);
+                    out.mutable_data()[3 * i] = c.x, out.mutable_data()[3 * i + 1] = c.y, out.mutable_data()[3 * i + 2] = c.z;
+                }
+                return out;
+            },
+            py::arg("texels"), py::arg("mu"),
+            "Albedo texels (N, 3) as the surface shows them along directions of cosine mu (N,) (CoatedBase).")
         .def_property_readonly("albedo", [](const SurfaceRadiance& r) { return image(r.albedo); },
                                "The albedo texture (height, width, 3) multiplying the diffuse spline (irradiance / pi), or None.")
         .def_property_readonly("emission", [](const SurfaceRadiance& r) { return image(r.emission); },

@@ -2,6 +2,8 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "bsgi/bsdf.h"
 
@@ -89,7 +91,7 @@ namespace {
 // steeply: uniform in mu, a narrow coat's E was 2% off between nodes there), and samples per axis
 // of each node's stratified estimate: 32 x 32 of the lobe's own sampling (its weight is
 // rho cos / pdf, near constant for a GGX lobe).
-constexpr int kAlbedoNodes = 65, kAlbedoStrata = 32;
+constexpr int kAlbedoNodes = DirectionalAlbedo::kNodes, kAlbedoStrata = 32;
 
 }  // namespace
 
@@ -104,6 +106,14 @@ DirectionalAlbedo::DirectionalAlbedo(const Bsdf& lobe) : table_(kAlbedoNodes) {
                 if (lobe.sample(wo, 0.5, (i + 0.5) / kAlbedoStrata, (j + 0.5) / kAlbedoStrata, out) && out.wi.z > 0) sum += out.weight;
         table_[size_t(k)] = std::clamp(max_component(sum) / (kAlbedoStrata * kAlbedoStrata), 0.0, 1.0);
     }
+}
+
+DirectionalAlbedo::DirectionalAlbedo(std::vector<double> table) : table_(std::move(table)) {
+    if (table_.size() != size_t(kNodes))
+        throw std::invalid_argument("directional albedo: needs " + std::to_string(kNodes) + " values, got " +
+                                    std::to_string(table_.size()));
+    for (double e : table_)
+        if (!(e >= 0 && e <= 1)) throw std::invalid_argument("directional albedo: values must be in [0, 1]");
 }
 
 double DirectionalAlbedo::operator()(double mu) const {

@@ -539,9 +539,11 @@ Vec3 Gatherer::leaving(const Receiver& h, const SurfaceHit& hit, const Vec3& dir
 Vec3 Gatherer::seen_radiance(const Receiver& h, Receiver::Splines which, const SurfaceHit& hit, const Vec3& dir,
                              double solid_angle) const {
     const Texture* detail = h.albedo ? h.albedo : h.tint;
-    const Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
+    Vec3 texel = detail ? texel_seen(*detail, hit, dir, solid_angle) : Vec3{1, 1, 1};
+    const Vec3 local = leaving(h, hit, dir);
+    if (h.albedo && h.coat) texel = h.coat->texel(texel, std::abs(local.z));
     // A tinted pair: f0 = 1 weighed by the texel, f0 = 0 by its complement.
-    return h.radiance(which, hit.u, hit.v, leaving(h, hit, dir), texel, h.tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
+    return h.radiance(which, hit.u, hit.v, local, texel, h.tint ? Vec3{1, 1, 1} - texel : Vec3{1, 1, 1});
 }
 
 void Gatherer::indirect(const Receiver& r, size_t j, const std::vector<const Receiver*>& receiver_of,

@@ -822,7 +822,11 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
     for (size_t k = 0; k < plans.size(); ++k)
         if (plans[k].partner_of >= 0) {
             receivers[k].is_partner = true;
-            receivers[plans[k].partner_of].partner = &receivers[k];
+            Receiver& base = receivers[plans[k].partner_of];
+            base.partner = &receivers[k];
+            // S of a layered coat took the base's share at the BSDF's albedo: a texture's texels show
+            // through CoatedBase.
+            if (base.albedo) base.coat = scene[base.surface].material.coated_base();
         }
     return receivers;
 }
@@ -1478,6 +1482,7 @@ Receiver probe_of(const Receiver& r, double u, double v, const std::vector<Vec3>
     q.kind = r.kind;
     q.bsdf = r.bsdf;
     q.albedo = r.albedo;
+    q.coat = r.coat;
     q.tint = r.tint;
     q.sides = r.sides;
     q.live = r.live;
@@ -2509,6 +2514,7 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
             kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 && r.bsdf->transmits() ? "glossy 4D + transmission" : "glossy 4D");
         }
         out->albedo = m.albedo_texture;
+        out->coat = r.coat;
         out->emission = emission;
         out->two_sided_emission = m.two_sided_emission;
         if (!r.bsdf->transmits() && settings.two_sided)

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -157,11 +158,25 @@ private:
 // and read linearly between the table's nodes.
 class DirectionalAlbedo {
 public:
+    static constexpr int kNodes = 65;
     explicit DirectionalAlbedo(const Bsdf& lobe);
+    // From a table of kNodes values in [0, 1] (as table() gives it: a stored solution's).
+    explicit DirectionalAlbedo(std::vector<double> table);
     double operator()(double mu) const;
+    const std::vector<double>& table() const { return table_; }
 
 private:
     std::vector<double> table_;  // at mu = (k / (n - 1))^2
+};
+
+// An albedo texture under a layered coat (DiffuseGgx layered). D of (38) holds irradiance / pi
+// and S the coat less its share E(mu_o) of the base at the BSDF's own albedo, so a texel T of
+// the texture shows as T + E(mu_o) (albedo - T) per unit of D: the base's (1 - E(mu_o)) T, with
+// S's share at the albedo put back. Exact for any texture: the solve keeps one S per surface.
+struct CoatedBase {
+    std::shared_ptr<const DirectionalAlbedo> share;  // E of the coat
+    Vec3 albedo;                                     // the albedo S took its share at
+    Vec3 texel(const Vec3& t, double mu) const { return t + (albedo - t) * (*share)(mu); }
 };
 
 // A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal.
@@ -187,6 +202,10 @@ public:
     std::shared_ptr<const Bsdf> glossy_part() const override { return glossy_; }
 
     bool layered() const { return bool(coat_albedo_); }
+    // How an albedo texture shows under the coat, if layered.
+    std::optional<CoatedBase> coated_base() const {
+        return coat_albedo_ ? std::optional<CoatedBase>(CoatedBase{coat_albedo_, albedo_}) : std::nullopt;
+    }
 
 private:
     // The base's share along the view: 1 - E(mu_o) if layered, else 1.

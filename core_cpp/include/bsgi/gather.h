@@ -67,6 +67,7 @@ struct Receiver {
     Representation kind = Representation::Diffuse;
     const Bsdf* bsdf = nullptr;
     const Texture* albedo = nullptr;  // the albedo texture of a diffuse part holding irradiance / pi
+    std::optional<CoatedBase> coat;   // with an albedo texture under a layered coat: its texels as seen
     // A textured GGX f0: this receiver is the surface at f0 = 1 and its partner at f0 = 0; the
     // texture T weighs them T and 1 - T.
     const Texture* tint = nullptr;

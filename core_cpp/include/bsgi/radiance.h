@@ -41,6 +41,8 @@ struct SurfaceRadiance {
     // smooth factor, and the albedo texture its detail; the emission is then the emission
     // texture (constant emission as one texel), not part of the spline.
     std::shared_ptr<const Texture> albedo, emission;
+    // A textured base under a layered coat: how its texels show along the view.
+    std::optional<CoatedBase> coat;
     // A textured GGX colour f0 (Scene::set_specular_texture): upper and lower hold the radiance at
     // f0 = 1, tint_zero and lower_tint_zero at f0 = 0 (Schlick's rise towards grazing angles), and
     // the surface shows specular x the first + (1 - specular) x the second: (38) with the texture as
@@ -53,18 +55,22 @@ struct SurfaceRadiance {
     Vec3 evaluate(double u, double v, const Vec3& local) const {
         if (local.z < 0) {
             Vec3 L = lower ? tinted(evaluate_side(kind, map, *lower, u, v, local), lower_tint_zero, u, v, local) : Vec3{0, 0, 0};
-            if (lower_diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *lower_diffuse, u, v, local), u, v);
-            else if (kind == Representation::Diffuse) L = textured(L, u, v);
+            if (lower_diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *lower_diffuse, u, v, local), u, v, local);
+            else if (kind == Representation::Diffuse) L = textured(L, u, v, local);
             if (emission && two_sided_emission) L += emission->at(u, v);
             return L;
         }
         Vec3 L = tinted(evaluate_side(kind, map, upper, u, v, local), tint_zero, u, v, local);
-        if (diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local), u, v);
-        else if (kind == Representation::Diffuse) L = textured(L, u, v);
+        if (diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local), u, v, local);
+        else if (kind == Representation::Diffuse) L = textured(L, u, v, local);
         if (emission) L += emission->at(u, v);
         return L;
     }
-    Vec3 textured(const Vec3& smooth, double u, double v) const { return albedo ? smooth * albedo->at(u, v) : smooth; }
+    Vec3 textured(const Vec3& smooth, double u, double v, const Vec3& local) const {
+        if (!albedo) return smooth;
+        const Vec3 t = albedo->at(u, v);
+        return smooth * (coat ? coat->texel(t, std::abs(local.z) / length(local)) : t);
+    }
     Vec3 tinted(const Vec3& white, const std::optional<TensorSpline>& black, double u, double v, const Vec3& local) const {
         if (!specular) return white;
         const Vec3 t = specular->at(u, v);

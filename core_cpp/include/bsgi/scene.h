@@ -48,6 +48,11 @@ struct Material {
     std::optional<ThinGlass> thin_glass;
     bool two_sided_emission = false;
     bool emits() const { return max_component(emission) > 0; }
+    // A layered coat's base (DiffuseGgx layered), for an albedo texture under it.
+    std::optional<CoatedBase> coated_base() const {
+        const auto* layered = dynamic_cast<const DiffuseGgx*>(bsdf.get());
+        return layered ? layered->coated_base() : std::nullopt;
+    }
     // Mean emission over the parameter rectangle [u0, u1] x [v0, v1].
     Vec3 emission_over(double u0, double u1, double v0, double v1) const {
         return emission_texture ? emission_texture->mean(u0, u1, v0, v1) : emission;
