@@ -20,7 +20,7 @@ import bsgi
 from bsgi.split import Band, SplitRadiance
 
 from . import charts, error_view, geometry, textures, view_radiance
-from .materials import user_slots
+from .materials import surface_options, user_slots
 from .user_materials import PROP_SLOTS, PROP_SPLINE_INDICES, UV_NAME, is_baked, user_spline_material_index
 
 PROP_ADDED_SLOT = "bsgi_added_slot"
@@ -35,8 +35,13 @@ PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay w
 # The splines of a SurfaceRadiance (bakes before two-sided surfaces stored the first three, before
 # textured glossy colour the first four).
 SIDES = ("upper", "lower", "diffuse", "lower_diffuse", "tint_zero", "lower_tint_zero")
-# The textures of a SurfaceRadiance (bakes before textured glossy colour stored the first two).
+# The textures of a SurfaceRadiance (bakes before textured glossy colour stored the first two),
+# and the base of an albedo texture under a layered coat (bsgi.SurfaceRadiance.coat_share).
 TEXTURES = ("albedo", "emission", "specular")
+# Detail slots whose material blends two atlases by the user's colour (a glossy colour's f0, a
+# base colour under a layered coat) instead of multiplying one.
+BLENDED = ("specular", "coat")
+COAT = ("coat_share", "coat_albedo")
 # The UV map Blender gives the mesh of a NURBS surface: normalized (u, v) parameters.
 NURBS_UV_NAME = "UVMap"
 # Largest radiance atlas per object, in texels (256 MiB of float RGBA): past it the angular
@@ -127,10 +132,8 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
         if spline is None:
             continue
         if spline.dims == 2:
-            factor = spline.evaluate(np.ascontiguousarray(uv, np.float64))
             # A textured surface's diffuse spline holds irradiance / pi: its albedo texture is the detail.
-            albedo = None if smooth else getattr(radiance, "albedo", None)
-            out += (factor if albedo is None else factor * texture_at(albedo, uv))[None]
+            out += spline.evaluate(np.ascontiguousarray(uv, np.float64))[None] * _texels_seen(radiance, uv, disc, smooth, f0)
             continue
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
@@ -140,6 +143,24 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
     if emission is not None:
         out += texture_at(emission, uv)[None]
     return out
+
+
+def _texels_seen(radiance, uv: np.ndarray, disc: np.ndarray, smooth: bool, f0: float):
+    """What multiplies a diffuse spline at the (u, v) rows seen from each disc point: 1 without
+    an albedo texture (and, with smooth, where the material multiplies by the user's colour);
+    the texture (the constant f0 with smooth), each texel layered under a coat as seen along
+    the disc point's direction (SurfaceRadiance.coated_texels) where the surface has one."""
+    albedo = getattr(radiance, "albedo", None)
+    coat = getattr(radiance, "coat_share", None) is not None
+    if albedo is None or (smooth and not coat):
+        return 1.0
+    texels = np.full((len(uv), 3), f0) if smooth else texture_at(albedo, uv)
+    if not coat:
+        return texels[None]
+    mu = np.abs(bsgi.HemisphereMap(radiance.disc_radius).to_direction(np.ascontiguousarray(disc, np.float64))[:, 2])
+    seen = radiance.coated_texels(np.ascontiguousarray(np.broadcast_to(texels, (len(disc), *texels.shape)).reshape(-1, 3)),
+                                  np.repeat(mu, len(uv)))
+    return seen.reshape(len(disc), len(uv), 3)
 
 
 def _tile_parameters(kind: str, t: int) -> np.ndarray:
@@ -399,9 +420,10 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
     tangent, normal = frame_pixels(layout)
     sources, face_slots = detail or ({}, [])
     smooth = {i for i, slot in enumerate(face_slots) if slot in sources}
-    # Textured glossy colours: this atlas holds their radiance at f0 = 0, a second one at f0 = 1
-    # (black elsewhere), which their material blends by the user's colour nodes.
-    tinted = {i for i in smooth if sources[face_slots[i]][0] == "specular"}
+    # Textured glossy colours and bases under a layered coat: this atlas holds their radiance at
+    # f0 (the base colour) = 0, a second one at 1 (black elsewhere), which their material blends
+    # by the user's colour nodes (the radiance is affine in either).
+    tinted = {i for i in smooth if sources[face_slots[i]][0] in BLENDED}
     atlas = atlas_pixels(layout, faces, samples, radius, sides, smooth)
     check_cancelled()
     images = (_radiance_image(name, atlas), _radiance_image(f"{name} tangent", tangent),
@@ -414,7 +436,7 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
         bpy.data.images.remove(bpy.data.images[f"{name} f0 1"])
 
     def made(material_name, with_detail=None):
-        tint = white if with_detail is not None and with_detail[1][0] == "specular" else None
+        tint = white if with_detail is not None and with_detail[1][0] in BLENDED else None
         return view_radiance.material(material_name, layout.uv_map, *images, spatial_size=(w, h), disc_radius=radius,
                                       angular_samples=samples, sides=sides,
                                       detail=with_detail and (with_detail[0], with_detail[1][1]), tint=tint)
@@ -430,7 +452,7 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
 
 
 def _detail_slots(obj, faces):
-    """({slot: ("albedo" or "specular", colour source)}, slot per face) for the slots of a mesh
+    """({slot: ("albedo", "coat" or "specular", colour source)}, slot per face) for the slots of a mesh
     whose material's colour nodes the bake can show (textures.colour_source, tint_source) and
     whose faces all carry that texture (and, for an albedo, no emission texture); ({}, [])
     otherwise."""
@@ -445,12 +467,15 @@ def _detail_slots(obj, faces):
     if len(face_slots) != len(faces):
         return {}, []
     sources = {}
+    folded = surface_options(obj)["representation"] == "diffuse"
     for k, material in enumerate(slots):
         mine = [r for (_, radiances), slot in zip(faces, face_slots) if slot == k for r in radiances]
-        source = textures.colour_source(material)
+        source = textures.colour_source(material, folded)
         if source is not None and mine and all(r is not None and r.albedo is not None and r.emission is None
                                                for r in mine):
-            sources[k] = ("albedo", source)
+            coats = {getattr(r, "coat_share", None) is not None for r in mine}
+            if len(coats) == 1:
+                sources[k] = ("coat" if coats.pop() else "albedo", source)
         source = textures.tint_source(material)
         if source is not None and mine and all(r is not None and r.specular is not None for r in mine):
             sources[k] = ("specular", source)
@@ -590,6 +615,9 @@ def _radiance_entry(r) -> dict:
         image = getattr(r, texture)
         if image is not None:  # float32 texels, flat, with their shape
             entry[texture] = {"texels": image.astype(np.float64).ravel(), "shape": np.array(image.shape, np.int32)}
+    for name in COAT:
+        if getattr(r, name) is not None:
+            entry[name] = np.asarray(getattr(r, name), np.float64)
     return entry
 
 
@@ -625,9 +653,10 @@ def _stored_radiance(entry):
     textures = {t: np.frombuffer(memoryview(entry[t]["texels"]), np.float64).reshape(
                     tuple(np.frombuffer(memoryview(entry[t]["shape"]), np.int32)))
                 for t in TEXTURES if t in entry}
+    coat = {name: np.frombuffer(memoryview(entry[name]), np.float64).copy() for name in COAT if name in entry}
     return bsgi.SurfaceRadiance(entry["kind"], entry["disc_radius"],
                                 **{side: _spline(entry[side]) if side in entry else None for side in SIDES},
-                                **textures)
+                                **textures, **coat)
 
 
 def _spline(stored):

@@ -443,8 +443,10 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
         # Schlick's Fresnel is affine in f0.
         chosen.specular_textured = True
     elif described.albedo_textured or described.specular_textured:
-        if chosen.kind == "lambert" and described.albedo_textured:
-            chosen.albedo_textured = True  # its albedo is the baked diffuse colour plus the lobe's
+        if chosen.kind in {"lambert", "diffuse_ggx"} and described.albedo_textured:
+            # Its albedo is the baked diffuse colour plus the lobe's, or under a layered coat the
+            # base colour itself (the core layers each texel, bsgi.SurfaceRadiance.coat_share).
+            chosen.albedo_textured = True
         else:
             warnings.append(f"material '{name}': its colour is driven by nodes on a {chosen.kind.replace('_', ' ')} "
                             "surface, which is solved with the socket's own value (textures colour diffuse surfaces "
@@ -482,8 +484,12 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
     lobe = layer_albedo(tuple(described.specular), described.roughness)
     albedo = tuple(min(1.0, max(0.0, a * (1 - e) + e)) for a, e in zip(described.albedo, lobe))
     visible = glossy > 0 and coat_peak_ratio(described.specular, described.roughness, described.albedo) >= coat_threshold()
-    if visible and described.coat and not (described.albedo_textured or described.specular_textured
-                                           or max(described.emission) > 0 or described.stretch != 1):
+    # Cycles' diffuse-colour pass (textures.py bakes it) is the base seen along the normal, under
+    # the lobe's albedo in that direction.
+    seen = layer_albedo(tuple(described.specular), described.roughness, normal_only=True)
+    pass_weight = tuple(1 - e for e in seen)
+    if visible and described.coat and not (described.specular_textured or max(described.emission) > 0
+                                           or described.stretch != 1):
         # Its highlight shows: the layered coat itself (2D base + 4D coat, (38)); `albedo` is the
         # folded Lambertian, for an object set to a diffuse representation.
         alpha = _alpha(name, described.roughness, warnings)
@@ -493,14 +499,12 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         root = math.sqrt(min(max(sum(f0) / 3, 1e-6), 0.99))
         eta = (1 + root) / (1 - root)
         return SolverMaterial(base, described.emission, "diffuse_ggx", alpha=alpha, alpha_x=alpha, alpha_y=alpha, f0=f0,
-                              eta=eta, bsdf=layered_coat(base, alpha, f0, eta), specular=lobe, folded_albedo=albedo)
+                              eta=eta, bsdf=layered_coat(base, alpha, f0, eta), specular=lobe, folded_albedo=albedo,
+                              pass_weight=pass_weight)
     if visible or glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
         warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
                         f"{described.roughness:.2f}) are not solved, their energy is added to the albedo")
-    # Cycles' diffuse-colour pass (textures.py bakes it) is the base seen along the normal, under
-    # the lobe's albedo in that direction.
-    seen = layer_albedo(tuple(described.specular), described.roughness, normal_only=True)
-    return SolverMaterial(albedo, described.emission, specular=lobe, pass_weight=tuple(1 - e for e in seen))
+    return SolverMaterial(albedo, described.emission, specular=lobe, pass_weight=pass_weight)
 
 
 # A Principled BSDF's dielectric coat is solved (bsgi.DiffuseGgx, layered as Cycles layers it: a 2D

@@ -22,7 +22,7 @@ import numpy as np
 
 from .errors import ExportError
 from .materials import (AVERAGED_INPUTS, active_output, describe_material, dielectric_f0, linked_node, socket_value,
-                        solver_material, user_slots)
+                        solver_material, surface_options, user_slots)
 
 BAKE_UV = "BSGI Texture Bake"
 NURBS_UV = "UVMap"  # Blender's UV map of a NURBS surface's mesh: the normalized (u, v)
@@ -101,7 +101,8 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
         for which, pass_type in (("albedo", "DIFFUSE"), ("specular", "GLOSSY"), ("emission", "EMIT")):
             if any(getattr(m, f"{which}_textured") for m in materials):
                 pixels = _bake(copy, mesh, layout, pass_type)
-                _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings)
+                _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings,
+                              folded=surface_options(obj)["representation"] == "diffuse")
         return layout.width * layout.height
 
 
@@ -159,9 +160,10 @@ def _bilinear(image, x, y):
             + (image[y1, x0] * (1 - a) + image[y1, x1] * a) * b).astype(np.float32)
 
 
-def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings):
+def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings, folded=False):
     """Gives the surfaces of the slots whose `which` ("albedo", "specular", "emission") is
-    node-driven their texture cut from the baked pass."""
+    node-driven their texture cut from the baked pass. folded: the object is solved diffuse (a
+    layered coat's albedo folded, SolverMaterial.folded_albedo)."""
     slot_of = np.zeros(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", slot_of)
     if exported.kind in {"chart", "nurbs"}:  # one surface over the image
@@ -184,9 +186,11 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warni
             continue
         if which == "albedo":
             # The base colour (the pass Cycles evaluates is it under the specular lobe, seen along
-            # the normal), layered as the solve's albedo is: base (1 - E) + E.
+            # the normal): under a layered coat the base itself (the core layers each texel),
+            # else folded as the solve's albedo is, base (1 - E) + E.
             base = image / np.asarray(material.pass_weight, np.float32)
-            lobe = np.asarray(material.specular, np.float32)
+            lobe = np.zeros(3, np.float32) if material.kind == "diffuse_ggx" and not folded else \
+                np.asarray(material.specular, np.float32)
             scene.set_albedo_texture(index, np.clip(base * (1 - lobe) + lobe, 0, 1))
         elif which == "specular":
             # Cycles' glossy-colour pass: the lobe's colour (a metal's base colour) along the normal.
@@ -294,12 +298,14 @@ def _bake_settings(copy):
         view_layer.objects.active = active
 
 
-def colour_source(material):
+def colour_source(material, folded: bool = False):
     """How the bake can show a textured diffuse material's own colour nodes (sharp, at their own
     resolution) instead of its baked texture: (node, colour input, diffuse weight, specular) when
     the material's output takes a Principled BSDF or a Diffuse BSDF whose colour is driven by nodes
     and the solve made it Lambertian with an albedo texture and no emission texture, so that its
-    albedo is colour x weight + specular; else None."""
+    albedo is colour x weight + specular, or a layered coat over the colour (weight 1, specular
+    0: the base colour itself; folded, with the object solved diffuse, as a Lambertian's); else
+    None."""
     if material is None or material.node_tree is None:
         return None
     output = active_output(material.node_tree, "OUTPUT_MATERIAL")
@@ -308,8 +314,10 @@ def colour_source(material):
     if colour is None or node.id_data != material.node_tree or not node.inputs[colour].is_linked:
         return None
     solved = solver_material(material, describe_material(material, []), [])
-    if solved.kind != "lambert" or not solved.albedo_textured or solved.emission_textured:
+    if solved.kind not in {"lambert", "diffuse_ggx"} or not solved.albedo_textured or solved.emission_textured:
         return None
+    if solved.kind == "diffuse_ggx" and not folded:  # the base colour under a layered coat (no metal, no transmission)
+        return node, colour, 1.0, (0.0, 0.0, 0.0)
     weight = 1.0
     if node.type == "BSDF_PRINCIPLED":
         # The solved albedo is the colour layered under the specular lobe, colour (1 - E) + E;

@@ -229,7 +229,8 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     With tint, the atlas of a textured glossy colour's radiance at f0 = 1 (the atlas holding it at
     f0 = 0), the user's colour nodes give f0 = T instead and the material shows
     atlas + T (tint - atlas): Schlick's Fresnel is affine in f0, so this is the radiance at f0 = T,
-    with T at the colour nodes' own resolution."""
+    with T at the colour nodes' own resolution. A base colour under a layered coat is blended the
+    same way (the atlases at base colour 0 and 1: the surface's radiance is affine in it)."""
     old = bpy.data.materials.get(name)
     if detail is not None:
         if old is not None:

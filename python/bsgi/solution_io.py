@@ -42,6 +42,11 @@ def settings_from_dict(values: dict) -> _core.SolverSettings:
     return settings_from({k: v for k, v in values.items() if hasattr(_core.SolverSettings, k)})
 
 
+# A SurfaceRadiance's textures, and the base of an albedo texture under a layered coat (the
+# coat's directional albedo and the albedo its S took its share at; absent in older files).
+COAT_AND_TEXTURES = ("albedo", "emission", "specular", "coat_share", "coat_albedo")
+
+
 @dataclass
 class StoredSolution:
     """What a solution file holds: per surface its radiance (None for pure emitters), as the
@@ -49,7 +54,8 @@ class StoredSolution:
     disc radius, the back side's splines where it was solved: transmitting surfaces and opaque ones
     lit from behind; files from before two-sided surfaces load with the back sides they had; the
     albedo, emission and specular textures of textured surfaces, with a textured GGX f0 the
-    splines at f0 = 0)."""
+    splines at f0 = 0, with an albedo texture under a layered coat its base's coat_share and
+    coat_albedo)."""
 
     radiance: list
     surfaces: list
@@ -104,10 +110,10 @@ def _surface_arrays(prefix: str, entry) -> dict:
         if spline is not None:
             for key, value in spline_to_arrays(spline).items():
                 arrays[f"{prefix}{side}/{key}"] = value
-    for texture in ("albedo", "emission", "specular"):  # textured surfaces: float32 images over (u, v)
-        image = getattr(surface, texture) if surface else None
-        if image is not None:
-            arrays[f"{prefix}{texture}"] = image
+    for texture in COAT_AND_TEXTURES:  # textured surfaces: float32 images over (u, v); a coat's base
+        value = getattr(surface, texture) if surface else None
+        if value is not None:
+            arrays[f"{prefix}{texture}"] = value
     return arrays
 
 
@@ -211,7 +217,7 @@ def _read_surface(data, root: str, kind, radius, two_sided_emission: bool) -> _c
         raise _Refused(f"disc radius {radius!r} is not a number")
     if not isinstance(kind, str):
         raise _Refused(f"kind {kind!r} is not a name")
-    textures = {t: data[f"{root}{t}"] if f"{root}{t}" in data.files else None for t in ("albedo", "emission", "specular")}
+    textures = {t: data[f"{root}{t}"] if f"{root}{t}" in data.files else None for t in COAT_AND_TEXTURES}
     return _core.SurfaceRadiance(kind, radius if radius is not None else 1.0, sides["upper"], sides["lower"],
                                  sides["diffuse"], sides["lower_diffuse"], **textures,
                                  two_sided_emission=two_sided_emission, tint_zero=sides["tint_zero"],

@@ -380,6 +380,8 @@ def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
     # under the lobe's albedo seen along the normal, the solve layers the base under the lobe
     # (base (1 - E) + E, E its hemispherical albedo), and the bake's copy of the colour nodes shows
     # colour x weight + specular: the same albedo, with the base recovered from Cycles' pass.
+    # (Glossy Coats Folded: this coat's highlight otherwise shows, test_bake_shows_a_coated_base...)
+    context.scene.bsgi.coats = "FOLDED"
     m = principled("Checker", checker)
     bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     bsdf.inputs["Specular IOR Level"].default_value = 0.5
@@ -398,7 +400,54 @@ def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
     shown = colour * weight + np.asarray(specular)
     err = np.abs(albedo[away] / shown[away] - 1).max()
     print(f"\nlobe albedo {specular[0]:.3f}: baked albedo against colour x {weight:.3f} + it, max relative difference {err:.2e}")
+    assert specular[0] > 0.02
     assert err <= 0.0016  # measured 8e-4
+
+
+def test_bake_shows_a_coated_base_colours_own_nodes_layered(context, tmp_path):
+    # Blender's default Principled BSDF (its coat's highlight shows: a layered coat) with the
+    # checker on its Base Color, four texels per face side. The solve's albedo texture is the
+    # base colour itself (Cycles' diffuse-colour pass over the coat's share along the normal),
+    # each texel layered under the coat by the core; the baked material blends the radiance at
+    # base colour 0 and 1 by the Checker node: Cycles' render of the bake from straight above is
+    # D x (T + E(1) (albedo - T)) + S along the normal, T the checker's colour.
+    from bsgi_addon import bake
+    from test_pipeline import render_floor_from_above
+
+    m = bpy.data.materials.new("Checker coat")
+    if m.node_tree is None:
+        m.use_nodes = True
+    bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    m.node_tree.links.new(checker(m.node_tree).outputs["Color"], bsdf.inputs["Base Color"])
+    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
+    scenes.add_area_light(location=(0, 0, 1.5), size=1.0, energy=60.0).visible_camera = False
+    context.scene.world = None
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 4
+    pipeline.solve_and_bake(context)
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    radiance = bake.stored_faces(floor)[0][1][0]
+    assert radiance.kind == "decomposed" and radiance.coat_share is not None
+    centres = (np.arange(4) + 0.5) / 4
+    texel_uv = np.column_stack([x.ravel() for x in np.meshgrid(centres, centres)])
+    base_err = np.abs(radiance.albedo.reshape(-1, 3) - checker_colour(texel_uv)[0]).max()
+    image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=4)
+    uv = np.column_stack([(points[:, 0] + 1) / 2, (points[:, 1] + 1) / 2])
+    smooth, coat = radiance.diffuse.evaluate(uv), radiance.upper.evaluate(np.column_stack([uv, np.zeros((len(uv), 2))]))
+    colour = checker_colour(uv)[0]
+    want = smooth * radiance.coated_texels(colour, np.ones(len(uv))) + coat
+    n = image.shape[0]
+    s = uv * SQUARES
+    away = np.all(np.abs(s - np.round(s)) > 2.5 * SQUARES / n, axis=1)  # the pixel filter's reach from an edge
+    got = image.reshape(-1, 3)
+    err = np.abs(got[away] - want[away]).sum(axis=1) / want[away].sum(axis=1)
+    unlayered = np.abs(smooth * colour + coat - want)[away].sum(axis=1) / want[away].sum(axis=1)
+    print(f"\nbaked coated checker from above: base colour texels {base_err:.1e} off; max relative difference "
+          f"{err.max():.4f} (mean {err.mean():.4f}) over {away.sum()} pixels away from the squares' edges; "
+          f"the texels not layered would be {unlayered.max():.3f} off")
+    assert base_err < 2e-3
+    assert away.sum() > 0.3 * len(away)
+    assert err.max() <= 0.02 < unlayered.max()
 
 
 def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path):
