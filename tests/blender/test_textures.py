@@ -450,14 +450,22 @@ def test_bake_shows_a_coated_base_colours_own_nodes_layered(context, tmp_path):
     assert err.max() <= 0.02 < unlayered.max()
 
 
-def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path):
+@pytest.mark.parametrize("coated", [False, True])
+def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path, coated):
+    # coated: the materials' default specular layer, a layered coat over the textured base (its
+    # coat_share and coat_albedo stored with the splines).
     floor, wall = floor_and_wall(context)
+    if coated:
+        for obj in (floor, wall):
+            bsdf = next(n for n in obj.material_slots[0].material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+            bsdf.inputs["Specular IOR Level"].default_value = 0.5
     context.scene.bsgi.preset = "DRAFT"
     context.scene.bsgi.texture_texels = 8
     pipeline.solve_and_bake(context)
     from bsgi_addon import bake, solution_file
 
     solved = bake.stored_faces(floor)[0][1][0]
+    assert (solved.coat_share is not None) == coated
     uv = np.random.default_rng(4).uniform(0, 1, (20, 2))
     up = np.tile([0.0, 0.0, 1.0], (20, 1))
     bake.rebake(floor)
@@ -469,6 +477,10 @@ def test_textured_bake_survives_rebake_and_solution_files(context, tmp_path):
     solution_file.import_solution(context.scene, path)
     loaded = bake.stored_faces(floor)[0][1][0]
     np.testing.assert_allclose(loaded.evaluate(uv, up), solved.evaluate(uv, up), rtol=1e-6)
+    if coated:  # along a grazing view the coat takes most of the base
+        grazing = np.tile([0.95, 0.0, 0.3122], (20, 1))
+        np.testing.assert_allclose(loaded.evaluate(uv, grazing), solved.evaluate(uv, grazing), rtol=1e-6)
+        np.testing.assert_array_equal(loaded.coat_share, solved.coat_share)
     assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
 
 

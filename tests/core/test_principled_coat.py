@@ -196,3 +196,25 @@ def test_gathered_light_from_a_textured_coat_layers_each_texel():
           f"(the texels not layered: {unlayered / want - 1:+.2e})")
     assert abs(unlayered / want - 1) > 3e-3
     assert error < 3e-4
+
+
+def test_a_coats_base_is_refused_where_it_cannot_hold():
+    # A stored coat's base: a table of DirectionalAlbedo.kNodes values in [0, 1], with its albedo,
+    # on a decomposed surface with an albedo texture.
+    d = bsgi.TensorSpline([bsgi.KnotVector.clamped_uniform(2, 1, 0, 1)] * 2, 3)
+    s = bsgi.TensorSpline([bsgi.KnotVector.clamped_uniform(2, 1, 0, 1)] * 2
+                          + [bsgi.KnotVector.clamped_uniform(2, 1, -1, 1)] * 2, 3)
+    image = np.full((2, 2, 3), 0.5, np.float32)
+    table = np.linspace(0.2, 0.04, 65)
+    made = bsgi.SurfaceRadiance("decomposed", 1.0, s, diffuse=d, albedo=image, coat_share=table, coat_albedo=[0.5] * 3)
+    np.testing.assert_array_equal(made.coat_share, table)
+    np.testing.assert_allclose(made.coated_texels(np.array([[0.1, 0.5, 0.9]]), np.array([1.0])),
+                               [[0.1 + 0.4 * 0.04, 0.5, 0.9 - 0.4 * 0.04]])
+    with pytest.raises(ValueError, match="needs 65 values, got 64"):
+        bsgi.SurfaceRadiance("decomposed", 1.0, s, diffuse=d, albedo=image, coat_share=table[:64], coat_albedo=[0.5] * 3)
+    with pytest.raises(ValueError, match="values must be in"):
+        bsgi.SurfaceRadiance("decomposed", 1.0, s, diffuse=d, albedo=image, coat_share=table + 0.9, coat_albedo=[0.5] * 3)
+    with pytest.raises(ValueError, match="needs an albedo texture on a decomposed surface"):
+        bsgi.SurfaceRadiance("decomposed", 1.0, s, diffuse=d, coat_share=table, coat_albedo=[0.5] * 3)
+    with pytest.raises(ValueError, match="coat_share with coat_albedo"):
+        bsgi.SurfaceRadiance("decomposed", 1.0, s, diffuse=d, albedo=image, coat_share=table)
