@@ -18,6 +18,7 @@ TESTS = [
     "tests/blender/test_two_sided.py",
     "tests/blender/test_textures.py",
     "tests/blender/test_world_map.py",
+    "tests/blender/test_principled_materials.py",
 ]
 
 

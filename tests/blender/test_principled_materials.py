@@ -12,6 +12,7 @@ from mathutils import Vector
 
 import scenes
 from bsgi_addon import materials, pipeline
+from figures import record
 from test_pipeline import lit_relative_difference, render_exr
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -97,16 +98,18 @@ def test_default_principled_floor_baked_matches_cycles(context, tmp_path):
     reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=12)
 
     def difference(label):
-        pipeline.solve_and_bake(context)
+        report = pipeline.solve_and_bake(context)
         baked = render_exr(scene, tmp_path / f"{label}.exr", samples=16, bounces=0)
         rel, lit = lit_relative_difference(baked, reference, 0.02)
         print(f"\n{label}: mean relative difference {rel.mean():.4f} over {lit.sum()} lit pixels, "
               f"90th percentile {np.percentile(rel, 90):.4f}")
-        return rel.mean(), lit.sum()
+        return rel.mean(), lit.sum(), report
 
-    layered, lit = difference("layered coat")
+    layered, lit, report = difference("layered coat")
+    record(scene_default_principled_floor_wall_seconds=report["solve_seconds"] + report["bake_seconds"],
+           scene_default_principled_floor_wall_rel_diff_vs_cycles=layered)
     scene.bsgi.coats = "FOLDED"
-    folded, _ = difference("coat folded into the albedo")
+    folded, _, _ = difference("coat folded into the albedo")
     assert lit > 0.8 * 96 * 96
     assert layered < 0.017
     assert folded > 3 * layered
@@ -146,6 +149,8 @@ def test_textured_default_principled_floor_baked_matches_cycles(context, tmp_pat
         return rel.mean(), lit.sum(), report
 
     layered, lit, report = difference("textured, layered coat")
+    record(scene_textured_principled_floor_wall_seconds=report["solve_seconds"] + report["bake_seconds"],
+           scene_textured_principled_floor_wall_rel_diff_vs_cycles=layered)
     assert not any("Checker" in w for w in report["warnings"]), report["warnings"]
     scene.bsgi.coats = "FOLDED"
     folded, _, report = difference("textured, coat folded into the albedo")
