@@ -136,22 +136,26 @@ void bind_bsdf(py::module_& m) {
     py::class_<GgxReflection, Bsdf, std::shared_ptr<GgxReflection>>(
         m, "GgxReflection",
         "GGX reflection; rotation (radians) turns the alpha_x axis from s_u towards s_v about the normal. schlick: "
-        "Schlick's Fresnel from f0 (Cycles' metals); off: f0 at every angle (Cycles' Glossy BSDF, its colour).")
-        .def(py::init([](double ax, double ay, const Array& f0, double rotation, bool schlick, double eta) {
-                 return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "GgxReflection: f0"), rotation, schlick, eta);
+        "Schlick's Fresnel from f0 (Cycles' metals); off: f0 at every angle (Cycles' Glossy BSDF, its colour). "
+        "multiscatter: the light scattered between microfacets put back, as Cycles' Multiscatter GGX.")
+        .def(py::init([](double ax, double ay, const Array& f0, double rotation, bool schlick, double eta, bool multiscatter) {
+                 return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "GgxReflection: f0"), rotation, schlick, eta,
+                                                        multiscatter);
              }),
              py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("rotation") = 0.0, py::arg("schlick") = true,
-             py::arg("eta") = 0.0);
+             py::arg("eta") = 0.0, py::arg("multiscatter") = false)
+        .def_property_readonly("multiscatter", &GgxReflection::multiscatter);
     py::class_<DiffuseGgx, Bsdf, std::shared_ptr<DiffuseGgx>>(
         m, "DiffuseGgx",
         "Lambertian base under a GGX coat: albedo / pi + GGX; layered (Cycles' Principled BSDF): (1 - E(mu_o)) albedo / "
-        "pi + GGX, E the coat's directional albedo along the view (energy conserved).")
-        .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0, bool layered, double eta) {
+        "pi + GGX, E the coat's directional albedo along the view (energy conserved). multiscatter: the coat's (as "
+        "GgxReflection's).")
+        .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0, bool layered, double eta, bool multiscatter) {
                  return std::make_shared<DiffuseGgx>(rgb(albedo, "DiffuseGgx: albedo"), ax, ay, rgb(f0, "DiffuseGgx: f0"), layered,
-                                                     eta);
+                                                     eta, multiscatter);
              }),
              py::arg("albedo"), py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("layered") = false,
-             py::arg("eta") = 0.0)
+             py::arg("eta") = 0.0, py::arg("multiscatter") = false)
         .def_property_readonly("layered", &DiffuseGgx::layered)
         .def_property_readonly("glossy_part", [](const DiffuseGgx& b) { return std::const_pointer_cast<Bsdf>(b.glossy_part()); },
                                "The glossy part S of (38): the coat, less E(mu_o) albedo / pi where layered.");

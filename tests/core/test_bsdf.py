@@ -158,6 +158,9 @@ SAMPLED = {
     "ashikhmin_shirley": (lambda: bsgi.AshikhminShirley([0.5, 0.5, 0.5], [0.3, 0.3, 0.3], 30.0, 4.0), False),
     "ggx": (lambda: bsgi.GgxReflection(0.4, 0.2, [0.9, 0.9, 0.9]), False),
     "ggx_rotated": (lambda: bsgi.GgxReflection(0.45, 0.12, [0.9, 0.9, 0.9], rotation=0.8), False),
+    "ggx_multiscatter": (lambda: bsgi.GgxReflection(0.6, 0.6, [0.9, 0.6, 0.5], multiscatter=True), False),
+    "layered_coat_multiscatter": (lambda: bsgi.DiffuseGgx([0.5, 0.5, 0.5], 0.5, 0.5, [0.04] * 3, layered=True, eta=1.5,
+                                                          multiscatter=True), False),
     "rough_dielectric": (lambda: bsgi.RoughDielectric(1.5, 0.35, 0.25), True),
 }
 

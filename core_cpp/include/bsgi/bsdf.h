@@ -114,45 +114,6 @@ private:
     double nu_, nv_, p_specular_;
 };
 
-// GGX microfacet reflection (Walter et al. 2007) with separable Smith masking, the model of
-// Blender's Principled BSDF and Mitsuba 3's roughconductor:
-// rho = F(wi.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o cos theta_i), Schlick's F with f0
-// (f0 = 1: a perfect mirror's Fresnel), as Cycles' metals (the Principled BSDF's F82 tint with
-// its default white tint); with `schlick` off F is f0 at every angle, as Cycles' Glossy BSDF (its
-// colour times GGX without Fresnel). Either F is affine in f0 (Scene::set_specular_texture).
-// Sampled by visible normals. Anisotropic lobes (alpha_x != alpha_y) have their x axis along s_u
-// turned by `rotation` radians about the normal towards y, as Blender's Anisotropic Rotation
-// turns its tangent.
-class GgxReflection final : public Bsdf {
-public:
-    // Fresnel: Schlick's from f0 (schlick), f0 at every angle (not), or with eta > 1 a dielectric's
-    // curve remapped to start at f0 (fresnel_dielectric_remapped; schlick is then not read).
-    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0, bool schlick = true, double eta = 0);
-    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
-    double pdf(const Vec3& wo, const Vec3& wi) const override;
-    Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
-    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
-    std::string name() const override { return "ggx"; }
-    double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
-    std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& f0) const override {
-        return std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_), schlick_, eta_);
-    }
-
-private:
-    Vec3 fresnel(double cos_theta) const {
-        if (eta_ > 0) return fresnel_dielectric_remapped(f0_, cos_theta, eta_);
-        return schlick_ ? fresnel_schlick(f0_, cos_theta) : f0_;
-    }
-    // Local frame <-> the lobe's frame (x along the turned tangent).
-    Vec3 to_lobe(const Vec3& w) const { return {cos_ * w.x + sin_ * w.y, cos_ * w.y - sin_ * w.x, w.z}; }
-    Vec3 from_lobe(const Vec3& w) const { return {cos_ * w.x - sin_ * w.y, sin_ * w.x + cos_ * w.y, w.z}; }
-    GgxDistribution D_;
-    Vec3 f0_;
-    double cos_ = 1, sin_ = 0;
-    bool schlick_ = true;
-    double eta_ = 0;
-};
-
 // The directional albedo E(mu) of a lobe (its largest channel: the integral of rho cos over the
 // incoming directions, light leaving at cos theta = mu), tabulated from the lobe's own sampling
 // and read linearly between the table's nodes.
@@ -169,6 +130,73 @@ private:
     std::vector<double> table_;  // at mu = (k / (n - 1))^2
 };
 
+// Multiple scattering between a GGX lobe's microfacets, put back as Cycles' Multiscatter GGX
+// (the default of its Principled, Glossy and Anisotropic BSDFs) puts it back (Kulla and Conty
+// 2017): single scattering loses 1 - E(mu_o) of a white lobe's light (E its directional albedo),
+// which leaves along the view tinted by the Fresnel's repeated bounces,
+// rho_ms = rho (1 + F_ms (1 - E(mu_o)) / E(mu_o)), F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)),
+// F_ss the Fresnel's and E_avg E's cosine-weighted means over the hemisphere. A white lobe then
+// reflects all of its light at every angle.
+class MultipleScattering {
+public:
+    // E of the isotropic white lobe of alpha sqrt(alpha_x alpha_y) (Cycles reads its table at that
+    // roughness), made once per alpha and shared; f_ss of the lobe's Fresnel.
+    MultipleScattering(double alpha_x, double alpha_y, const Vec3& f_ss);
+    // The factor on the single-scattering lobe along a view of cosine mu_o.
+    Vec3 factor(double mu_o) const;
+
+private:
+    std::shared_ptr<const DirectionalAlbedo> white_;
+    Vec3 fms_;
+};
+
+// GGX microfacet reflection (Walter et al. 2007) with separable Smith masking, the model of
+// Blender's Principled BSDF and Mitsuba 3's roughconductor:
+// rho = F(wi.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o cos theta_i), Schlick's F with f0
+// (f0 = 1: a perfect mirror's Fresnel), as Cycles' metals (the Principled BSDF's F82 tint with
+// its default white tint); with `schlick` off F is f0 at every angle, as Cycles' Glossy BSDF (its
+// colour times GGX without Fresnel). Either F is affine in f0 (Scene::set_specular_texture).
+// Sampled by visible normals. Anisotropic lobes (alpha_x != alpha_y) have their x axis along s_u
+// turned by `rotation` radians about the normal towards y, as Blender's Anisotropic Rotation
+// turns its tangent.
+class GgxReflection final : public Bsdf {
+public:
+    // Fresnel: Schlick's from f0 (schlick), f0 at every angle (not), or with eta > 1 a dielectric's
+    // curve remapped to start at f0 (fresnel_dielectric_remapped; schlick is then not read).
+    // multiscatter: the light between microfacets put back (MultipleScattering).
+    GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0, bool schlick = true, double eta = 0,
+                  bool multiscatter = false);
+    Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
+    bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
+    std::string name() const override { return "ggx"; }
+    double lobe_width() const override { return 2 * std::min(D_.ax, D_.ay); }
+    // The multiple scattering keeps its colour (of this lobe's f0): a texture's blend of the lobes
+    // at f0 = 1 and 0 stays affine, their multiple scattering that of the texture's mean.
+    std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& f0) const override {
+        auto tinted = std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_), schlick_, eta_);
+        tinted->multiple_ = multiple_;
+        return tinted;
+    }
+    bool multiscatter() const { return bool(multiple_); }
+
+private:
+    Vec3 fresnel(double cos_theta) const {
+        if (eta_ > 0) return fresnel_dielectric_remapped(f0_, cos_theta, eta_);
+        return schlick_ ? fresnel_schlick(f0_, cos_theta) : f0_;
+    }
+    // Local frame <-> the lobe's frame (x along the turned tangent).
+    Vec3 to_lobe(const Vec3& w) const { return {cos_ * w.x + sin_ * w.y, cos_ * w.y - sin_ * w.x, w.z}; }
+    Vec3 from_lobe(const Vec3& w) const { return {cos_ * w.x - sin_ * w.y, sin_ * w.x + cos_ * w.y, w.z}; }
+    GgxDistribution D_;
+    Vec3 f0_;
+    double cos_ = 1, sin_ = 0;
+    bool schlick_ = true;
+    double eta_ = 0;
+    std::shared_ptr<const MultipleScattering> multiple_;  // null: single scattering
+};
+
 // An albedo texture under a layered coat (DiffuseGgx layered). D of (38) holds irradiance / pi
 // and S the coat less its share E(mu_o) of the base at the BSDF's own albedo, so a texel T of
 // the texture shows as T + E(mu_o) (albedo - T) per unit of D: the base's (1 - E(mu_o)) T, with
@@ -179,7 +207,8 @@ struct CoatedBase {
     Vec3 texel(const Vec3& t, double mu) const { return t + (albedo - t) * (*share)(mu); }
 };
 
-// A Lambertian base under a GGX coat, the plastic of Blender's Principled BSDF without metal.
+// A Lambertian base under a GGX coat (GgxReflection, with multiscatter its multiple scattering),
+// the plastic of Blender's Principled BSDF without metal.
 // Uncoupled (layered false): rho = albedo / pi + GGX(alpha_x, alpha_y, f0); at grazing angles the
 // coat's Fresnel rises while the base stays, so the albedo can pass 1 there. Layered (Cycles'
 // Principled BSDF): the base gets what the coat leaves along the view, rho = (1 - E(mu_o))
@@ -191,7 +220,8 @@ struct CoatedBase {
 class DiffuseGgx final : public Bsdf {
 public:
     // eta: the coat's Fresnel (GgxReflection's; 0: Schlick's from f0).
-    DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0, bool layered = false, double eta = 0);
+    DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0, bool layered = false, double eta = 0,
+               bool multiscatter = false);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;

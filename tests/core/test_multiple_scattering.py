@@ -1,0 +1,96 @@
+"""Multiple scattering between GGX microfacets (bsdf.h MultipleScattering: Cycles' Multiscatter
+GGX, the default of its Principled, Glossy and Anisotropic BSDFs), against closed forms: a white
+lobe reflects all of its light at every angle, and a coloured one what Kulla and Conty's model
+gives from the single-scattering lobe's own directional albedo (a quadrature independent of the
+core's tables)."""
+import numpy as np
+import pytest
+
+import bsgi
+
+MUS = (1.0, 0.7, 0.4, 0.2, 0.08)
+
+
+def directional_albedo(bsdf, mu, n=400):
+    """Integral of rho cos over the incoming hemisphere, light leaving at cos theta = mu: a
+    midpoint rule in cos^2 theta and phi (cosine-weighted), per channel."""
+    g = (np.arange(n) + 0.5) / n
+    c2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n), indexing="ij")
+    cos_i, sin_i = np.sqrt(c2).ravel(), np.sqrt(1 - c2).ravel()
+    wi = np.stack([sin_i * np.cos(phi.ravel()), sin_i * np.sin(phi.ravel()), cos_i], 1)
+    wo = np.ascontiguousarray(np.broadcast_to([np.sqrt(1 - mu * mu), 0.0, mu], wi.shape))
+    return np.pi * bsdf.eval(wo, wi).mean(axis=0)
+
+
+def sampled_albedo(bsdf, mu, n=400000):
+    """The directional albedo as the mean weight of n samples of the lobe (eval cos / pdf, 0
+    where none is drawn): unbiased for any pdf, and nearly noiseless for a GGX lobe, whose
+    weight is near constant (a narrow lobe's peak falls between the midpoint rule's nodes)."""
+    wo = np.tile([np.sqrt(1 - mu * mu), 0.0, mu], (n, 1))
+    s = bsgi.GgxReflection.sample(bsdf, wo, np.random.default_rng(5).uniform(size=(n, 3)))
+    return float(np.where(s["valid"], s["weight"][:, 0], 0.0).mean())
+
+
+@pytest.mark.parametrize("alpha", [0.09, 0.25, 0.5, 1.0])
+def test_white_lobe_with_multiple_scattering_is_a_white_furnace(alpha):
+    # Measured: within 6e-4 at every angle; single scattering keeps 0.31-0.57 of the light at
+    # alpha 1 (1 - ln 2 along the normal), 0.87-0.99 at 0.09.
+    white = bsgi.GgxReflection(alpha, alpha, [1, 1, 1], schlick=False, multiscatter=True)
+    single = bsgi.GgxReflection(alpha, alpha, [1, 1, 1], schlick=False)
+    got = np.array([sampled_albedo(white, mu) for mu in MUS])
+    lost = np.array([sampled_albedo(single, mu) for mu in MUS])
+    print(f"\nalpha {alpha}: multiscatter {np.round(got, 4)}, single {np.round(lost, 4)}")
+    assert np.abs(got - 1).max() < 1.2e-3
+    assert lost.min() < 0.9
+    if alpha == 1.0:
+        assert abs(lost[0] - (1 - np.log(2))) < 1e-3  # the closed form of the single lobe along the normal
+
+
+@pytest.mark.parametrize("kind", ["schlick", "constant", "dielectric"])
+def test_coloured_lobe_reflects_kulla_contys_multiple_scattering(kind):
+    # rho_ms = rho (1 + F_ms (1 - E(mu)) / E(mu)), F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)): its
+    # directional albedo is E_F(mu) (1 + F_ms (1 - E) / E), E_F the single lobe's with its Fresnel,
+    # E the white lobe's, both by the quadrature here; F_ss = f0 + (1 - f0) / 21 for Schlick's
+    # curve, f0 for a constant one, the dielectric's by quadrature. Measured: within 1.3e-4 (the
+    # metal's colour: 20-41% more light at mu 0.4, alpha 0.5; a dielectric's 2.8%).
+    alpha = 0.5
+    f0 = np.array([0.95, 0.64, 0.54]) if kind != "dielectric" else np.array([0.04] * 3)
+    keywords = {"schlick": {}, "constant": {"schlick": False}, "dielectric": {"eta": 1.5}}[kind]
+    coloured = bsgi.GgxReflection(alpha, alpha, f0, multiscatter=True, **keywords)
+    single = bsgi.GgxReflection(alpha, alpha, f0, **keywords)
+    white = bsgi.GgxReflection(alpha, alpha, [1, 1, 1], schlick=False)
+    mus = (np.arange(64) + 0.5) / 64
+    e = np.array([directional_albedo(white, mu, 200)[0] for mu in mus])
+    e_avg = 2 * np.mean(e * mus)
+    if kind == "schlick":
+        f_ss = f0 + (1 - f0) / 21
+    elif kind == "constant":
+        f_ss = f0
+    else:  # the dielectric's curve remapped to f0 (here its own f0): the Fresnel equations
+        c = mus
+        t = np.sqrt(1 - (1 - c**2) / 1.5**2)
+        f = 0.5 * (((c - 1.5 * t) / (c + 1.5 * t)) ** 2 + ((1.5 * c - t) / (1.5 * c + t)) ** 2)
+        f_ss = np.full(3, 2 * np.mean(f * c))
+    f_ms = f_ss * e_avg / (1 - f_ss * (1 - e_avg))
+    worst = 0.0
+    for mu in MUS:
+        e_mu = directional_albedo(white, mu)[0]
+        want = directional_albedo(single, mu) * (1 + f_ms * (1 - e_mu) / e_mu)
+        worst = max(worst, np.abs(directional_albedo(coloured, mu) / want - 1).max())
+    gain = directional_albedo(coloured, 0.4) / directional_albedo(single, 0.4) - 1
+    print(f"\n{kind}: worst {worst:.2e}; multiple scattering adds {np.round(gain * 100, 1)}% at mu 0.4")
+    assert gain.max() > 0.004
+    assert worst < 3e-4
+
+
+def test_layered_coat_with_multiple_scattering_over_a_white_base_is_a_white_furnace():
+    # The base gets what the coat, its multiple scattering included, leaves along the view.
+    layered = bsgi.DiffuseGgx([1, 1, 1], 0.5, 0.5, [0.04] * 3, layered=True, eta=1.5, multiscatter=True)
+    got = np.array([directional_albedo(layered, mu)[0] for mu in MUS])
+    print(f"\nlayered coat, multiscatter: {np.round(got, 4)}")
+    assert np.abs(got - 1).max() < 2e-3
+
+
+def test_multiple_scattering_is_a_choice_of_the_lobe():
+    assert bsgi.GgxReflection(0.3, 0.3, [0.9] * 3, multiscatter=True).multiscatter
+    assert not bsgi.GgxReflection(0.3, 0.3, [0.9] * 3).multiscatter
