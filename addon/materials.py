@@ -51,12 +51,15 @@ class SurfaceMaterial:
     # A lone Principled BSDF with neither metal nor transmission: its specular is a dielectric coat
     # over the base, which Cycles layers (a scaled or mixed shader is not: its parts fold).
     coat: bool = False
+    # Cycles' Multiscatter GGX (the default distribution): the light scattered between
+    # microfacets is put back (bsgi.GgxReflection's multiscatter).
+    multiscatter: bool = False
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
                                self.rotation, self.transmission * k, self.ior, _scale(self.emission, k),
                                self.albedo_textured, self.emission_textured, self.shadow, self.specular_textured,
-                               self.schlick)
+                               self.schlick, multiscatter=self.multiscatter)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -67,7 +70,8 @@ class SurfaceMaterial:
                                _add(self.emission, other.emission), self.albedo_textured or other.albedo_textured,
                                self.emission_textured or other.emission_textured,
                                self.shadow if self.shadow is not None else other.shadow,
-                               self.specular_textured or other.specular_textured, dominant.schlick)
+                               self.specular_textured or other.specular_textured, dominant.schlick,
+                               multiscatter=dominant.multiscatter)
 
 
 def _scale(c, k):
@@ -159,12 +163,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
     if distribution in {"BECKMANN", "ASHIKHMIN_SHIRLEY"}:
         warnings.append(f"material '{material.name}': {node.name}'s {distribution.replace('_', '-').title()} "
                         "microfacet distribution is solved as GGX")
-    if distribution == "MULTI_GGX" and _rough_lobe(material, node):
-        # Cycles' default: the light its microfacets scatter more than once is kept (Cycles adds
-        # it back); the solver's GGX loses it, a few percent at roughness 0.5 and more above.
-        warnings.append(f"material '{material.name}': {node.name}'s Multiscatter GGX is solved as single-scattering "
-                        f"GGX (roughness {_scalar(material, node, 'Roughness', 0.5):.2f}: darker than Cycles by the "
-                        "light scattered between microfacets)")
+    multiscatter = distribution == "MULTI_GGX"
     if kind in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC"}:
         # Cycles' Glossy BSDF: anisotropy a in [-0.99, 0.99] narrows the lobe along the tangent
         # by (1 - a) for a > 0 and widens it by 1 / (1 + a) for a < 0 (the other axis inversely).
@@ -175,11 +174,11 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         # Its colour times GGX, without Fresnel (Cycles' node_glossy_bsdf).
         return SurfaceMaterial(specular=socket_color(node, "Color"), roughness=_scalar(material, node, "Roughness", 0.5),
                                stretch=stretch, rotation=2 * math.pi * rotation, specular_textured=specular_textured,
-                               schlick=False)
+                               schlick=False, multiscatter=multiscatter)
     if kind == "BSDF_GLASS":
         _warn_tint(socket_color(node, "Color", (1.0, 1.0, 1.0)), node, material, warnings)
         return SurfaceMaterial(transmission=1.0, roughness=_scalar(material, node, "Roughness", 0.0),
-                               ior=socket_value(node, "IOR", 1.5))
+                               ior=socket_value(node, "IOR", 1.5), multiscatter=multiscatter)
     if kind == "BSDF_PRINCIPLED":
         base = socket_color(node, "Base Color")
         metallic = _scalar(material, node, "Metallic")
@@ -212,7 +211,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         return SurfaceMaterial(albedo=_scale(base, diffuse_weight), specular=specular,
                                roughness=_scalar(material, node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
                                rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
-                               specular_textured=specular_textured, coat=metallic == 0 and transmission == 0, **textured)
+                               specular_textured=specular_textured, coat=metallic == 0 and transmission == 0,
+                               multiscatter=multiscatter, **textured)
     if kind == "ADD_SHADER":
         return _shader(linked_node(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(linked_node(node.inputs[1]), material, warnings, depth + 1))
@@ -283,18 +283,8 @@ def _warn_tint(colour, node, material, warnings):
 
 
 # Below this roughness single scattering keeps nearly all of a GGX lobe's energy (its loss grows
-# about as the roughness squared): Multiscatter GGX is then not worth a warning.
+# about as the roughness squared): a glass's Multiscatter GGX (not solved) is then not worth a warning.
 MULTISCATTER_ROUGHNESS = 0.3
-
-
-def _rough_lobe(material, node) -> bool:
-    """Whether the node has a rough microfacet lobe of its own colour (a metal, a glossy or glass
-    BSDF; not a Principled dielectric's faint specular layer)."""
-    if _scalar(material, node, "Roughness", 0.5) < MULTISCATTER_ROUGHNESS:
-        return False
-    if node.type == "BSDF_PRINCIPLED":
-        return _scalar(material, node, "Metallic") > 0
-    return node.type in {"BSDF_GLOSSY", "BSDF_ANISOTROPIC", "BSDF_GLASS"}
 
 
 def _warn_ignored_inputs(node, material, warnings):
@@ -385,6 +375,7 @@ class SolverMaterial:
     rotation: float = 0.0
     f0: tuple = (0.0, 0.0, 0.0)
     schlick: bool = True  # "ggx": Schlick's Fresnel from f0, or f0 at every angle (SurfaceMaterial.schlick)
+    multiscatter: bool = False  # "ggx", "diffuse_ggx": the lobe's multiple scattering (SurfaceMaterial.multiscatter)
     eta: float = 1.0
     bsdf: object = None  # bsgi.Bsdf, None for Lambert (the scene then uses albedo)
     # Node-driven colour of a Lambertian material and node-driven emission: baked by textures.py
@@ -462,6 +453,12 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         if diffuse + glossy > 0.05:
             warnings.append(f"material '{name}': solved as rough glass; its diffuse and metallic parts are dropped")
         eta = max(described.ior, 1.0 + 1e-3)
+        if described.multiscatter and described.roughness >= MULTISCATTER_ROUGHNESS:
+            # Cycles puts back the light a rough glass's microfacets scatter more than once (up to a
+            # few percent at IOR 1.5); the solver's rough dielectric loses it.
+            warnings.append(f"material '{name}': its Multiscatter GGX glass is solved as single-scattering GGX "
+                            f"(roughness {described.roughness:.2f}: darker than Cycles by the light scattered between "
+                            "microfacets)")
         notes: list = []  # given once the object's shape says it is solid glass (geometry.py)
         alpha = _alpha(name, described.roughness, notes)
         return SolverMaterial((0, 0, 0), described.emission, "rough_dielectric", alpha=alpha, eta=eta,
@@ -477,16 +474,19 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         ax, ay = _anisotropic_alphas(name, described, alpha, warnings)
         return SolverMaterial((0, 0, 0), described.emission, "ggx", alpha=alpha, alpha_x=ax, alpha_y=ay,
                               rotation=described.rotation, f0=f0, schlick=described.schlick,
-                              bsdf=bsgi.GgxReflection(ax, ay, f0, rotation=described.rotation, schlick=described.schlick))
+                              multiscatter=described.multiscatter,
+                              bsdf=bsgi.GgxReflection(ax, ay, f0, rotation=described.rotation, schlick=described.schlick,
+                                                      multiscatter=described.multiscatter))
     # Cycles layers the specular lobe over the diffuse base, which gets the energy the lobe leaves:
     # folded into one Lambertian albedo, base (1 - E) + E, E the lobe's hemispherical albedo (a
     # rough lobe reflects far less than its f0: roughness 1 leaves 0.016 of f0 0.04).
-    lobe = layer_albedo(tuple(described.specular), described.roughness)
+    lobe = layer_albedo(tuple(described.specular), described.roughness, multiscatter=described.multiscatter)
     albedo = tuple(min(1.0, max(0.0, a * (1 - e) + e)) for a, e in zip(described.albedo, lobe))
     visible = glossy > 0 and coat_peak_ratio(described.specular, described.roughness, described.albedo) >= coat_threshold()
     # Cycles' diffuse-colour pass (textures.py bakes it) is the base seen along the normal, under
     # the lobe's albedo in that direction.
-    seen = layer_albedo(tuple(described.specular), described.roughness, normal_only=True)
+    seen = layer_albedo(tuple(described.specular), described.roughness, normal_only=True,
+                        multiscatter=described.multiscatter)
     pass_weight = tuple(1 - e for e in seen)
     if visible and described.coat and not (described.specular_textured or max(described.emission) > 0
                                            or described.stretch != 1):
@@ -499,7 +499,8 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         root = math.sqrt(min(max(sum(f0) / 3, 1e-6), 0.99))
         eta = (1 + root) / (1 - root)
         return SolverMaterial(base, described.emission, "diffuse_ggx", alpha=alpha, alpha_x=alpha, alpha_y=alpha, f0=f0,
-                              eta=eta, bsdf=layered_coat(base, alpha, f0, eta), specular=lobe, folded_albedo=albedo,
+                              eta=eta, bsdf=layered_coat(base, alpha, f0, eta, described.multiscatter), specular=lobe,
+                              folded_albedo=albedo, multiscatter=described.multiscatter,
                               pass_weight=pass_weight)
     if visible or glossy > 0.05 or (glossy > 0.01 and described.roughness < 0.3):
         warnings.append(f"material '{name}': solved as diffuse; its specular highlights (roughness "
@@ -537,8 +538,8 @@ def coat_threshold() -> float:
 # Every object's slots are described anew: a layered coat tabulates its directional albedo when
 # made (5 ms), so the same few materials' coats are made once and shared.
 @lru_cache(maxsize=1024)
-def layered_coat(base: tuple, alpha: float, f0: tuple, eta: float):
-    return bsgi.DiffuseGgx(base, alpha, alpha, f0, layered=True, eta=eta)
+def layered_coat(base: tuple, alpha: float, f0: tuple, eta: float, multiscatter: bool = False):
+    return bsgi.DiffuseGgx(base, alpha, alpha, f0, layered=True, eta=eta, multiscatter=multiscatter)
 
 
 def coat_peak_ratio(f0, roughness: float, base) -> float:
@@ -553,16 +554,18 @@ def coat_peak_ratio(f0, roughness: float, base) -> float:
 # Every object's slots are described anew (solver_material per object): the same few materials
 # would integrate their lobe once per object, a few milliseconds each, without the cache.
 @lru_cache(maxsize=1024)
-def layer_albedo(f0: tuple, roughness: float, normal_only: bool = False, nodes: int = 24) -> tuple:
+def layer_albedo(f0: tuple, roughness: float, normal_only: bool = False, nodes: int = 24,
+                 multiscatter: bool = False) -> tuple:
     """The albedo, per channel, of a GGX reflection lobe of reflectance f0 at normal incidence and
-    Blender's roughness (alpha = roughness^2), as the core's GgxReflection gives it: hemispherical,
+    Blender's roughness (alpha = roughness^2), with its multiple scattering or not, as the core's
+    GgxReflection gives it: hemispherical,
     2 * integral of E(mu) mu dmu with E(mu) its directional albedo (or E(1) with normal_only), by a
     midpoint rule in mu^2 and cosine-weighted directions (the lobes solved as diffuse are wide: a
     coarse rule is exact to about 1e-4)."""
     if max(f0) <= 0:
         return (0.0, 0.0, 0.0)
     r = min(max(roughness, 0.05), 1.0)
-    lobe = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0])
+    lobe = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0], multiscatter=multiscatter)
     g = (np.arange(nodes) + 0.5) / nodes
     cos2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * nodes) + 0.5) / (2 * nodes), indexing="ij")
     cos_i, sin_i = np.sqrt(cos2).ravel(), np.sqrt(1 - cos2).ravel()
@@ -623,7 +626,7 @@ class ObjectMaterials:
         angle, spread = tangents.surface_rotation(self.radial, surface)
         self.spread = max(self.spread, spread)
         bsdf = bsgi.GgxReflection(material.alpha_x, material.alpha_y, material.f0, rotation=material.rotation + angle,
-                                  schlick=material.schlick)
+                                  schlick=material.schlick, multiscatter=material.multiscatter)
         return {**keywords, "bsdf": bsdf}
 
     def use_glass(self, shape: GlassShape, choice: str, warnings) -> set:

@@ -68,6 +68,8 @@ class Material:
     schlick: bool = True
     # A lone dielectric Principled BSDF: `specular` is a coat over the base, layered as Cycles does.
     coat: bool = False
+    # Cycles' Multiscatter GGX (the default distribution): the light between microfacets put back.
+    multiscatter: bool = False
 
 
 @dataclass
@@ -99,7 +101,7 @@ def describe(material) -> Material:
 
     d = describe_material(material, [])
     return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation, d.schlick,
-                    d.coat)
+                    d.coat, d.multiscatter)
 
 
 def default_tangents(world, triangles, radial):

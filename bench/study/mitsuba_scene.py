@@ -17,7 +17,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from reference.mitsuba_reference import lobe_coordinates, load_mitsuba  # noqa: E402
 
-import cycles_principled  # noqa: E402  (beside this file)
+import cycles_multiscatter  # noqa: E402  (beside this file)
+import cycles_principled  # noqa: E402
 
 # Below this roughness Mitsuba's smooth models are used (GGX with alpha -> 0 is the mirror).
 SMOOTH_ROUGHNESS = 0.02
@@ -58,8 +59,9 @@ def bsdf(material) -> dict:
             # (k = 0) reflected up to 20% less at grazing angles. Its anisotropy a gives
             # alpha_u / alpha_v = 1 / (1 - 0.9 a), as Blender's Principled BSDF.
             aspect = 1 / max(material.stretch, 1.0)
-            return {"type": "principled", "base_color": {"type": "rgb", "value": f0.tolist()}, "metallic": 1.0,
-                    "roughness": float(np.sqrt(alpha)), "anisotropic": float((1 - aspect ** 2) / 0.9)}
+            return _multiscatter(material, {"type": "principled", "base_color": {"type": "rgb", "value": f0.tolist()},
+                                            "metallic": 1.0, "roughness": float(np.sqrt(alpha)),
+                                            "anisotropic": float((1 - aspect ** 2) / 0.9)}, f0)
         else:
             # A mirror: a conductor whose Fresnel reflectance at normal incidence is the colour
             # (k = 0, eta from f0 = ((eta - 1) / (eta + 1))^2), near Schlick's but for grazing angles.
@@ -68,7 +70,7 @@ def bsdf(material) -> dict:
             conductor = {"eta": {"type": "rgb", "value": eta.tolist()}, "k": {"type": "rgb", "value": [0.0] * 3}}
         if smooth:
             return {"type": "conductor", **conductor}
-        return {"type": "roughconductor", "distribution": "ggx", **lobe, **conductor}
+        return _multiscatter(material, {"type": "roughconductor", "distribution": "ggx", **lobe, **conductor}, f0)
     if glossy > 0 and getattr(material, "coat", False):
         # Cycles' Principled dielectric: its base under the coat, layered as Cycles layers it
         # (roughplastic reflected 0.60 of a base of 0.8 at roughness 0.5, Cycles 0.81).
@@ -78,6 +80,18 @@ def bsdf(material) -> dict:
                 "int_ior": max(material.ior, 1.0 + 1e-3),
                 "diffuse_reflectance": {"type": "rgb", "value": list(material.albedo)}}
     return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(material.albedo)}}
+
+
+def _multiscatter(material, lobe: dict, f0) -> dict:
+    """A rough metal's or Glossy BSDF's lobe, with Cycles' Multiscatter GGX its multiple scattering
+    put back (cycles_multiscatter.py). Its Fresnel's cosine-weighted mean: Schlick's curve from
+    f0, f0 + (1 - f0) / 21; the Glossy BSDF's colour (no Fresnel); 1 for a white mirror's."""
+    if not getattr(material, "multiscatter", False):
+        return lobe
+    f0 = np.asarray(f0, float)
+    f_ss = np.ones(3) if f0.min() >= 1 - 1e-6 else (f0 + (1 - f0) / 21 if material.schlick else f0)
+    alpha = max(material.roughness, 0.0) ** 2
+    return cycles_multiscatter.bsdf_dict(lobe, alpha * material.stretch, alpha / material.stretch, f_ss)
 
 
 def _obj_text(positions, triangles, normals, tangents=None, rotation=0.0):
@@ -105,6 +119,7 @@ def scene_dict(description, max_depth: int = -1, two_sided=(), pairs_only: bool 
     short of it.)"""
     mi = load_mitsuba()
     cycles_principled.register(mi)
+    cycles_multiscatter.register(mi)
     folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-study-"))
     atexit.register(shutil.rmtree, folder, ignore_errors=True)  # the dict names its files: kept until exit
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}

@@ -115,3 +115,56 @@ def test_default_principled_floor_against_mitsuba_with_cycles_layering(tmp_path)
     print(f"\ndefault Principled floor against Mitsuba (Cycles' layering): {errors}, reference noise {noise:.4f}")
     assert errors["QUALITY"] < max(2 * 0.0063, 2 * noise)
     assert errors["FOLDED"] > 4 * errors["QUALITY"]
+
+
+def _plugin_albedo(mi, plugin, mu, n=300):
+    """The directional albedo of a Mitsuba BSDF (per channel) for light leaving at cos theta = mu:
+    a cosine-weighted midpoint rule over its eval (which carries the cosine)."""
+    import drjit as dr
+
+    g = (np.arange(n) + 0.5) / n
+    c2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n), indexing="ij")
+    ci, si_ = np.sqrt(c2).ravel(), np.sqrt(1 - c2).ravel()
+    wi = np.stack([si_ * np.cos(phi.ravel()), si_ * np.sin(phi.ravel()), ci], 1)
+    si = dr.zeros(mi.SurfaceInteraction3f, len(wi))
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+    si.wi = mi.Vector3f(float(np.sqrt(1 - mu * mu)), 0.0, float(mu))
+    value = plugin.eval(mi.BSDFContext(), si, mi.Vector3f(wi[:, 0], wi[:, 1], wi[:, 2]))
+    return np.pi * np.array([np.mean(np.array(value[c]) / wi[:, 2]) for c in range(3)])
+
+
+def test_multiscatter_plugin_reflects_the_solvers_multiple_scattering():
+    # The references' Multiscatter GGX (cycles_multiscatter.py: Mitsuba's own lobe, its E by a
+    # numpy quadrature) against the solver's (bsgi.GgxReflection multiscatter: its E tabulated
+    # from its own sampling), the same model in two implementations: a white lobe reflects all
+    # of its light, a copper one (Schlick's Fresnel, alpha 0.36, the study's metals) the same
+    # light in both. Measured: white 1 +- 3e-5, copper within 6e-5 of the solver's (the gain over
+    # single scattering: 15-27% at mu 0.5).
+    pytest.importorskip("mitsuba")
+    import cycles_multiscatter
+    from mitsuba_scene import load_mitsuba
+
+    import bsgi
+
+    mi = load_mitsuba()
+    cycles_multiscatter.register(mi)
+    alpha, f0 = 0.36, np.array([0.95, 0.64, 0.54])
+    white = mi.load_dict(cycles_multiscatter.bsdf_dict(
+        {"type": "roughconductor", "distribution": "ggx", "alpha": alpha, "material": "none"}, alpha, alpha, [1, 1, 1]))
+    copper = mi.load_dict(cycles_multiscatter.bsdf_dict(
+        {"type": "principled", "base_color": {"type": "rgb", "value": f0.tolist()}, "metallic": 1.0,
+         "roughness": float(np.sqrt(alpha))}, alpha, alpha, f0 + (1 - f0) / 21))
+    core = bsgi.GgxReflection(alpha, alpha, f0, multiscatter=True)
+    single = bsgi.GgxReflection(alpha, alpha, f0)
+    sys.path.insert(0, str(ROOT / "tests" / "core"))
+    from test_multiple_scattering import directional_albedo
+
+    worst_white = worst_copper = 0.0
+    for mu in (1.0, 0.5, 0.2):
+        worst_white = max(worst_white, np.abs(_plugin_albedo(mi, white, mu) - 1).max())
+        worst_copper = max(worst_copper, np.abs(_plugin_albedo(mi, copper, mu) / directional_albedo(core, mu, 300) - 1).max())
+    gain = directional_albedo(core, 0.5, 300) / directional_albedo(single, 0.5, 300) - 1
+    print(f"\nmultiscatter plugin: white within {worst_white:.1e} of 1, copper within {worst_copper:.1e} of the "
+          f"solver's (multiple scattering adds {np.round(gain * 100, 1)}% at mu 0.5)")
+    assert gain.min() > 0.02
+    assert worst_white < 1e-4 and worst_copper < 1.5e-4
