@@ -476,7 +476,7 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
                               rotation=described.rotation, f0=f0, schlick=described.schlick,
                               multiscatter=described.multiscatter,
                               bsdf=bsgi.GgxReflection(ax, ay, f0, rotation=described.rotation, schlick=described.schlick,
-                                                      multiscatter=described.multiscatter))
+                                                      multiscatter=described.multiscatter, height_correlated=True))
     # Cycles layers the specular lobe over the diffuse base, which gets the energy the lobe leaves:
     # folded into one Lambertian albedo, base (1 - E) + E, E the lobe's hemispherical albedo (a
     # rough lobe reflects far less than its f0: roughness 1 leaves 0.016 of f0 0.04).
@@ -539,13 +539,13 @@ def coat_threshold() -> float:
 # made (5 ms), so the same few materials' coats are made once and shared.
 @lru_cache(maxsize=1024)
 def layered_coat(base: tuple, alpha: float, f0: tuple, eta: float, multiscatter: bool = False):
-    return bsgi.DiffuseGgx(base, alpha, alpha, f0, layered=True, eta=eta, multiscatter=multiscatter)
+    return bsgi.DiffuseGgx(base, alpha, alpha, f0, layered=True, eta=eta, multiscatter=multiscatter, height_correlated=True)
 
 
 def coat_peak_ratio(f0, roughness: float, base) -> float:
     """The coat's BSDF along the normal, lit along the normal, against the base's albedo / pi."""
     r = min(max(roughness, MIN_ROUGHNESS), 1.0)
-    coat = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0])
+    coat = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0], height_correlated=True)
     normal = np.array([[0.0, 0.0, 1.0]])
     peak = float(coat.eval(normal, normal).max())
     return peak / (max(sum(base) / 3, 1e-3) / math.pi)
@@ -565,7 +565,8 @@ def layer_albedo(f0: tuple, roughness: float, normal_only: bool = False, nodes: 
     if max(f0) <= 0:
         return (0.0, 0.0, 0.0)
     r = min(max(roughness, 0.05), 1.0)
-    lobe = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0], multiscatter=multiscatter)
+    lobe = bsgi.GgxReflection(r * r, r * r, [min(max(c, 0.0), 1.0) for c in f0], multiscatter=multiscatter,
+                              height_correlated=True)
     g = (np.arange(nodes) + 0.5) / nodes
     cos2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * nodes) + 0.5) / (2 * nodes), indexing="ij")
     cos_i, sin_i = np.sqrt(cos2).ravel(), np.sqrt(1 - cos2).ravel()
@@ -626,7 +627,7 @@ class ObjectMaterials:
         angle, spread = tangents.surface_rotation(self.radial, surface)
         self.spread = max(self.spread, spread)
         bsdf = bsgi.GgxReflection(material.alpha_x, material.alpha_y, material.f0, rotation=material.rotation + angle,
-                                  schlick=material.schlick, multiscatter=material.multiscatter)
+                                  schlick=material.schlick, multiscatter=material.multiscatter, height_correlated=True)
         return {**keywords, "bsdf": bsdf}
 
     def use_glass(self, shape: GlassShape, choice: str, warnings) -> set:

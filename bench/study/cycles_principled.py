@@ -1,7 +1,8 @@
 """Cycles' Principled BSDF without metal or transmission, as a Mitsuba 3 BSDF for the references: a
 Lambertian base under a GGX dielectric coat, layered as Cycles layers it. The base gets what the
 coat leaves along the view, f = (1 - E(mu_o)) base / pi + GGX(alpha) with the dielectric's Fresnel,
-E the coat's directional albedo. (Mitsuba's roughplastic models the coat's internal scattering
+E the coat's directional albedo; with Multiscatter GGX (Cycles' default) the coat's light between
+microfacets put back as in cycles_glossy.py, and E with it. (Mitsuba's roughplastic models the coat's internal scattering
 instead: its albedo over a base of 0.8 is 0.60 at roughness 0.5 and 0.27 at 1, where Cycles' is
 0.81 and 0.80.)
 
@@ -11,6 +12,8 @@ directional albedo with Cycles' own (tests/reference/test_mitsuba_scene.py)."""
 from __future__ import annotations
 
 import numpy as np
+
+import cycles_glossy  # (beside this file)
 
 NAME = "cycles_principled"
 TABLE_NODES = 65  # E at mu = (k / (n - 1))^2: dense towards grazing, where the Fresnel rises
@@ -52,6 +55,16 @@ def albedo_table(alpha, eta):
     return np.array([coat_albedo(max(t * t, 1e-4), alpha, eta) for t in x])
 
 
+def multiscatter_factors(alpha, eta):
+    """With Cycles' Multiscatter GGX (cycles_glossy.py), the coat's factor 1 + F_ms (1 - E) / E
+    at the table's nodes (E the white lobe's; F_ss the dielectric's cosine-weighted mean)."""
+    white = cycles_glossy.albedo_table(alpha)
+    mu = (np.arange(2048) + 0.5) / 2048
+    f_ss = 2 * np.mean(fresnel(mu, eta) * mu)
+    f_ms = float(cycles_glossy.multiple_scattering_colour(white, [f_ss])[0])
+    return 1 + f_ms * (1 - white) / np.maximum(white, 1e-3)
+
+
 def register(mi):
     """Registers the plugin with Mitsuba (its JIT variant: llvm_ad_rgb), once."""
     import drjit as dr
@@ -65,7 +78,12 @@ def register(mi):
             self.base = mi.Color3f(props["base_r"], props["base_g"], props["base_b"])
             self.alpha = float(props["alpha"])
             self.eta = float(props["eta"])
-            self.table = mi.Float(albedo_table(self.alpha, self.eta))
+            table, factors = albedo_table(self.alpha, self.eta), np.ones(TABLE_NODES)
+            if bool(props["multiscatter"]):
+                factors = multiscatter_factors(self.alpha, self.eta)
+            # The coat's albedo with its multiple scattering, which the base gives up.
+            self.table = mi.Float(table * factors)
+            self.factors = mi.Float(factors)
             self.distribution = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, self.alpha, True)
             diffuse = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
             glossy = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
@@ -74,11 +92,14 @@ def register(mi):
             mean = (props["base_r"] + props["base_g"] + props["base_b"]) / 3
             self.p_diffuse = float(np.clip(mean / (mean + 0.2), 0.1, 0.9))
 
-        def _e(self, mu):
+        def _at(self, table, mu):
             x = dr.sqrt(dr.clip(mu, 0.0, 1.0)) * (TABLE_NODES - 1)
             k = dr.minimum(mi.UInt32(x), TABLE_NODES - 2)
             t = x - mi.Float(k)
-            return dr.lerp(dr.gather(mi.Float, self.table, k), dr.gather(mi.Float, self.table, k + 1), t)
+            return dr.lerp(dr.gather(mi.Float, table, k), dr.gather(mi.Float, table, k + 1), t)
+
+        def _e(self, mu):
+            return self._at(self.table, mu)
 
         def _lambda(self, c):
             tan2 = dr.maximum(1 - c * c, 0.0) / dr.maximum(c * c, 1e-12)
@@ -91,7 +112,7 @@ def register(mi):
             F, _, _, _ = mi.fresnel(dr.dot(wo, h), self.eta)
             # Cycles' shadowing-masking: Smith's height-correlated G2 (Mitsuba's own G is separable).
             G = 1 / (1 + self._lambda(cos_v) + self._lambda(cos_l))
-            coat = F * self.distribution.eval(h) * G / (4 * cos_v)  # times cos_l
+            coat = F * self.distribution.eval(h) * G / (4 * cos_v) * self._at(self.factors, cos_v)  # times cos_l
             base = self.base * ((1 - self._e(cos_v)) * dr.inv_pi * cos_l)
             valid = (cos_v > 0) & (cos_l > 0)
             return dr.select(valid, base + coat, 0.0)
@@ -141,10 +162,10 @@ def register(mi):
     register.done = True
 
 
-def bsdf_dict(base, roughness: float, f0: float) -> dict:
-    """The plugin's scene dictionary for a Principled base colour, Blender roughness and the
-    coat's reflectance at normal incidence (its IOR's)."""
+def bsdf_dict(base, roughness: float, f0: float, multiscatter: bool = False) -> dict:
+    """The plugin's scene dictionary for a Principled base colour, Blender roughness, the coat's
+    reflectance at normal incidence (its IOR's) and its distribution (Multiscatter GGX or not)."""
     root = np.sqrt(min(max(f0, 1e-6), 0.99))
     r, g, b = (float(c) for c in base)
     return {"type": NAME, "base_r": r, "base_g": g, "base_b": b, "alpha": max(roughness, 1e-3) ** 2,
-            "eta": float((1 + root) / (1 - root))}
+            "eta": float((1 + root) / (1 - root)), "multiscatter": bool(multiscatter)}

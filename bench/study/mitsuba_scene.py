@@ -17,7 +17,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from reference.mitsuba_reference import lobe_coordinates, load_mitsuba  # noqa: E402
 
-import cycles_multiscatter  # noqa: E402  (beside this file)
+import cycles_glossy  # noqa: E402  (beside this file)
 import cycles_principled  # noqa: E402
 
 # Below this roughness Mitsuba's smooth models are used (GGX with alpha -> 0 is the mirror).
@@ -35,9 +35,6 @@ def bsdf(material) -> dict:
     diffuse = sum(material.albedo) / 3
     glossy = sum(material.specular) / 3
     alpha = max(material.roughness, 0.0) ** 2
-    lobe = {"alpha": alpha}
-    if anisotropic(material):
-        lobe = {"alpha_u": alpha * material.stretch, "alpha_v": alpha / material.stretch}
     smooth = material.roughness < SMOOTH_ROUGHNESS
     if material.transmission > max(diffuse, glossy):
         ior = max(material.ior, 1.0 + 1e-3)
@@ -46,52 +43,35 @@ def bsdf(material) -> dict:
         return {"type": "roughdielectric", "distribution": "ggx", "alpha": alpha, "int_ior": ior, "ext_ior": 1.0}
     if glossy > diffuse:
         f0 = np.clip(np.asarray(material.specular, float), 0.0, 1.0)
-        if f0.min() >= 1 - 1e-6:  # Fresnel 1
-            conductor = {"material": "none"}
-        elif not material.schlick:
-            # Cycles' Glossy BSDF: its colour times GGX without Fresnel.
-            conductor = {"material": "none", "specular_reflectance": {"type": "rgb", "value": f0.tolist()}}
-        elif not smooth:
-            # Cycles' metal (the Principled BSDF's F82 tint model with its default white tint):
-            # Schlick's Fresnel from f0 = the base colour, which Mitsuba's principled BSDF, all
-            # metallic, is (its default specular 0.5 makes its Schlick term reflect from outside);
-            # equal to the solver's GGX to 1e-6 (tests/core/test_bsdf.py). A conductor of that f0
-            # (k = 0) reflected up to 20% less at grazing angles. Its anisotropy a gives
-            # alpha_u / alpha_v = 1 / (1 - 0.9 a), as Blender's Principled BSDF.
-            aspect = 1 / max(material.stretch, 1.0)
-            return _multiscatter(material, {"type": "principled", "base_color": {"type": "rgb", "value": f0.tolist()},
-                                            "metallic": 1.0, "roughness": float(np.sqrt(alpha)),
-                                            "anisotropic": float((1 - aspect ** 2) / 0.9)}, f0)
-        else:
-            # A mirror: a conductor whose Fresnel reflectance at normal incidence is the colour
-            # (k = 0, eta from f0 = ((eta - 1) / (eta + 1))^2), near Schlick's but for grazing angles.
-            s = np.sqrt(np.minimum(f0, 1 - 1e-4))
-            eta = (1 + s) / (1 - s)
-            conductor = {"eta": {"type": "rgb", "value": eta.tolist()}, "k": {"type": "rgb", "value": [0.0] * 3}}
-        if smooth:
-            return {"type": "conductor", **conductor}
-        return _multiscatter(material, {"type": "roughconductor", "distribution": "ggx", **lobe, **conductor}, f0)
+        white = f0.min() >= 1 - 1e-6  # Fresnel 1
+        if not smooth:
+            # Cycles' metal (the Principled BSDF's F82 tint model with its default white tint:
+            # Schlick's Fresnel from f0 = the base colour) or Glossy BSDF (its colour times GGX,
+            # no Fresnel), with Cycles' height-correlated shadowing and, with Multiscatter GGX,
+            # its multiple scattering (cycles_glossy.py). Its anisotropy: alpha_u = alpha stretch
+            # along the tangent (the shape's texture coordinates say where), alpha_v = alpha / stretch.
+            return cycles_glossy.bsdf_dict(f0, material.schlick and not white, alpha * material.stretch,
+                                           alpha / material.stretch, getattr(material, "multiscatter", False))
+        if white:
+            return {"type": "conductor", "material": "none"}
+        if not material.schlick:
+            # A mirror Glossy BSDF: its colour times the mirror, without Fresnel.
+            return {"type": "conductor", "material": "none", "specular_reflectance": {"type": "rgb", "value": f0.tolist()}}
+        # A mirror: a conductor whose Fresnel reflectance at normal incidence is the colour
+        # (k = 0, eta from f0 = ((eta - 1) / (eta + 1))^2), near Schlick's but for grazing angles.
+        s = np.sqrt(np.minimum(f0, 1 - 1e-4))
+        eta = (1 + s) / (1 - s)
+        return {"type": "conductor", "eta": {"type": "rgb", "value": eta.tolist()}, "k": {"type": "rgb", "value": [0.0] * 3}}
     if glossy > 0 and getattr(material, "coat", False):
         # Cycles' Principled dielectric: its base under the coat, layered as Cycles layers it
         # (roughplastic reflected 0.60 of a base of 0.8 at roughness 0.5, Cycles 0.81).
-        return cycles_principled.bsdf_dict(material.albedo, material.roughness, float(np.mean(material.specular)))
+        return cycles_principled.bsdf_dict(material.albedo, material.roughness, float(np.mean(material.specular)),
+                                           getattr(material, "multiscatter", False))
     if glossy > 0.01:
         return {"type": "roughplastic", "distribution": "ggx", "alpha": max(alpha, 1e-4),
                 "int_ior": max(material.ior, 1.0 + 1e-3),
                 "diffuse_reflectance": {"type": "rgb", "value": list(material.albedo)}}
     return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(material.albedo)}}
-
-
-def _multiscatter(material, lobe: dict, f0) -> dict:
-    """A rough metal's or Glossy BSDF's lobe, with Cycles' Multiscatter GGX its multiple scattering
-    put back (cycles_multiscatter.py). Its Fresnel's cosine-weighted mean: Schlick's curve from
-    f0, f0 + (1 - f0) / 21; the Glossy BSDF's colour (no Fresnel); 1 for a white mirror's."""
-    if not getattr(material, "multiscatter", False):
-        return lobe
-    f0 = np.asarray(f0, float)
-    f_ss = np.ones(3) if f0.min() >= 1 - 1e-6 else (f0 + (1 - f0) / 21 if material.schlick else f0)
-    alpha = max(material.roughness, 0.0) ** 2
-    return cycles_multiscatter.bsdf_dict(lobe, alpha * material.stretch, alpha / material.stretch, f_ss)
 
 
 def _obj_text(positions, triangles, normals, tangents=None, rotation=0.0):
@@ -119,7 +99,7 @@ def scene_dict(description, max_depth: int = -1, two_sided=(), pairs_only: bool 
     short of it.)"""
     mi = load_mitsuba()
     cycles_principled.register(mi)
-    cycles_multiscatter.register(mi)
+    cycles_glossy.register(mi)
     folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-study-"))
     atexit.register(shutil.rmtree, folder, ignore_errors=True)  # the dict names its files: kept until exit
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}

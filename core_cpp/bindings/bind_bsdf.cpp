@@ -137,25 +137,29 @@ void bind_bsdf(py::module_& m) {
         m, "GgxReflection",
         "GGX reflection; rotation (radians) turns the alpha_x axis from s_u towards s_v about the normal. schlick: "
         "Schlick's Fresnel from f0 (Cycles' metals); off: f0 at every angle (Cycles' Glossy BSDF, its colour). "
-        "multiscatter: the light scattered between microfacets put back, as Cycles' Multiscatter GGX.")
-        .def(py::init([](double ax, double ay, const Array& f0, double rotation, bool schlick, double eta, bool multiscatter) {
+        "multiscatter: the light scattered between microfacets put back, as Cycles' Multiscatter GGX. height_correlated: "
+        "Smith's height-correlated shadowing, as Cycles' (else the separable form, as Mitsuba's roughconductor).")
+        .def(py::init([](double ax, double ay, const Array& f0, double rotation, bool schlick, double eta, bool multiscatter,
+                         bool height_correlated) {
                  return std::make_shared<GgxReflection>(ax, ay, rgb(f0, "GgxReflection: f0"), rotation, schlick, eta,
-                                                        multiscatter);
+                                                        multiscatter, height_correlated);
              }),
              py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("rotation") = 0.0, py::arg("schlick") = true,
-             py::arg("eta") = 0.0, py::arg("multiscatter") = false)
-        .def_property_readonly("multiscatter", &GgxReflection::multiscatter);
+             py::arg("eta") = 0.0, py::arg("multiscatter") = false, py::arg("height_correlated") = false)
+        .def_property_readonly("multiscatter", &GgxReflection::multiscatter)
+        .def_property_readonly("height_correlated", &GgxReflection::height_correlated);
     py::class_<DiffuseGgx, Bsdf, std::shared_ptr<DiffuseGgx>>(
         m, "DiffuseGgx",
         "Lambertian base under a GGX coat: albedo / pi + GGX; layered (Cycles' Principled BSDF): (1 - E(mu_o)) albedo / "
         "pi + GGX, E the coat's directional albedo along the view (energy conserved). multiscatter: the coat's (as "
-        "GgxReflection's).")
-        .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0, bool layered, double eta, bool multiscatter) {
+        "GgxReflection's), height_correlated: the coat's shadowing (as GgxReflection's).")
+        .def(py::init([](const Array& albedo, double ax, double ay, const Array& f0, bool layered, double eta, bool multiscatter,
+                         bool height_correlated) {
                  return std::make_shared<DiffuseGgx>(rgb(albedo, "DiffuseGgx: albedo"), ax, ay, rgb(f0, "DiffuseGgx: f0"), layered,
-                                                     eta, multiscatter);
+                                                     eta, multiscatter, height_correlated);
              }),
              py::arg("albedo"), py::arg("alpha_x"), py::arg("alpha_y"), py::arg("f0"), py::arg("layered") = false,
-             py::arg("eta") = 0.0, py::arg("multiscatter") = false)
+             py::arg("eta") = 0.0, py::arg("multiscatter") = false, py::arg("height_correlated") = false)
         .def_property_readonly("layered", &DiffuseGgx::layered)
         .def_property_readonly("glossy_part", [](const DiffuseGgx& b) { return std::const_pointer_cast<Bsdf>(b.glossy_part()); },
                                "The glossy part S of (38): the coat, less E(mu_o) albedo / pi where layered.");

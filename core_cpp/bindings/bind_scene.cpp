@@ -351,6 +351,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("angular_degree", &SolverSettings::angular_degree)
         .def_readwrite("angular_delta", &SolverSettings::angular_delta)
         .def_readwrite("angular_resolution", &SolverSettings::angular_resolution)
+        .def_readwrite("angular_albedo_tolerance", &SolverSettings::angular_albedo_tolerance)
         .def_readwrite("angular_coeffs_min", &SolverSettings::angular_coeffs_min)
         .def_readwrite("angular_coeffs_max", &SolverSettings::angular_coeffs_max)
         .def_readwrite("emitter_coeffs", &SolverSettings::emitter_coeffs)

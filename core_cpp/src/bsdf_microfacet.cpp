@@ -31,8 +31,9 @@ Vec3 gray(double x) { return {x, x, x}; }
 // ---- GGX reflection ----
 
 GgxReflection::GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation, bool schlick, double eta,
-                             bool multiscatter)
-    : D_{alpha_x, alpha_y}, f0_(f0), cos_(std::cos(rotation)), sin_(std::sin(rotation)), schlick_(schlick), eta_(eta) {
+                             bool multiscatter, bool height_correlated)
+    : D_{alpha_x, alpha_y}, f0_(f0), cos_(std::cos(rotation)), sin_(std::sin(rotation)), schlick_(schlick), eta_(eta),
+      height_correlated_(height_correlated) {
     if (eta != 0 && !(std::isfinite(eta) && eta > 1 && eta <= 10))
         throw std::invalid_argument("GGX Fresnel eta must be in (1, 10], or 0 for Schlick's");
     check_alpha(alpha_x);
@@ -48,7 +49,7 @@ GgxReflection::GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, dou
             const double mu = (k + 0.5) / kNodes;
             f_ss += fresnel(mu) * (2 * mu / kNodes);
         }
-        multiple_ = std::make_shared<MultipleScattering>(alpha_x, alpha_y, f_ss);
+        multiple_ = std::make_shared<MultipleScattering>(alpha_x, alpha_y, height_correlated, f_ss);
     }
 }
 
@@ -56,8 +57,7 @@ Vec3 GgxReflection::eval(const Vec3& wo_local, const Vec3& wi_local) const {
     if (wo_local.z <= 0 || wi_local.z <= 0) return {0, 0, 0};
     const Vec3 wo = to_lobe(wo_local), wi = to_lobe(wi_local);
     const Vec3 h = normalize(wo + wi);
-    const double g = D_.G1(wo, h) * D_.G1(wi, h);
-    const Vec3 f = fresnel(dot(wi, h)) * (D_.D(h) * g / (4 * wo.z * wi.z));
+    const Vec3 f = fresnel(dot(wi, h)) * (D_.D(h) * shadowing(wo, wi, h) / (4 * wo.z * wi.z));
     return multiple_ ? f * multiple_->factor(wo.z) : f;
 }
 
@@ -77,7 +77,7 @@ Vec3 GgxReflection::eval_pdf(const Vec3& wo_local, const Vec3& wi_local, double&
     const double d = D_.D(h), g_o = D_.G1(wo, h), oh = dot(wo, h);
     // visible_pdf(wo, h) / (4 wo.h) = G1(wo, h) D(h) / (4 wo.z), for wo.h > 0.
     if (oh > 0) pdf_out = g_o * d / (4 * wo.z);
-    const Vec3 f = fresnel(dot(wi, h)) * (d * g_o * D_.G1(wi, h) / (4 * wo.z * wi.z));
+    const Vec3 f = fresnel(dot(wi, h)) * (d * shadowing(wo, wi, h) / (4 * wo.z * wi.z));
     return multiple_ ? f * multiple_->factor(wo.z) : f;
 }
 
@@ -145,21 +145,21 @@ double DirectionalAlbedo::operator()(double mu) const {
 
 namespace {
 
-// E of the white isotropic lobe per alpha: every surface of a material (an anisotropic one is
-// made per surface) and the tints of a textured one share it (5 ms to tabulate).
-std::shared_ptr<const DirectionalAlbedo> white_lobe_albedo(double alpha) {
+// E of the white isotropic lobe per alpha and shadowing: every surface of a material (an
+// anisotropic one is made per surface) and the tints of a textured one share it (10 ms to tabulate).
+std::shared_ptr<const DirectionalAlbedo> white_lobe_albedo(double alpha, bool height_correlated) {
     static std::mutex mutex;
-    static std::map<double, std::shared_ptr<const DirectionalAlbedo>> made;
+    static std::map<std::pair<double, bool>, std::shared_ptr<const DirectionalAlbedo>> made;
     std::lock_guard<std::mutex> lock(mutex);
-    auto& e = made[alpha];
-    if (!e) e = std::make_shared<DirectionalAlbedo>(GgxReflection(alpha, alpha, {1, 1, 1}, 0, false));
+    auto& e = made[{alpha, height_correlated}];
+    if (!e) e = std::make_shared<DirectionalAlbedo>(GgxReflection(alpha, alpha, {1, 1, 1}, 0, false, 0, false, height_correlated));
     return e;
 }
 
 }  // namespace
 
-MultipleScattering::MultipleScattering(double alpha_x, double alpha_y, const Vec3& f_ss)
-    : white_(white_lobe_albedo(std::sqrt(alpha_x * alpha_y))) {
+MultipleScattering::MultipleScattering(double alpha_x, double alpha_y, bool height_correlated, const Vec3& f_ss)
+    : white_(white_lobe_albedo(std::sqrt(alpha_x * alpha_y), height_correlated)) {
     // E_avg = 2 int_0^1 E(mu) mu dmu (midpoint rule over the table's linear pieces).
     constexpr int kNodes = 1024;
     double e_avg = 0;
@@ -213,8 +213,9 @@ private:
 }  // namespace
 
 DiffuseGgx::DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0, bool layered, double eta,
-                       bool multiscatter)
-    : albedo_(albedo), coat_(std::make_shared<GgxReflection>(alpha_x, alpha_y, f0, 0.0, true, eta, multiscatter)) {
+                       bool multiscatter, bool height_correlated)
+    : albedo_(albedo),
+      coat_(std::make_shared<GgxReflection>(alpha_x, alpha_y, f0, 0.0, true, eta, multiscatter, height_correlated)) {
     for (int i = 0; i < 3; ++i)
         if (!std::isfinite(albedo[i]) || albedo[i] < 0 || albedo[i] > 1) throw std::invalid_argument("albedo must be in [0, 1]");
     const double d = (albedo.x + albedo.y + albedo.z) / 3, c = (f0.x + f0.y + f0.z) / 3;

@@ -140,8 +140,8 @@ private:
 class MultipleScattering {
 public:
     // E of the isotropic white lobe of alpha sqrt(alpha_x alpha_y) (Cycles reads its table at that
-    // roughness), made once per alpha and shared; f_ss of the lobe's Fresnel.
-    MultipleScattering(double alpha_x, double alpha_y, const Vec3& f_ss);
+    // roughness) and the lobe's shadowing, made once per alpha and shared; f_ss of the lobe's Fresnel.
+    MultipleScattering(double alpha_x, double alpha_y, bool height_correlated, const Vec3& f_ss);
     // The factor on the single-scattering lobe along a view of cosine mu_o.
     Vec3 factor(double mu_o) const;
 
@@ -150,9 +150,10 @@ private:
     Vec3 fms_;
 };
 
-// GGX microfacet reflection (Walter et al. 2007) with separable Smith masking, the model of
+// GGX microfacet reflection (Walter et al. 2007) with Smith's masking and shadowing, the model of
 // Blender's Principled BSDF and Mitsuba 3's roughconductor:
-// rho = F(wi.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o cos theta_i), Schlick's F with f0
+// rho = F(wi.h) D(h) G(wo, wi, h) / (4 cos theta_o cos theta_i), G separable, G1(wo, h) G1(wi, h)
+// (Mitsuba's), or height-correlated (GgxDistribution::G2, Cycles'); Schlick's F with f0
 // (f0 = 1: a perfect mirror's Fresnel), as Cycles' metals (the Principled BSDF's F82 tint with
 // its default white tint); with `schlick` off F is f0 at every angle, as Cycles' Glossy BSDF (its
 // colour times GGX without Fresnel). Either F is affine in f0 (Scene::set_specular_texture).
@@ -163,9 +164,10 @@ class GgxReflection final : public Bsdf {
 public:
     // Fresnel: Schlick's from f0 (schlick), f0 at every angle (not), or with eta > 1 a dielectric's
     // curve remapped to start at f0 (fresnel_dielectric_remapped; schlick is then not read).
-    // multiscatter: the light between microfacets put back (MultipleScattering).
+    // multiscatter: the light between microfacets put back (MultipleScattering); height_correlated:
+    // Cycles' shadowing (else Mitsuba's separable one).
     GgxReflection(double alpha_x, double alpha_y, const Vec3& f0, double rotation = 0, bool schlick = true, double eta = 0,
-                  bool multiscatter = false);
+                  bool multiscatter = false, bool height_correlated = false);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
@@ -175,11 +177,13 @@ public:
     // The multiple scattering keeps its colour (of this lobe's f0): a texture's blend of the lobes
     // at f0 = 1 and 0 stays affine, their multiple scattering that of the texture's mean.
     std::shared_ptr<const Bsdf> with_specular_colour(const Vec3& f0) const override {
-        auto tinted = std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_), schlick_, eta_);
+        auto tinted = std::make_shared<GgxReflection>(D_.ax, D_.ay, f0, std::atan2(sin_, cos_), schlick_, eta_, false,
+                                                      height_correlated_);
         tinted->multiple_ = multiple_;
         return tinted;
     }
     bool multiscatter() const { return bool(multiple_); }
+    bool height_correlated() const { return height_correlated_; }
 
 private:
     Vec3 fresnel(double cos_theta) const {
@@ -189,11 +193,15 @@ private:
     // Local frame <-> the lobe's frame (x along the turned tangent).
     Vec3 to_lobe(const Vec3& w) const { return {cos_ * w.x + sin_ * w.y, cos_ * w.y - sin_ * w.x, w.z}; }
     Vec3 from_lobe(const Vec3& w) const { return {cos_ * w.x - sin_ * w.y, sin_ * w.x + cos_ * w.y, w.z}; }
+    double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const {
+        return height_correlated_ ? D_.G2(wo, wi, h) : D_.G1(wo, h) * D_.G1(wi, h);
+    }
     GgxDistribution D_;
     Vec3 f0_;
     double cos_ = 1, sin_ = 0;
     bool schlick_ = true;
     double eta_ = 0;
+    bool height_correlated_ = false;
     std::shared_ptr<const MultipleScattering> multiple_;  // null: single scattering
 };
 
@@ -207,7 +215,7 @@ struct CoatedBase {
     Vec3 texel(const Vec3& t, double mu) const { return t + (albedo - t) * (*share)(mu); }
 };
 
-// A Lambertian base under a GGX coat (GgxReflection, with multiscatter its multiple scattering),
+// A Lambertian base under a GGX coat (GgxReflection, with its multiple scattering and shadowing),
 // the plastic of Blender's Principled BSDF without metal.
 // Uncoupled (layered false): rho = albedo / pi + GGX(alpha_x, alpha_y, f0); at grazing angles the
 // coat's Fresnel rises while the base stays, so the albedo can pass 1 there. Layered (Cycles'
@@ -221,7 +229,7 @@ class DiffuseGgx final : public Bsdf {
 public:
     // eta: the coat's Fresnel (GgxReflection's; 0: Schlick's from f0).
     DiffuseGgx(const Vec3& albedo, double alpha_x, double alpha_y, const Vec3& f0, bool layered = false, double eta = 0,
-               bool multiscatter = false);
+               bool multiscatter = false, bool height_correlated = false);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     Vec3 eval_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;

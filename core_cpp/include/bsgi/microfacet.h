@@ -69,6 +69,13 @@ struct GgxDistribution {
         if (dot(w, m) * w.z * m.z <= 0) return 0;
         return 1.0 / (1 + lambda(w));
     }
+    // Masking and shadowing together in Smith's height-correlated form (Heitz 2014; Cycles'):
+    // 1 / (1 + Lambda(wo) + Lambda(wi)), zero where either direction sees m's back. The
+    // separable product G1(wo, m) G1(wi, m) (Mitsuba's) shadows more at grazing angles.
+    double G2(const Vec3& wo, const Vec3& wi, const Vec3& m) const {
+        if (dot(wo, m) * wo.z * m.z <= 0 || dot(wi, m) * wi.z * m.z <= 0) return 0;
+        return 1.0 / (1 + lambda(wo) + lambda(wi));
+    }
     // Density of visible normals seen from w (w.z > 0, m.z > 0): G1(w, m) <w, m> D(m) / w.z.
     double visible_pdf(const Vec3& w, const Vec3& m) const {
         const double wm = dot(w, m);

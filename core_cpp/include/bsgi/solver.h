@@ -92,6 +92,10 @@ struct SolverSettings {
     double angular_resolution = 3.0;
     int angular_coeffs_min = 6;
     int angular_coeffs_max = 24;
+    // A wide lobe (0.5 rad and wider) gets at least the angular coefficients whose fit of its
+    // directional albedo over the disc stays within this fraction of its largest value (its
+    // light's change with the view, which its width does not say); 0: off.
+    double angular_albedo_tolerance = 0.01;
 
     // Surface integral (8)/(35) over emitters: B-spline quadrature (11) with emitter_coeffs
     // coefficients per direction on each cell of the emitter's parameter domain; a cell wider
