@@ -289,9 +289,15 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
                               s.angular_coeffs_max);
             from_width = p.na;
             if (s.angular_albedo_tolerance > 0 && !p.bsdf->transmits() && p.bsdf->lobe_width() >= kWideLobe &&
-                p.na < s.angular_coeffs_max)
-                p.na = view_dependence_count(*p.bsdf, HemisphereMap::for_max_angle(s.angular_delta), s.angular_degree, p.na,
-                                             s.angular_coeffs_max, s.angular_albedo_tolerance);
+                p.na < s.angular_coeffs_max) {
+                // A lobe with a colour (Fresnel's f0) is a blend of its lobes at f0 = 1 and 0: the
+                // count that fits both fits every colour, the same for a texture's blend and for
+                // each of its texels' own colour.
+                const HemisphereMap map = HemisphereMap::for_max_angle(s.angular_delta);
+                const auto white = p.bsdf->with_specular_colour({1, 1, 1}), black = p.bsdf->with_specular_colour({0, 0, 0});
+                for (const Bsdf* b : white ? std::vector<const Bsdf*>{white.get(), black.get()} : std::vector<const Bsdf*>{p.bsdf.get()})
+                    p.na = view_dependence_count(*b, map, s.angular_degree, p.na, s.angular_coeffs_max, s.angular_albedo_tolerance);
+            }
         }
         why << ", " << p.na << " x " << p.na << " angular (lobe width " << p.bsdf->lobe_width() << " rad"
             << (p.na > from_width ? "; its light's change with the view" : "") << ")";

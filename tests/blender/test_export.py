@@ -100,12 +100,12 @@ def test_textured_glass_is_named_in_warnings_textured_glossy_is_solved(context):
     assert len(result.warnings) == len(set(result.warnings))
 
 
-MULTISCATTER = "Multiscatter GGX is solved as single-scattering"  # the warning's words
+MULTISCATTER = "Multiscatter GGX glass is solved as single-scattering"  # the warning's words
 
 
 def solver_material(material, multiscatter_named=False):
-    """(solver material, warnings); the warnings that name Blender's default Multiscatter GGX
-    left out unless asked for (test_multiscatter_ggx_is_named_where_the_lobe_is_rough)."""
+    """(solver material, warnings); the warnings that name a glass's Multiscatter GGX left out
+    unless asked for (test_multiscatter_ggx_is_solved_and_named_only_on_rough_glass)."""
     warnings = []
     described = materials.describe_material(material, warnings)
     got = materials.solver_material(material, described, warnings)
@@ -127,7 +127,8 @@ def test_metal_becomes_ggx_with_base_colour_f0(context):
     assert got.kind == "ggx" and got.bsdf.name == "ggx"
     assert got.alpha == pytest.approx(0.25)  # alpha = roughness^2, as Blender
     assert got.f0 == pytest.approx(base)
-    assert_same_bsdf(got.bsdf, bsgi.GgxReflection(0.25, 0.25, base))
+    # Cycles' lobe: its height-correlated shadowing, and the default Multiscatter GGX.
+    assert_same_bsdf(got.bsdf, bsgi.GgxReflection(0.25, 0.25, base, multiscatter=True, height_correlated=True))
     assert not warnings
 
 
@@ -338,24 +339,29 @@ def test_a_metals_specular_tint_is_named():
     assert not any("specular tint" in w for w in describe(dielectric)[1])
 
 
-def test_multiscatter_ggx_is_named_where_the_lobe_is_rough(context):
-    # Cycles' default distribution keeps the light scattered between microfacets; the solver's
-    # single-scattering GGX does not: named for rough metals and glossy BSDFs, not for smooth
-    # ones nor for a dielectric's faint specular layer.
-    def named(material):
-        return any(f"material '{material.name}'" in w and MULTISCATTER in w
-                   for w in solver_material(material, multiscatter_named=True)[1])
+def test_multiscatter_ggx_is_solved_and_named_only_on_rough_glass(context):
+    # Cycles' default distribution keeps the light scattered between microfacets: the solver's
+    # lobes keep it too (bsgi.GgxReflection multiscatter) for metals, Glossy BSDFs and coats,
+    # and every lobe shadows as Cycles' (height-correlated); a rough glass's is not solved, named.
+    def solved(material):
+        got, warnings = solver_material(material, multiscatter_named=True)
+        return got, any(f"material '{material.name}'" in w and MULTISCATTER in w for w in warnings)
 
     rough_metal = principled("Rough metal", **{"Metallic": 1.0, "Roughness": 0.6})
     assert next(n for n in rough_metal.node_tree.nodes if n.type == "BSDF_PRINCIPLED").distribution == "MULTI_GGX"
-    assert named(rough_metal)
-    assert not named(principled("Smooth metal", **{"Metallic": 1.0, "Roughness": 0.2}))
-    assert not named(principled("Rough plastic", **{"Metallic": 0.0, "Roughness": 0.6}))
+    got, named = solved(rough_metal)
+    assert got.bsdf.multiscatter and got.bsdf.height_correlated and not named
     m, node = shader_material("Rough glossy", "ShaderNodeBsdfGlossy", Roughness=0.5)
     node.distribution = "MULTI_GGX"
-    assert named(m)
+    assert solved(m)[0].bsdf.multiscatter
     node.distribution = "GGX"
-    assert not named(m)
+    got, named = solved(m)
+    assert not got.bsdf.multiscatter and got.bsdf.height_correlated and not named
+    glass, node = shader_material("Frosted", "ShaderNodeBsdfGlass", Roughness=0.5)
+    node.distribution = "MULTI_GGX"
+    assert solved(glass)[1]
+    node.inputs["Roughness"].default_value = 0.1
+    assert not solved(glass)[1]
 
 
 def test_mix_of_diffuse_and_glossy_names_what_is_dropped(context):
@@ -418,7 +424,8 @@ def test_principled_anisotropy_becomes_anisotropic_ggx_as_cycles_sets_it_up(cont
     assert got.kind == "ggx"
     assert (got.alpha_x, got.alpha_y) == pytest.approx((0.25 / aspect, 0.25 * aspect), rel=1e-6)
     assert got.rotation == pytest.approx(math.pi / 2, rel=1e-6)
-    assert_same_bsdf(got.bsdf, bsgi.GgxReflection(0.25 / aspect, 0.25 * aspect, base, rotation=math.pi / 2))
+    assert_same_bsdf(got.bsdf, bsgi.GgxReflection(0.25 / aspect, 0.25 * aspect, base, rotation=math.pi / 2,
+                                                  multiscatter=True, height_correlated=True))
     assert not warnings
 
 
