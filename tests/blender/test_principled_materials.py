@@ -85,6 +85,17 @@ def floor_and_wall_under_a_lamp(context, material=principled):
     context.scene.camera = camera
 
 
+def baked_against_cycles(context, tmp_path, reference, label):
+    """Solves and bakes the scene (its preset) and renders the bake: (mean per-pixel relative
+    difference from the Cycles reference over its lit pixels, their count, the solve's report)."""
+    report = pipeline.solve_and_bake(context)
+    baked = render_exr(context.scene, tmp_path / f"{label}.exr", samples=16, bounces=0)
+    rel, lit = lit_relative_difference(baked, reference, 0.02)
+    print(f"\n{label}: mean relative difference {rel.mean():.4f} over {lit.sum()} lit pixels, "
+          f"90th percentile {np.percentile(rel, 90):.4f}; solve {report['solve_seconds']:.1f} s")
+    return rel.mean(), lit.sum(), report
+
+
 @pytest.mark.slow
 def test_default_principled_floor_baked_matches_cycles(context, tmp_path):
     # At the preview preset against 1,024 samples of 12 bounces, mean per-pixel difference over
@@ -96,20 +107,11 @@ def test_default_principled_floor_baked_matches_cycles(context, tmp_path):
     floor_and_wall_under_a_lamp(context)
     scene.bsgi.preset = "PREVIEW"
     reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=12)
-
-    def difference(label):
-        report = pipeline.solve_and_bake(context)
-        baked = render_exr(scene, tmp_path / f"{label}.exr", samples=16, bounces=0)
-        rel, lit = lit_relative_difference(baked, reference, 0.02)
-        print(f"\n{label}: mean relative difference {rel.mean():.4f} over {lit.sum()} lit pixels, "
-              f"90th percentile {np.percentile(rel, 90):.4f}")
-        return rel.mean(), lit.sum(), report
-
-    layered, lit, report = difference("layered coat")
+    layered, lit, report = baked_against_cycles(context, tmp_path, reference, "layered coat")
     record(scene_default_principled_floor_wall_seconds=report["solve_seconds"] + report["bake_seconds"],
            scene_default_principled_floor_wall_rel_diff_vs_cycles=layered)
     scene.bsgi.coats = "FOLDED"
-    folded, _, _ = difference("coat folded into the albedo")
+    folded, _, _ = baked_against_cycles(context, tmp_path, reference, "coat folded into the albedo")
     assert lit > 0.8 * 96 * 96
     assert layered < 0.017
     assert folded > 3 * layered
@@ -138,22 +140,13 @@ def test_textured_default_principled_floor_baked_matches_cycles(context, tmp_pat
     floor_and_wall_under_a_lamp(context, material=None)
     scene.bsgi.preset = "PREVIEW"
     reference = render_exr(scene, tmp_path / "reference.exr", samples=1024, bounces=12)
-
-    def difference(label):
-        report = pipeline.solve_and_bake(context)
-        assert bpy.data.objects["Floor"].material_slots[0].material.name == "BSGI Floor slot 0"
-        baked = render_exr(scene, tmp_path / f"{label}.exr", samples=16, bounces=0)
-        rel, lit = lit_relative_difference(baked, reference, 0.02)
-        print(f"\n{label}: mean relative difference {rel.mean():.4f} over {lit.sum()} lit pixels, "
-              f"90th percentile {np.percentile(rel, 90):.4f}; solve {report['solve_seconds']:.1f} s")
-        return rel.mean(), lit.sum(), report
-
-    layered, lit, report = difference("textured, layered coat")
+    layered, lit, report = baked_against_cycles(context, tmp_path, reference, "textured, layered coat")
+    assert bpy.data.objects["Floor"].material_slots[0].material.name == "BSGI Floor slot 0"
     record(scene_textured_principled_floor_wall_seconds=report["solve_seconds"] + report["bake_seconds"],
            scene_textured_principled_floor_wall_rel_diff_vs_cycles=layered)
     assert not any("Checker" in w for w in report["warnings"]), report["warnings"]
     scene.bsgi.coats = "FOLDED"
-    folded, _, report = difference("textured, coat folded into the albedo")
+    folded, _, _ = baked_against_cycles(context, tmp_path, reference, "textured, coat folded into the albedo")
     assert lit > 0.8 * 96 * 96
     assert layered < 0.025
     assert folded > 3 * layered

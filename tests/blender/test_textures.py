@@ -404,6 +404,20 @@ def test_shown_colour_is_the_solved_albedo_under_a_specular_layer(context):
     assert err <= 0.0016  # measured 8e-4
 
 
+def floor_baked_from_its_nodes(context, material):
+    """The 2 x 2 floor of the material under an area light (no world), solved at draft with four
+    texels per face side (one per checker square: the baked texture would blur the squares) and
+    baked; its slot shows the material's own colour nodes."""
+    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material)
+    scenes.add_area_light(location=(0, 0, 1.5), size=1.0, energy=60.0).visible_camera = False
+    context.scene.world = None
+    context.scene.bsgi.preset = "DRAFT"
+    context.scene.bsgi.texture_texels = 4
+    pipeline.solve_and_bake(context)
+    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    return floor
+
+
 def test_bake_shows_a_coated_base_colours_own_nodes_layered(context, tmp_path):
     # Blender's default Principled BSDF (its coat's highlight shows: a layered coat) with the
     # checker on its Base Color, four texels per face side. The solve's albedo texture is the
@@ -419,13 +433,7 @@ def test_bake_shows_a_coated_base_colours_own_nodes_layered(context, tmp_path):
         m.use_nodes = True
     bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     m.node_tree.links.new(checker(m.node_tree).outputs["Color"], bsdf.inputs["Base Color"])
-    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
-    scenes.add_area_light(location=(0, 0, 1.5), size=1.0, energy=60.0).visible_camera = False
-    context.scene.world = None
-    context.scene.bsgi.preset = "DRAFT"
-    context.scene.bsgi.texture_texels = 4
-    pipeline.solve_and_bake(context)
-    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    floor = floor_baked_from_its_nodes(context, m)
     radiance = bake.stored_faces(floor)[0][1][0]
     assert radiance.kind == "decomposed" and radiance.coat_share is not None
     centres = (np.arange(4) + 0.5) / 4
@@ -831,13 +839,7 @@ def test_bake_shows_a_glossy_colours_own_nodes_blending_its_two_splines(context,
     material = checker_metal("Checker glossy", shader)
     if shader == "principled":
         next(n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Metallic"].default_value = 0.9
-    floor = add_uv_quad("Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material)
-    scenes.add_area_light(location=(0, 0, 1.5), size=1.0, energy=60.0).visible_camera = False
-    context.scene.world = None
-    context.scene.bsgi.preset = "DRAFT"
-    context.scene.bsgi.texture_texels = 4
-    pipeline.solve_and_bake(context)
-    assert floor.material_slots[0].material.name == "BSGI Floor slot 0"
+    floor = floor_baked_from_its_nodes(context, material)
     image, points = render_floor_from_above(context, tmp_path / "top.exr", samples=4)
     uv = np.column_stack([(points[:, 0] + 1) / 2, (points[:, 1] + 1) / 2])
     radiance = bake.stored_faces(floor)[0][1][0]

@@ -7,20 +7,10 @@ import numpy as np
 import pytest
 
 import bsgi
+from closed_forms import directional_albedo
 
 F0 = 0.04  # IOR 1.5
 ETA = 1.5
-
-
-def directional_albedo(bsdf, mu, n=400):
-    """Integral of rho cos over the incoming hemisphere, light leaving at cos theta = mu: a
-    midpoint rule in cos^2 theta and phi (cosine-weighted), independent of the core's tables."""
-    g = (np.arange(n) + 0.5) / n
-    c2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n), indexing="ij")
-    cos_i, sin_i = np.sqrt(c2).ravel(), np.sqrt(1 - c2).ravel()
-    wi = np.stack([sin_i * np.cos(phi.ravel()), sin_i * np.sin(phi.ravel()), cos_i], 1)
-    wo = np.ascontiguousarray(np.broadcast_to([np.sqrt(1 - mu * mu), 0.0, mu], wi.shape))
-    return np.pi * bsdf.eval(wo, wi).mean(axis=0)
 
 
 def fresnel_equations(cos_i, eta):

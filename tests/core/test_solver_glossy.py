@@ -1,7 +1,6 @@
 """Glossy (4D) and transmitting surfaces through the whole solve, against Mitsuba 3's path tracer
 (independent), and the per-surface choice of representation (solver.cpp, gather.cpp)."""
 import time
-import pathlib
 
 import numpy as np
 import pytest
@@ -277,12 +276,9 @@ def test_a_rough_lobes_change_with_the_view_gets_angular_knots(preset, tolerance
     # while its lobe is as wide as it gets: the width's 7 x 7 (preview) angular coefficients
     # left it 7% low at 45 degrees and 10% high at 75; the albedo's own fit within the preset's
     # angular_albedo_tolerance (1%, 0.5%) chooses more. Against the BSDF's albedo by quadrature
-    # (test_multiple_scattering's rule). Measured: preview 7 -> 24 coefficients, worst 9.6% -> 1.0%
+    # (closed_forms' rule). Measured: preview 7 -> 24 coefficients, worst 9.6% -> 1.0%
     # (its error sits at 75-85 degrees); final 8 -> 24, 8.4% -> 1.0%.
-    import sys
-
-    sys.path.insert(0, str(pathlib.Path(__file__).parent))
-    from test_multiple_scattering import directional_albedo
+    from closed_forms import directional_albedo
 
     floor = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
     bsdf = bsgi.GgxReflection(1.0, 1.0, [0.8, 0.5, 0.2], height_correlated=True)

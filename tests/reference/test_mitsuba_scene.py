@@ -152,7 +152,7 @@ def test_glossy_plugin_is_the_solvers_lobe_as_the_add_on_makes_it():
     mi = load_mitsuba()
     cycles_glossy.register(mi)
     sys.path.insert(0, str(ROOT / "tests" / "core"))
-    from test_multiple_scattering import directional_albedo
+    from closed_forms import directional_albedo
 
     copper = np.array([0.95, 0.64, 0.54])
     cases = {"white": ([1, 1, 1], False, 0.36, 0.36), "copper": (copper, True, 0.36, 0.36),
