@@ -136,18 +136,31 @@ double lobe_in_disc(const Bsdf& b) { return std::max(b.lobe_width(), 1e-3) / std
 
 // The view-dependence of a wide lobe's light asks for angular knots its width does not: under a
 // uniform sky a roughness-1 metal with Cycles' shadowing reflects 0.31 of it along the normal and
-// 0.79 near grazing, and 6 x 6 angular coefficients were 5% low at 45 degrees, 8% high at 75.
+// 0.79 near grazing, and 7 x 7 angular coefficients were 7% low at 45 degrees, 10% high at 75.
 // The count: the fewest from `start` whose fit of the BSDF's directional albedo over the disc
-// (Schoenberg's, sharpened as the solve sharpens it) stays within `tolerance` of the albedo's
-// largest value there, per channel. The albedo by a cosine-weighted midpoint rule (wide lobes
-// only: 32 x 64 nodes integrate them to about 1e-4) at 33 cosines, read linearly between them.
+// (Schoenberg's, sharpened as the solve sharpens it) stays within `tolerance` of `scale`, per
+// channel. The albedo by a cosine-weighted midpoint rule (wide lobes only: 32 x 64 nodes
+// integrate them to about 1e-4) at 33 cosines, read linearly between them.
 constexpr double kWideLobe = 0.5;  // radians: narrower lobes' widths ask for more knots than this would
-int view_dependence_count(const Bsdf& b, const HemisphereMap& map, int degree, int start, int most, double tolerance) {
-    constexpr int kCosines = 33, kTheta = 32, kPhi = 64;
-    std::vector<Vec3> albedo(kCosines);
+struct AlbedoCurve {
+    static constexpr int kCosines = 33;  // at mu = (k / (n - 1))^2
+    std::vector<Vec3> values;
     double largest = 0;
-    for (int k = 0; k < kCosines; ++k) {
-        const double x = double(k) / (kCosines - 1), mu = std::max(x * x, 1e-3);
+    Vec3 at(const HemisphereMap& map, double alpha, double beta) const {
+        double d[3];
+        map.to_direction(alpha, beta, d);
+        const double x = std::sqrt(std::clamp(d[2], 0.0, 1.0)) * (kCosines - 1);
+        const int k = std::min(int(x), kCosines - 2);
+        return values[size_t(k)] + (values[size_t(k) + 1] - values[size_t(k)]) * (x - k);
+    }
+};
+
+AlbedoCurve albedo_curve(const Bsdf& b) {
+    constexpr int kTheta = 32, kPhi = 64;
+    AlbedoCurve curve;
+    curve.values.resize(AlbedoCurve::kCosines);
+    for (int k = 0; k < AlbedoCurve::kCosines; ++k) {
+        const double x = double(k) / (AlbedoCurve::kCosines - 1), mu = std::max(x * x, 1e-3);
         const Vec3 wo{std::sqrt(1 - mu * mu), 0, mu};
         Vec3 sum{0, 0, 0};
         for (int i = 0; i < kTheta; ++i) {
@@ -157,17 +170,15 @@ int view_dependence_count(const Bsdf& b, const HemisphereMap& map, int degree, i
                 sum += b.eval(wo, {sn * std::cos(phi), sn * std::sin(phi), c});
             }
         }
-        albedo[size_t(k)] = sum * (kPiD / (kTheta * kPhi));
-        largest = std::max(largest, max_component(albedo[size_t(k)]));
+        curve.values[size_t(k)] = sum * (kPiD / (kTheta * kPhi));
+        curve.largest = std::max(curve.largest, max_component(curve.values[size_t(k)]));
     }
-    if (!(largest > 0)) return start;
-    auto albedo_at = [&](double alpha, double beta) {
-        double d[3];
-        map.to_direction(alpha, beta, d);
-        const double x = std::sqrt(std::clamp(d[2], 0.0, 1.0)) * (kCosines - 1);
-        const int k = std::min(int(x), kCosines - 2);
-        return albedo[size_t(k)] + (albedo[size_t(k) + 1] - albedo[size_t(k)]) * (x - k);
-    };
+    return curve;
+}
+
+int view_dependence_count(const AlbedoCurve& curve, double lobe, const HemisphereMap& map, int degree, int start, int most,
+                          double tolerance, double scale) {
+    if (!(scale > 0)) return start;
     const double R = map.radius();
     for (int n = start; n < most; ++n) {
         const KnotVector knots = KnotVector::clamped_uniform(n, degree, -R, R);
@@ -176,11 +187,11 @@ int view_dependence_count(const Bsdf& b, const HemisphereMap& map, int degree, i
         std::vector<double>& c = fit.coeffs();
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
-                const Vec3 a = albedo_at(nodes[size_t(i)], nodes[size_t(j)]);
+                const Vec3 a = curve.at(map, nodes[size_t(i)], nodes[size_t(j)]);
                 double* out = &c[3 * (size_t(i) * n + j)];
                 out[0] = a.x, out[1] = a.y, out[2] = a.z;
             }
-        if ((n - degree) * lobe_in_disc(b) >= 2 * 2 * R)  // as lobe_resolved: the solve sharpens it then
+        if ((n - degree) * lobe >= 2 * 2 * R)  // as lobe_resolved: the solve sharpens it then
             for (int axis = 0; axis < 2; ++axis) sharpen_samples(fit, axis);
         double worst = 0;
         constexpr int kChecks = 25;
@@ -190,8 +201,8 @@ int view_dependence_count(const Bsdf& b, const HemisphereMap& map, int degree, i
                 if (x[0] * x[0] + x[1] * x[1] > R * R) continue;
                 double got[3];
                 fit.evaluate(x, got);
-                const Vec3 want = albedo_at(x[0], x[1]);
-                for (int ch = 0; ch < 3; ++ch) worst = std::max(worst, std::abs(got[ch] - want[ch]) / largest);
+                const Vec3 want = curve.at(map, x[0], x[1]);
+                for (int ch = 0; ch < 3; ++ch) worst = std::max(worst, std::abs(got[ch] - want[ch]) / scale);
             }
         if (worst <= tolerance) return n;
     }
@@ -290,13 +301,19 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
             from_width = p.na;
             if (s.angular_albedo_tolerance > 0 && !p.bsdf->transmits() && p.bsdf->lobe_width() >= kWideLobe &&
                 p.na < s.angular_coeffs_max) {
-                // A lobe with a colour (Fresnel's f0) is a blend of its lobes at f0 = 1 and 0: the
-                // count that fits both fits every colour, the same for a texture's blend and for
-                // each of its texels' own colour.
+                // A lobe with a colour (Fresnel's f0) is a blend T W + (1 - T) B of its lobes at
+                // f0 = 1 and 0: the count that fits both within the tolerance of W's light fits
+                // every colour within it, the same count for a texture's blend and for each of
+                // its texels' own colour.
                 const HemisphereMap map = HemisphereMap::for_max_angle(s.angular_delta);
                 const auto white = p.bsdf->with_specular_colour({1, 1, 1}), black = p.bsdf->with_specular_colour({0, 0, 0});
-                for (const Bsdf* b : white ? std::vector<const Bsdf*>{white.get(), black.get()} : std::vector<const Bsdf*>{p.bsdf.get()})
-                    p.na = view_dependence_count(*b, map, s.angular_degree, p.na, s.angular_coeffs_max, s.angular_albedo_tolerance);
+                const AlbedoCurve own = albedo_curve(white ? *white : *p.bsdf);
+                auto count = [&](const AlbedoCurve& curve) {
+                    return view_dependence_count(curve, lobe, map, s.angular_degree, p.na, s.angular_coeffs_max,
+                                                 s.angular_albedo_tolerance, own.largest);
+                };
+                p.na = count(own);
+                if (black) p.na = count(albedo_curve(*black));
             }
         }
         why << ", " << p.na << " x " << p.na << " angular (lobe width " << p.bsdf->lobe_width() << " rad"
