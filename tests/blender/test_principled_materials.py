@@ -100,7 +100,8 @@ def baked_against_cycles(context, tmp_path, reference, label):
 def test_default_principled_floor_baked_matches_cycles(context, tmp_path):
     # At the preview preset against 1,024 samples of 12 bounces, mean per-pixel difference over
     # the lit pixels (the floor and wall, the lamp's highlight on the floor seen from the camera):
-    # measured 0.87% with the layered coat, 8.0% with the coat folded into the albedo (the
+    # measured 0.83% with the layered coat (0.87% before Cycles' shadowing and multiple
+    # scattering on the coat, 7 December), 8.0% with the coat folded into the albedo (the
     # highlight lost, the base too bright where the coat takes its share); 1.4% with Schlick's
     # Fresnel in place of the dielectric's. A Diffuse BSDF of the same colours: 0.41%.
     scene = context.scene
@@ -121,10 +122,10 @@ def test_default_principled_floor_baked_matches_cycles(context, tmp_path):
 def test_textured_default_principled_floor_baked_matches_cycles(context, tmp_path):
     # The scene above with a Checker node (light grey and brick red) on the floor's and the
     # wall's Base Color: the coat layered over the textured base (each texel under it, the bake
-    # blending the Checker node itself) against Cycles, as above. Measured: 1.34% layered (the
-    # red squares' dark green and blue under the coat: what Cycles' height-correlated shadowing
-    # and multiscatter GGX add, see below), 9.3% with the coat folded (how textured coats were
-    # solved before).
+    # blending the Checker node itself) against Cycles, as above. Measured: 1.31% layered (1.34%
+    # before Cycles' shadowing and multiple scattering on the coat, 7 December; most of it on the
+    # red squares, whose green and blue are dark under the coat), 9.4% with the coat folded (how
+    # textured coats were solved before).
     from test_textures import add_uv_quad, checker
 
     scene = context.scene
