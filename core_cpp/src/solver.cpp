@@ -289,32 +289,28 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     if (from_size && !ss.options.spatial_coeffs)
         why << (detail[0] || detail[1] ? " (from its size and its light's detail)" : " (from its size)");
     if (p.kind != Representation::Diffuse) {
-        int from_width = 0;
-        if (ss.options.angular_coeffs) {
-            p.na = std::max(ss.options.angular_coeffs, s.angular_degree + 1);
-            from_width = p.na;
-        } else {
-            const double lobe = lobe_in_disc(*p.bsdf);
-            const double R = std::sqrt(1 - std::sin(s.angular_delta));
-            p.na = std::clamp(int(std::ceil(s.angular_resolution * 2 * R / lobe)) + s.angular_degree, s.angular_coeffs_min,
-                              s.angular_coeffs_max);
-            from_width = p.na;
-            if (s.angular_albedo_tolerance > 0 && !p.bsdf->transmits() && p.bsdf->lobe_width() >= kWideLobe &&
-                p.na < s.angular_coeffs_max) {
-                // A lobe with a colour (Fresnel's f0) is a blend T W + (1 - T) B of its lobes at
-                // f0 = 1 and 0: the count that fits both within the tolerance of W's light fits
-                // every colour within it, the same count for a texture's blend and for each of
-                // its texels' own colour.
-                const HemisphereMap map = HemisphereMap::for_max_angle(s.angular_delta);
-                const auto white = p.bsdf->with_specular_colour({1, 1, 1}), black = p.bsdf->with_specular_colour({0, 0, 0});
-                const AlbedoCurve own = albedo_curve(white ? *white : *p.bsdf);
-                auto count = [&](const AlbedoCurve& curve) {
-                    return view_dependence_count(curve, lobe, map, s.angular_degree, p.na, s.angular_coeffs_max,
-                                                 s.angular_albedo_tolerance, own.largest);
-                };
-                p.na = count(own);
-                if (black) p.na = count(albedo_curve(*black));
-            }
+        const double lobe = lobe_in_disc(*p.bsdf);
+        const double R = std::sqrt(1 - std::sin(s.angular_delta));
+        p.na = ss.options.angular_coeffs
+                   ? std::max(ss.options.angular_coeffs, s.angular_degree + 1)
+                   : std::clamp(int(std::ceil(s.angular_resolution * 2 * R / lobe)) + s.angular_degree,
+                                s.angular_coeffs_min, s.angular_coeffs_max);
+        const int from_width = p.na;
+        if (!ss.options.angular_coeffs && s.angular_albedo_tolerance > 0 && !p.bsdf->transmits() &&
+            p.bsdf->lobe_width() >= kWideLobe && p.na < s.angular_coeffs_max) {
+            // A lobe with a colour (Fresnel's f0) is a blend T W + (1 - T) B of its lobes at
+            // f0 = 1 and 0: the count that fits both within the tolerance of W's light fits
+            // every colour within it, the same count for a texture's blend and for each of
+            // its texels' own colour.
+            const HemisphereMap map = HemisphereMap::for_max_angle(s.angular_delta);
+            const auto white = p.bsdf->with_specular_colour({1, 1, 1}), black = p.bsdf->with_specular_colour({0, 0, 0});
+            const AlbedoCurve own = albedo_curve(white ? *white : *p.bsdf);
+            auto count = [&](const AlbedoCurve& curve) {
+                return view_dependence_count(curve, lobe, map, s.angular_degree, p.na, s.angular_coeffs_max,
+                                             s.angular_albedo_tolerance, own.largest);
+            };
+            p.na = count(own);
+            if (black) p.na = count(albedo_curve(*black));
         }
         why << ", " << p.na << " x " << p.na << " angular (lobe width " << p.bsdf->lobe_width() << " rad"
             << (p.na > from_width ? "; its light's change with the view" : "") << ")";
