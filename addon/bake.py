@@ -20,7 +20,7 @@ import bsgi
 from bsgi.split import Band, SplitRadiance
 
 from . import charts, error_view, geometry, textures, view_radiance
-from .materials import surface_options, user_slots
+from .materials import solved_diffuse, user_slots
 from .user_materials import PROP_SLOTS, PROP_SPLINE_INDICES, UV_NAME, is_baked, user_spline_material_index
 
 PROP_ADDED_SLOT = "bsgi_added_slot"
@@ -467,7 +467,7 @@ def _detail_slots(obj, faces):
     if len(face_slots) != len(faces):
         return {}, []
     sources = {}
-    folded = surface_options(obj)["representation"] == "diffuse"
+    folded = solved_diffuse(obj)
     for k, material in enumerate(slots):
         mine = [r for (_, radiances), slot in zip(faces, face_slots) if slot == k for r in radiances]
         source = textures.colour_source(material, folded)

@@ -587,6 +587,12 @@ def surface_options(obj) -> dict:
             "angular_coeffs": object_setting(obj, "angular_coeffs")}
 
 
+def solved_diffuse(obj) -> bool:
+    """Whether the object is set to a diffuse representation: its layered coats are then folded
+    (SolverMaterial.folded_albedo), and so is the albedo texture of a textured one."""
+    return surface_options(obj)["representation"] == "diffuse"
+
+
 def user_slots(obj) -> list:
     """The user's material per slot (at least one slot, None for empty)."""
     # The evaluated object's slots otherwise: a geometry-nodes instance's materials come with its

@@ -22,7 +22,7 @@ import numpy as np
 
 from .errors import ExportError
 from .materials import (AVERAGED_INPUTS, active_output, describe_material, dielectric_f0, linked_node, socket_value,
-                        solver_material, surface_options, user_slots)
+                        solved_diffuse, solver_material, user_slots)
 
 BAKE_UV = "BSGI Texture Bake"
 NURBS_UV = "UVMap"  # Blender's UV map of a NURBS surface's mesh: the normalized (u, v)
@@ -102,7 +102,7 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
             if any(getattr(m, f"{which}_textured") for m in materials):
                 pixels = _bake(copy, mesh, layout, pass_type)
                 _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings,
-                              folded=surface_options(obj)["representation"] == "diffuse")
+                              folded=solved_diffuse(obj))
         return layout.width * layout.height
 
 
