@@ -282,11 +282,6 @@ def _warn_tint(colour, node, material, warnings):
                         f"({', '.join(f'{c:.2f}' for c in colour)}) is not solved; the glass is solved clear")
 
 
-# Below this roughness single scattering keeps nearly all of a GGX lobe's energy (its loss grows
-# about as the roughness squared): a glass's Multiscatter GGX (not solved) is then not worth a warning.
-MULTISCATTER_ROUGHNESS = 0.3
-
-
 def _warn_ignored_inputs(node, material, warnings):
     """Inputs that change how a surface looks but that the solve does not model, named as what
     the user made them (a normal map, a bump, a transparency mask)."""
@@ -375,7 +370,7 @@ class SolverMaterial:
     rotation: float = 0.0
     f0: tuple = (0.0, 0.0, 0.0)
     schlick: bool = True  # "ggx": Schlick's Fresnel from f0, or f0 at every angle (SurfaceMaterial.schlick)
-    multiscatter: bool = False  # "ggx", "diffuse_ggx": the lobe's multiple scattering (SurfaceMaterial.multiscatter)
+    multiscatter: bool = False  # the lobe's multiple scattering (SurfaceMaterial.multiscatter)
     eta: float = 1.0
     bsdf: object = None  # bsgi.Bsdf, None for Lambert (the scene then uses albedo)
     # Node-driven colour of a Lambertian material and node-driven emission: baked by textures.py
@@ -453,16 +448,15 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         if diffuse + glossy > 0.05:
             warnings.append(f"material '{name}': solved as rough glass; its diffuse and metallic parts are dropped")
         eta = max(described.ior, 1.0 + 1e-3)
-        if described.multiscatter and described.roughness >= MULTISCATTER_ROUGHNESS:
-            # Cycles puts back the light a rough glass's microfacets scatter more than once (up to a
-            # few percent at IOR 1.5); the solver's rough dielectric loses it.
-            warnings.append(f"material '{name}': its Multiscatter GGX glass is solved as single-scattering GGX "
-                            f"(roughness {described.roughness:.2f}: darker than Cycles by the light scattered between "
-                            "microfacets)")
         notes: list = []  # given once the object's shape says it is solid glass (geometry.py)
         alpha = _alpha(name, described.roughness, notes)
-        return SolverMaterial((0, 0, 0), described.emission, "rough_dielectric", alpha=alpha, eta=eta,
-                              bsdf=bsgi.RoughDielectric(eta, alpha, alpha), roughness=described.roughness,
+        # Cycles' glass: its shadowing, the light carried across without the radiance's (n_o / n_i)^2
+        # (as Cycles shows an open sheet; a closed solid's factors cancel), and with Multiscatter
+        # GGX the light between microfacets put back (single scattering lost up to 60% at roughness 1).
+        glass = bsgi.RoughDielectric(eta, alpha, alpha, multiscatter=described.multiscatter, height_correlated=True,
+                                     scale_radiance=False)
+        return SolverMaterial((0, 0, 0), described.emission, "rough_dielectric", alpha=alpha, eta=eta, bsdf=glass,
+                              roughness=described.roughness, multiscatter=described.multiscatter,
                               shadow=described.shadow, solid_notes=notes)
     if transmission > 0:
         warnings.append(f"material '{name}': its transmission is weaker than its reflection; solved as opaque")

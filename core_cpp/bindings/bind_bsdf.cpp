@@ -165,8 +165,22 @@ void bind_bsdf(py::module_& m) {
                                "The glossy part S of (38): the coat, less E(mu_o) albedo / pi where layered.");
     py::class_<SmoothDielectric, Bsdf, std::shared_ptr<SmoothDielectric>>(m, "SmoothDielectric")
         .def(py::init<double>(), py::arg("eta"));
-    py::class_<RoughDielectric, Bsdf, std::shared_ptr<RoughDielectric>>(m, "RoughDielectric")
-        .def(py::init<double, double, double>(), py::arg("eta"), py::arg("alpha_x"), py::arg("alpha_y"));
+    py::class_<RoughDielectric, Bsdf, std::shared_ptr<RoughDielectric>>(
+        m, "RoughDielectric",
+        "A rough dielectric boundary (GGX reflection and transmission), index eta below its surface. As Cycles' glass: "
+        "height_correlated (its shadowing), scale_radiance=False (transmitted light carried without the radiance's "
+        "(n_o / n_i)^2: the same through a closed solid, Cycles' through an open sheet), multiscatter (Multiscatter GGX: "
+        "the lobe over the single-scattering glass's directional albedo from the side of the view). The defaults are "
+        "Mitsuba 3's roughdielectric.")
+        .def(py::init<double, double, double, bool, bool, bool>(), py::arg("eta"), py::arg("alpha_x"), py::arg("alpha_y"),
+             py::arg("multiscatter") = false, py::arg("height_correlated") = false, py::arg("scale_radiance") = true)
+        .def_property_readonly("multiscatter", &RoughDielectric::multiscatter)
+        .def_property_readonly("height_correlated", &RoughDielectric::height_correlated)
+        .def_property_readonly("scale_radiance", &RoughDielectric::scale_radiance)
+        .def_static("single_scattering_albedo", [](double eta, double alpha, bool inside, bool height_correlated, double mu) {
+                 return RoughDielectric::single_scattering_albedo(GgxDistribution{alpha, alpha}, inside ? eta : 1.0, inside ? 1.0 : eta, height_correlated, mu);
+             }, py::arg("eta"), py::arg("alpha"), py::arg("inside"), py::arg("height_correlated"), py::arg("mu"),
+             "E(mu) of the single-scattering glass (reflected plus transmitted energy) viewed from outside or inside.");
 
     py::class_<Emission>(m, "Emission", "Uniform emitted radiance over the front (or both) sides.")
         .def(py::init([](const Array& radiance, bool two_sided) { return Emission(rgb(radiance, "Emission: radiance"), two_sided); }),

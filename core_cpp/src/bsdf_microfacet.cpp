@@ -5,6 +5,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "bsgi/bsdf.h"
@@ -287,10 +288,80 @@ bool SmoothDielectric::sample(const Vec3& wo, double u0, double, double, BsdfSam
 
 // ---- rough dielectric ----
 
-RoughDielectric::RoughDielectric(double eta, double alpha_x, double alpha_y) : eta_(eta), D_{alpha_x, alpha_y} {
+// Stratified over the visible normals as DirectionalAlbedo (its warp towards GGX's tail), both
+// branches of each normal weighed by their Fresnel share: F G / G1(wo) reflected, (1 - F) G /
+// G1(wo) transmitted in energy (a smooth boundary's F + (1 - F) = 1). 256 x 64 strata: the
+// total internal reflection's edge crosses them (64 x 32 left 0.45% at 78 degrees inside; now
+// within 2e-4 of 2M random samples). 0.13 s for a material's two tables.
+double RoughDielectric::single_scattering_albedo(const GgxDistribution& D, double n_o, double n_t,
+                                                 bool height_correlated, double mu) {
+    constexpr int kRadial = 256, kAround = 64;
+    mu = std::clamp(mu, 1e-4, 1.0);
+    const Vec3 wo{std::sqrt(1 - mu * mu), 0, mu};
+    const double g_o = 1 / (1 + D.lambda(wo)), e = n_o / n_t;
+    double sum = 0;
+    for (int i = 0; i < kRadial; ++i) {
+        const double t = 1 - (i + 0.5) / kRadial;
+        for (int j = 0; j < kAround; ++j) {
+            const Vec3 m = D.sample_visible(wo, 1 - t * t, (j + 0.5) / kAround);
+            const double c = dot(wo, m);
+            if (c <= 0) continue;
+            double cos_t;
+            const double F = fresnel_dielectric(c, n_t / n_o, cos_t);
+            auto shadowing = [&](const Vec3& wi) { return height_correlated ? D.G2(wo, wi, m) : D.G1(wo, m) * D.G1(wi, m); };
+            double weight = 0;
+            const Vec3 reflected = m * (2 * c) - wo;
+            if (reflected.z > 0) weight += F * shadowing(reflected);
+            if (F < 1) {
+                const Vec3 refracted = -wo * e + m * (e * c - cos_t);
+                if (refracted.z < 0) weight += (1 - F) * shadowing(refracted);
+            }
+            sum += weight / g_o * (2 * t);
+        }
+    }
+    return std::clamp(sum / (kRadial * kAround), 0.0, 1.0);
+}
+
+namespace {
+
+// The glass's E from one side per (alpha, indices, shadowing), shared by every surface of a material.
+std::shared_ptr<const DirectionalAlbedo> glass_albedo(double alpha, double n_o, double n_t, bool height_correlated) {
+    static std::mutex mutex;
+    static std::map<std::tuple<double, double, double, bool>, std::shared_ptr<const DirectionalAlbedo>> made;
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& e = made[{alpha, n_o, n_t, height_correlated}];
+    if (!e) {
+        std::vector<double> table(DirectionalAlbedo::kNodes);
+        for (int k = 0; k < DirectionalAlbedo::kNodes; ++k) {
+            const double x = double(k) / (DirectionalAlbedo::kNodes - 1);
+            table[size_t(k)] = RoughDielectric::single_scattering_albedo(GgxDistribution{alpha, alpha}, n_o, n_t,
+                                                                         height_correlated, x * x);
+        }
+        e = std::make_shared<DirectionalAlbedo>(std::move(table));
+    }
+    return e;
+}
+
+}  // namespace
+
+RoughDielectric::RoughDielectric(double eta, double alpha_x, double alpha_y, bool multiscatter, bool height_correlated,
+                                 bool scale_radiance)
+    : eta_(eta), D_{alpha_x, alpha_y}, height_correlated_(height_correlated), scale_radiance_(scale_radiance) {
     check_eta(eta);
     check_alpha(alpha_x);
     check_alpha(alpha_y);
+    if (multiscatter) {
+        // Cycles reads its table at the isotropic roughness sqrt(alpha_x alpha_y).
+        const double alpha = std::sqrt(alpha_x * alpha_y);
+        albedo_outside_ = glass_albedo(alpha, 1.0, eta, height_correlated);
+        albedo_inside_ = glass_albedo(alpha, eta, 1.0, height_correlated);
+    }
+}
+
+double RoughDielectric::multiple_scattering(const Vec3& wo) const {
+    if (!albedo_outside_) return 1;
+    const DirectionalAlbedo& e = wo.z > 0 ? *albedo_outside_ : *albedo_inside_;
+    return 1 / std::max(e(std::abs(wo.z)), 1e-3);
 }
 
 // The microfacet normal that refracts wi (below, index n_i) into wo (above, index n_o), facing
@@ -310,7 +381,7 @@ double RoughDielectric::eval_up(const Vec3& wo, const Vec3& wi, double n_o, doub
     if (wi.z > 0) {
         const Vec3 h = normalize(wo + wi);
         const double F = fresnel_dielectric(dot(wo, h), n_t / n_o, cos_t);
-        return F * D_.D(h) * D_.G1(wo, h) * D_.G1(wi, h) / (4 * wo.z * wi.z);
+        return F * D_.D(h) * shadowing(wo, wi, h) / (4 * wo.z * wi.z);
     }
     const double n_i = n_t;
     Vec3 h;
@@ -318,8 +389,9 @@ double RoughDielectric::eval_up(const Vec3& wo, const Vec3& wi, double n_o, doub
     const double oh = dot(wo, h), ih = dot(wi, h);
     const double F = fresnel_dielectric(oh, n_i / n_o, cos_t);
     const double denom = n_i * ih + n_o * oh;
-    const double g = D_.G1(wo, h) * D_.G1(wi, h);
-    return std::abs(ih) * oh * n_o * n_o * (1 - F) * D_.D(h) * g / (std::abs(wi.z) * wo.z * denom * denom);
+    // Radiance (n_o^2) or, unscaled by (n_o / n_i)^2, throughput (n_i^2).
+    const double n2 = scale_radiance_ ? n_o * n_o : n_i * n_i;
+    return std::abs(ih) * oh * n2 * (1 - F) * D_.D(h) * shadowing(wo, wi, h) / (std::abs(wi.z) * wo.z * denom * denom);
 }
 
 double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const {
@@ -344,8 +416,8 @@ double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, doubl
 // Below the surface the microstructure is the mirror image: mirror both directions and swap the
 // indices.
 Vec3 RoughDielectric::eval(const Vec3& wo, const Vec3& wi) const {
-    if (wo.z > 0) return gray(eval_up(wo, wi, 1.0, eta_));
-    if (wo.z < 0) return gray(eval_up(mirror_z(wo), mirror_z(wi), eta_, 1.0));
+    if (wo.z > 0) return gray(eval_up(wo, wi, 1.0, eta_) * multiple_scattering(wo));
+    if (wo.z < 0) return gray(eval_up(mirror_z(wo), mirror_z(wi), eta_, 1.0) * multiple_scattering(wo));
     return {0, 0, 0};
 }
 
@@ -379,7 +451,7 @@ bool RoughDielectric::sample(const Vec3& wo_in, double u0, double u1, double u2,
     out.wi = below ? mirror_z(wi) : wi;
     out.pdf = p;
     out.delta = false;
-    out.weight = gray(eval_up(wo, wi, n_o, n_t) * std::abs(wi.z) / p);
+    out.weight = gray(eval_up(wo, wi, n_o, n_t) * multiple_scattering(wo_in) * std::abs(wi.z) / p);
     return true;
 }
 

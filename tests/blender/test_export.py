@@ -94,22 +94,18 @@ def test_textured_glass_is_named_in_warnings_textured_glossy_is_solved(context):
                               glass_node.inputs["Color"])
     scenes.add_quad("Pane", [(-1, -1, 0.5), (1, -1, 0.5), (1, 1, 0.5), (-1, 1, 0.5)], glass)
     result = export.export_scene(context.evaluated_depsgraph_get())
-    text = "\n".join(w for w in result.warnings if MULTISCATTER not in w)  # Blender's default lobe, named
+    text = "\n".join(result.warnings)
     assert "material 'Shiny'" not in text
     assert "material 'Frosted'" in text and "driven by nodes" in text
     assert len(result.warnings) == len(set(result.warnings))
 
 
-MULTISCATTER = "Multiscatter GGX glass is solved as single-scattering"  # the warning's words
-
-
-def solver_material(material, multiscatter_named=False):
-    """(solver material, warnings); the warnings that name a glass's Multiscatter GGX left out
-    unless asked for (test_multiscatter_ggx_is_solved_and_named_only_on_rough_glass)."""
+def solver_material(material):
+    """(solver material, warnings)."""
     warnings = []
     described = materials.describe_material(material, warnings)
     got = materials.solver_material(material, described, warnings)
-    return got, [w for w in warnings if multiscatter_named or MULTISCATTER not in w]
+    return got, warnings
 
 
 def assert_same_bsdf(bsdf, expected):
@@ -118,7 +114,8 @@ def assert_same_bsdf(bsdf, expected):
     w = rng.normal(size=(2, 64, 3))
     w[..., 2] = np.abs(w[..., 2])
     w /= np.linalg.norm(w, axis=2, keepdims=True)
-    np.testing.assert_allclose(bsdf.eval(w[0], w[1]), expected.eval(w[0], w[1]), rtol=1e-6)  # Blender stores float32
+    for wi in (w[1], w[1] * [1, 1, -1]):  # reflected and (glass) transmitted
+        np.testing.assert_allclose(bsdf.eval(w[0], wi), expected.eval(w[0], wi), rtol=1e-5)  # Blender stores float32
 
 
 def test_metal_becomes_ggx_with_base_colour_f0(context):
@@ -169,7 +166,9 @@ def test_transmission_becomes_rough_dielectric(context):
     got, warnings = solver_material(m)
     assert got.kind == "rough_dielectric" and got.bsdf.name == "rough_dielectric"
     assert got.eta == pytest.approx(1.45) and got.alpha == pytest.approx(0.25)
-    assert_same_bsdf(got.bsdf, bsgi.RoughDielectric(1.45, 0.25, 0.25))
+    # Cycles' glass (Multiscatter GGX, the Principled BSDF's default).
+    assert_same_bsdf(got.bsdf, bsgi.RoughDielectric(1.45, 0.25, 0.25, multiscatter=True, height_correlated=True,
+                                                    scale_radiance=False))
     assert not warnings
     m, _ = shader_material("Glass", "ShaderNodeBsdfGlass", Roughness=0.5, IOR=1.3)
     got, _ = solver_material(m)
@@ -339,13 +338,14 @@ def test_a_metals_specular_tint_is_named():
     assert not any("specular tint" in w for w in describe(dielectric)[1])
 
 
-def test_multiscatter_ggx_is_solved_and_named_only_on_rough_glass(context):
+def test_multiscatter_ggx_is_solved_on_every_lobe_as_cycles_shadows(context):
     # Cycles' default distribution keeps the light scattered between microfacets: the solver's
-    # lobes keep it too (bsgi.GgxReflection multiscatter) for metals, Glossy BSDFs and coats,
-    # and every lobe shadows as Cycles' (height-correlated); a rough glass's is not solved, named.
+    # lobes keep it too (bsgi.GgxReflection and bsgi.RoughDielectric multiscatter) for metals,
+    # Glossy BSDFs, coats and glass, every lobe shadows as Cycles' (height-correlated), and glass
+    # carries its light across as Cycles does (scale_radiance off); nothing is named.
     def solved(material):
-        got, warnings = solver_material(material, multiscatter_named=True)
-        return got, any(f"material '{material.name}'" in w and MULTISCATTER in w for w in warnings)
+        got, warnings = solver_material(material)
+        return got, any(f"material '{material.name}'" in w for w in warnings)
 
     rough_metal = principled("Rough metal", **{"Metallic": 1.0, "Roughness": 0.6})
     assert next(n for n in rough_metal.node_tree.nodes if n.type == "BSDF_PRINCIPLED").distribution == "MULTI_GGX"
@@ -359,9 +359,15 @@ def test_multiscatter_ggx_is_solved_and_named_only_on_rough_glass(context):
     assert not got.bsdf.multiscatter and got.bsdf.height_correlated and not named
     glass, node = shader_material("Frosted", "ShaderNodeBsdfGlass", Roughness=0.5)
     node.distribution = "MULTI_GGX"
-    assert solved(glass)[1]
-    node.inputs["Roughness"].default_value = 0.1
-    assert not solved(glass)[1]
+    got, named = solved(glass)
+    assert isinstance(got.bsdf, bsgi.RoughDielectric) and not named
+    assert got.bsdf.multiscatter and got.bsdf.height_correlated and not got.bsdf.scale_radiance
+    node.distribution = "GGX"
+    got, named = solved(glass)
+    assert not got.bsdf.multiscatter and got.bsdf.height_correlated and not got.bsdf.scale_radiance and not named
+    transmitting = principled("Frosted principled", **{"Transmission Weight": 1.0, "Roughness": 0.5})
+    got, named = solved(transmitting)
+    assert got.kind == "rough_dielectric" and got.bsdf.multiscatter and not got.bsdf.scale_radiance
 
 
 def test_mix_of_diffuse_and_glossy_names_what_is_dropped(context):

@@ -293,6 +293,65 @@ def test_height_correlated_ggx_is_heitz_form_as_cycles_evaluates_it():
     assert grazing.sum() > 10 and (ratio < 1).all() and ratio.mean() < 0.9
 
 
+def test_rough_glass_as_cycles_is_its_formula_and_mitsubas_less_the_radiance_factor():
+    # Cycles' glass (bsdf_microfacet.h, single scattering), its BSDF with the view wo above the
+    # normal it is flipped to (ior = n_t / n_o from the view's side): reflected F D / (4 cos_o
+    # cos_i (1 + L(wo) + L(wi))), transmitted (1 - F) D ior^2 |h.wo h.wi| / (cos_o |cos_i|
+    # |ior wi + wo|^2 (1 + L(wo) + L(wi))), h along -(ior wi + wo): no (n_o / n_i)^2 on the light
+    # it carries (Mitsuba's radiance has it), written out here against the core on both sides.
+    eta, alpha = 1.45, 0.4
+    cycles = bsgi.RoughDielectric(eta, alpha, alpha, height_correlated=True, scale_radiance=False)
+    mitsuba = bsgi.RoughDielectric(eta, alpha, alpha)
+    rng = np.random.default_rng(11)
+
+    def lam(w):
+        return (np.sqrt(1 + alpha ** 2 * (w[:, 0] ** 2 + w[:, 1] ** 2) / w[:, 2] ** 2) - 1) / 2
+
+    def fresnel(c, ior):
+        s2 = (1 - c * c) / ior ** 2
+        ct = np.sqrt(np.maximum(1 - s2, 0))
+        rs, rp = (c - ior * ct) / (c + ior * ct), (ior * c - ct) / (ior * c + ct)
+        return np.where(s2 >= 1, 1.0, 0.5 * (rs ** 2 + rp ** 2))
+
+    def cycles_eval(wo, wi, ior):
+        d = lambda h: alpha ** 2 / (np.pi * (1 + (alpha ** 2 - 1) * h[:, 2] ** 2) ** 2)
+        g = 1 / (1 + lam(wo) + lam(wi))
+        up = wi[:, 2] > 0
+        h = np.where(up[:, None], wo + wi, -(ior * wi + wo))
+        length = np.linalg.norm(h, axis=1)
+        h = h / length[:, None]
+        h *= np.sign(h[:, 2])[:, None]
+        c_o, c_i = np.einsum("ij,ij->i", wo, h), np.einsum("ij,ij->i", wi, h)
+        F = fresnel(np.abs(c_o), ior)
+        reflected = F * d(h) * g / (4 * wo[:, 2] * wi[:, 2])
+        refracted = (1 - F) * d(h) * g * ior ** 2 * np.abs(c_o * c_i) / (wo[:, 2] * np.abs(wi[:, 2]) * length ** 2)
+        # Only microfacets seen from both sides refract (h.wo > 0 > h.wi).
+        refracted = np.where((c_o > 0) & (c_i < 0), refracted, 0.0)
+        return np.where(up, reflected, refracted)
+
+    checked = 0
+    for below in (False, True):  # the view outside (above) or inside the glass
+        for light_below in (False, True):
+            wo, wi = random_directions(rng, 800, below), random_directions(rng, 800, light_below)
+            n = min(len(wo), len(wi))
+            wo, wi = wo[:n], wi[:n]
+            flip = np.array([1, 1, -1]) if below else np.array([1, 1, 1])
+            ior = 1 / eta if below else eta
+            want = cycles_eval(wo * flip, wi * flip, ior)
+            got = cycles.eval(wo, wi)[:, 0]
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * want.max())
+            checked += (want > 0).sum()
+            # Mitsuba's radiance carries (n_o / n_i)^2 across, the rest is the shadowing alone.
+            crossing = light_below != below
+            n_o, n_i = (eta, 1.0) if below else (1.0, eta)
+            ratio = mitsuba.eval(wo, wi)[:, 0] / np.where(want > 0, want, np.nan)
+            ratio /= (n_o / n_i) ** 2 if crossing else 1.0
+            steep = (np.abs(wo[:, 2]) > 0.7) & (np.abs(wi[:, 2]) > 0.7) & (want > 0)
+            # Near the normal both shadowings are near 1: there the two differ by the factor only.
+            np.testing.assert_allclose(ratio[steep], 1.0, atol=0.03)
+    assert checked > 1000
+
+
 def test_ggx_matches_mitsuba_roughconductor():
     mi = pytest.importorskip("mitsuba")
     mi.set_variant("scalar_rgb")

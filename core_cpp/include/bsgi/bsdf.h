@@ -276,9 +276,17 @@ private:
 // A rough dielectric boundary: GGX reflection and transmission (Walter et al. 2007, eq. 21 for
 // radiance: f_t = |wi.h||wo.h| n_o^2 (1 - F) D G / (|cos_i cos_o| (n_i wi.h + n_o wo.h)^2)).
 // Paper section 4.3: the transmitted light is the second, lower-hemisphere radiance function.
+// Cycles' glass differs in three ways, each a choice here (Mitsuba's roughdielectric takes none):
+// height_correlated, its shadowing (GgxDistribution::G2, as GgxReflection); scale_radiance off,
+// the transmitted light carried across unscaled by (n_o / n_i)^2 (Cycles carries throughput: the
+// same through any closed solid, where the factors of the way in and out cancel, and what Cycles
+// shows through an open sheet); multiscatter, Multiscatter GGX's light between microfacets put
+// back: the lobe scaled by 1 / E(mu_o), E the single-scattering glass's directional albedo
+// (reflected plus transmitted energy, from the side of the view), so the lobe keeps all light.
 class RoughDielectric final : public Bsdf {
 public:
-    RoughDielectric(double eta, double alpha_x, double alpha_y);
+    RoughDielectric(double eta, double alpha_x, double alpha_y, bool multiscatter = false, bool height_correlated = false,
+                    bool scale_radiance = true);
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
@@ -291,13 +299,27 @@ public:
         return 2 * std::min(D_.ax, D_.ay) * std::min(1.0, (e - 1) / e + 0.1);
     }
     bool transmits() const override { return true; }
+    bool multiscatter() const { return bool(albedo_outside_); }
+    bool height_correlated() const { return height_correlated_; }
+    bool scale_radiance() const { return scale_radiance_; }
+    // The single-scattering lobe's directional albedo (reflected plus transmitted energy) seen
+    // from outside (above) or inside, at a view of cosine mu > 0.
+    static double single_scattering_albedo(const GgxDistribution& D, double n_o, double n_t, bool height_correlated,
+                                           double mu);
 
 private:
     // With wo mirrored into the upper hemisphere: n_o is the index there, n_t the other.
     double eval_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const;
     double pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const;
+    double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const {
+        return height_correlated_ ? D_.G2(wo, wi, h) : D_.G1(wo, h) * D_.G1(wi, h);
+    }
+    // Multiscatter GGX's 1 / E(mu_o) on the side of wo (1 in single scattering).
+    double multiple_scattering(const Vec3& wo) const;
     double eta_;
     GgxDistribution D_;
+    bool height_correlated_ = false, scale_radiance_ = true;
+    std::shared_ptr<const DirectionalAlbedo> albedo_outside_, albedo_inside_;  // null: single scattering
 };
 
 // Emitted radiance L_S^emit of (6): uniform over the front (or both) sides. sample() draws
