@@ -1,0 +1,98 @@
+"""Rough glass as Cycles renders it: its height-correlated shadowing, the light it carries across
+without the radiance's (n_o / n_i)^2, and Multiscatter GGX (Blender's default) putting back the
+light between its microfacets. A rough glass plane (a solid dielectric: both hemispheres) under a
+uniform white world, and over a black floor that hides the world below, seen from above along a
+view: Cycles' render against the add-on's solve of the plane's upper hemisphere."""
+import math
+
+import bpy
+import mathutils
+import numpy as np
+import pytest
+
+import scenes
+from test_export import shader_material
+from bsgi_addon import pipeline
+from test_pipeline import render_exr
+from test_world_light import world
+
+ROUGHNESS = 0.5
+IOR = 1.5
+
+
+def glass_plane(distribution):
+    m, node = shader_material("Frosted", "ShaderNodeBsdfGlass", Roughness=ROUGHNESS, IOR=IOR)
+    node.distribution = distribution
+    scenes.add_quad("Glass", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
+
+
+def view_direction(view_degrees):
+    v = math.radians(view_degrees)
+    return np.array([0.0, -math.sin(v), math.cos(v)])
+
+
+def rendered(context, path, view_degrees):
+    """Cycles' mean radiance (direct light) over an orthographic view of the plane's middle."""
+    cam = bpy.data.cameras.new("View")
+    cam.type, cam.ortho_scale = "ORTHO", 0.3
+    camera = bpy.data.objects.new("View", cam)
+    direction = mathutils.Vector(view_direction(view_degrees))
+    camera.location = 3 * direction
+    camera.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
+    context.scene.collection.objects.link(camera)
+    context.scene.camera = camera
+    return render_exr(context.scene, path, samples=256, bounces=0).reshape(-1, 3).mean(axis=0)
+
+
+def solved(context, view_degrees):
+    """The add-on's solve (no bounces): the plane's upper radiance along the view, over the
+    patch the camera sees."""
+    context.scene.bsgi.preset = "CUSTOM"
+    context.scene.bsgi.max_bounces = 0
+    job = pipeline.prepare(context)
+    solution = pipeline.run(job)
+    glass = next(o for o in job.export.objects if o.name == "Glass")
+    radiance = solution.surfaces[glass.patches[0][1]]
+    uv = np.array([[0.5 + 0.075 * a, 0.5 + 0.3 * b] for a in (-1, 0, 1) for b in (-1, 0, 1)])
+    toward = np.tile(view_direction(view_degrees), (len(uv), 1))
+    return radiance.evaluate(uv, toward).mean(axis=0), job.export.warnings
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("distribution", ["MULTI_GGX", "GGX"])
+@pytest.mark.parametrize("view_degrees", [30, 70])
+def test_rough_glass_under_a_white_world_is_what_cycles_renders(context, tmp_path, distribution, view_degrees):
+    # With Multiscatter GGX a clear glass keeps all of the light (Cycles: 1.0000 +- 1e-4 at both
+    # views); single-scattering GGX loses 1 - E(mu_o) of it (Cycles 0.988 at 30 degrees, 0.937
+    # at 70). Measured on 7 December: bsgi / Cycles 1.026 and 1.015 (Multiscatter GGX), 1.027
+    # and 1.014 (GGX): the gather's quadrature of the glass's lobes (16 BSDF samples at preview,
+    # the same excess in the core's furnace, tests/core: the lobe itself keeps all light to 4e-3).
+    # The solver before (single scattering, separable shadowing, radiance carried across with
+    # 1 / IOR^2) showed the light from below at 44% of Cycles'.
+    glass_plane(distribution)
+    world(context, color=(1.0, 1.0, 1.0), strength=1.0)
+    cycles = rendered(context, tmp_path / "view.exr", view_degrees)
+    ours, warnings = solved(context, view_degrees)
+    ratio = ours / cycles
+    print(f"\n{distribution} at {view_degrees} degrees: bsgi / Cycles {np.round(ratio, 4)} (Cycles {np.round(cycles, 4)})")
+    assert not any("Multiscatter" in w for w in warnings)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.04)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("view_degrees", [30])
+def test_rough_glass_over_a_black_floor_reflects_what_cycles_renders(context, tmp_path, view_degrees):
+    # The floor hides the world below but near the horizon: what is seen is the reflected sky,
+    # the glass's reflection lobe with its multiple scattering (Cycles 0.0394). Measured on 7
+    # December: 1.006. At 70 degrees (Cycles 0.102) the solve is 1.22 of it: the gather draws a
+    # glass's reflection with Fresnel's chance (about 2 of its 16 BSDF samples there) and the
+    # reflection is the whole of what is seen (the core's preview 1.10; named in the README).
+    glass_plane("MULTI_GGX")
+    scenes.add_quad("Ground", [(-20, -20, -0.3), (20, -20, -0.3), (20, 20, -0.3), (-20, 20, -0.3)],
+                    scenes.diffuse_material("Black", (0.0, 0.0, 0.0)))
+    world(context, color=(1.0, 1.0, 1.0), strength=1.0)
+    cycles = rendered(context, tmp_path / "view.exr", view_degrees)
+    ours, _ = solved(context, view_degrees)
+    ratio = ours / cycles
+    print(f"\nover a black floor at {view_degrees} degrees: bsgi / Cycles {np.round(ratio, 4)} (Cycles {np.round(cycles, 4)})")
+    np.testing.assert_allclose(ratio, 1.0, atol=0.015)
