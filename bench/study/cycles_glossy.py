@@ -14,49 +14,17 @@ from __future__ import annotations
 
 import numpy as np
 
+import cycles_bsdf  # (beside this file)
+from cycles_bsdf import multiple_scattering_colour
+
 NAME = "cycles_glossy"
-TABLE_NODES = 65  # E at mu = (k / (n - 1))^2
-
-
-def white_albedo(mu, alpha, n=400):
-    """Directional albedo of the white single-scattering GGX lobe (F = 1, height-correlated G)
-    for light leaving at cos theta = mu, by a midpoint rule in cos^2 theta and phi."""
-    g = (np.arange(n) + 0.5) / n
-    c2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n), indexing="ij")
-    ci, si = np.sqrt(c2).ravel(), np.sqrt(1 - c2).ravel()
-    wi = np.stack([si * np.cos(phi.ravel()), si * np.sin(phi.ravel()), ci], 1)
-    wo = np.array([np.sqrt(max(1 - mu * mu, 0.0)), 0.0, mu])
-    h = wi + wo
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
-    a2 = alpha * alpha
-    D = a2 / (np.pi * (h[:, 2] ** 2 * (a2 - 1) + 1) ** 2)
-
-    def lam(c):
-        t2 = (1 - c * c) / np.maximum(c * c, 1e-300)
-        return (np.sqrt(1 + a2 * t2) - 1) / 2
-
-    f = D / (1 + lam(wi[:, 2]) + lam(mu)) / (4 * mu * wi[:, 2])
-    return float(np.pi * np.mean(f))
 
 
 def albedo_table(alpha):
-    """E at the table's nodes; the narrow lobes need a finer rule near the normal."""
+    """E of the white single-scattering lobe at the table's nodes; the narrow lobes need a finer
+    rule near the normal."""
     n = 1200 if alpha < 0.1 else 400
-    return np.array([white_albedo(max(t * t, 1e-4), alpha, n) for t in np.linspace(0.0, 1.0, TABLE_NODES)])
-
-
-def table_at(table, mu):
-    x = np.sqrt(np.clip(mu, 0.0, 1.0)) * (TABLE_NODES - 1)
-    k = np.minimum(x.astype(int), TABLE_NODES - 2)
-    return table[k] + (x - k) * (table[k + 1] - table[k])
-
-
-def multiple_scattering_colour(table, f_ss):
-    """F_ms of the Fresnel's cosine-weighted mean f_ss (RGB)."""
-    mu = (np.arange(2048) + 0.5) / 2048
-    e_avg = 2 * np.mean(table_at(table, mu) * mu)
-    f_ss = np.asarray(f_ss, float)
-    return f_ss * e_avg / (1 - f_ss * (1 - e_avg))
+    return cycles_bsdf.table(lambda mu: cycles_bsdf.reflection_albedo(mu, alpha, None, n))
 
 
 def register(mi):
@@ -66,7 +34,7 @@ def register(mi):
     if getattr(register, "done", False):
         return
 
-    class CyclesGlossy(mi.BSDF):
+    class CyclesGlossy(cycles_bsdf.plugin_base(mi, dr)):
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
             self.f0 = mi.Color3f(props["f0_r"], props["f0_g"], props["f0_b"])
@@ -91,11 +59,7 @@ def register(mi):
         def _factor(self, si):
             if not self.multiscatter:
                 return 1.0
-            mu = mi.Frame3f.cos_theta(si.wi)
-            x = dr.sqrt(dr.clip(mu, 0.0, 1.0)) * (TABLE_NODES - 1)
-            k = dr.minimum(mi.UInt32(x), TABLE_NODES - 2)
-            e = dr.lerp(dr.gather(mi.Float, self.table, k), dr.gather(mi.Float, self.table, k + 1), x - mi.Float(k))
-            e = dr.maximum(e, 1e-3)
+            e = dr.maximum(self._at(self.table, mi.Frame3f.cos_theta(si.wi)), 1e-3)
             return 1 + self.fms * ((1 - e) / e)
 
         def _value(self, si, wo):
@@ -123,21 +87,6 @@ def register(mi):
             bs.sampled_component = mi.UInt32(0)
             ok = active & (bs.pdf > 0) & (mi.Frame3f.cos_theta(bs.wo) > 0)
             return bs, dr.select(ok, self._value(si, bs.wo) / bs.pdf, 0.0)
-
-        def eval(self, ctx, si, wo, active=True):
-            return dr.select(active, self._value(si, wo), 0.0)
-
-        def pdf(self, ctx, si, wo, active=True):
-            return dr.select(active, self._pdf(si, wo), 0.0)
-
-        def eval_pdf(self, ctx, si, wo, active=True):
-            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
-
-        def traverse(self, callback):
-            pass
-
-        def parameters_changed(self, keys):
-            pass
 
         def to_string(self):
             return f"CyclesGlossy[alpha=({self.alpha_u}, {self.alpha_v}), multiscatter={self.multiscatter}]"

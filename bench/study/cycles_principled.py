@@ -13,46 +13,16 @@ from __future__ import annotations
 
 import numpy as np
 
-import cycles_glossy  # (beside this file)
+import cycles_bsdf  # (beside this file)
+import cycles_glossy
+from cycles_bsdf import TABLE_NODES, fresnel
 
 NAME = "cycles_principled"
-TABLE_NODES = 65  # E at mu = (k / (n - 1))^2: dense towards grazing, where the Fresnel rises
-
-
-def fresnel(cos_i, eta):
-    """Unpolarised reflectance of a smooth dielectric boundary (light from outside, eta > 1)."""
-    sin_t2 = (1 - cos_i**2) / eta**2
-    cos_t = np.sqrt(np.maximum(1 - sin_t2, 0.0))
-    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
-    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-    return 0.5 * (rs**2 + rp**2)
-
-
-def coat_albedo(mu, alpha, eta, n=512):
-    """The coat's directional albedo for light leaving at cos theta = mu: the integral of its BRDF
-    times cos over the hemisphere, by a midpoint rule in cos^2 theta and phi."""
-    g = (np.arange(n) + 0.5) / n
-    c2, phi = np.meshgrid(g, 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n), indexing="ij")
-    ci, si = np.sqrt(c2).ravel(), np.sqrt(1 - c2).ravel()
-    wi = np.stack([si * np.cos(phi.ravel()), si * np.sin(phi.ravel()), ci], 1)
-    wo = np.array([np.sqrt(max(1 - mu * mu, 0.0)), 0.0, mu])
-    h = wi + wo
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
-    a2 = alpha * alpha
-    D = a2 / (np.pi * (h[:, 2] ** 2 * (a2 - 1) + 1) ** 2)
-
-    def lambda_(c):
-        t2 = (1 - c * c) / np.maximum(c * c, 1e-300)
-        return (np.sqrt(1 + a2 * t2) - 1) / 2
-
-    G = 1 / (1 + lambda_(wi[:, 2]) + lambda_(mu))
-    f = fresnel(np.clip(np.einsum("ij,ij->i", wi, h), 0, 1), eta) * D * G / (4 * mu * wi[:, 2])
-    return float(np.pi * np.mean(f))  # pi * mean over a cosine-weighted rule: the integral of f cos
 
 
 def albedo_table(alpha, eta):
-    x = np.linspace(0.0, 1.0, TABLE_NODES)
-    return np.array([coat_albedo(max(t * t, 1e-4), alpha, eta) for t in x])
+    """The coat's directional albedo (its BRDF times cos over the hemisphere) at the table's nodes."""
+    return cycles_bsdf.table(lambda mu: cycles_bsdf.reflection_albedo(mu, alpha, eta, 512))
 
 
 def multiscatter_factors(alpha, eta):
@@ -61,7 +31,7 @@ def multiscatter_factors(alpha, eta):
     white = cycles_glossy.albedo_table(alpha)
     mu = (np.arange(2048) + 0.5) / 2048
     f_ss = 2 * np.mean(fresnel(mu, eta) * mu)
-    f_ms = float(cycles_glossy.multiple_scattering_colour(white, [f_ss])[0])
+    f_ms = float(cycles_bsdf.multiple_scattering_colour(white, [f_ss])[0])
     return 1 + f_ms * (1 - white) / np.maximum(white, 1e-3)
 
 
@@ -72,7 +42,7 @@ def register(mi):
     if getattr(register, "done", False):
         return
 
-    class CyclesPrincipled(mi.BSDF):
+    class CyclesPrincipled(cycles_bsdf.plugin_base(mi, dr)):
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
             self.base = mi.Color3f(props["base_r"], props["base_g"], props["base_b"])
@@ -91,12 +61,6 @@ def register(mi):
             self.m_flags = diffuse | glossy
             mean = (props["base_r"] + props["base_g"] + props["base_b"]) / 3
             self.p_diffuse = float(np.clip(mean / (mean + 0.2), 0.1, 0.9))
-
-        def _at(self, table, mu):
-            x = dr.sqrt(dr.clip(mu, 0.0, 1.0)) * (TABLE_NODES - 1)
-            k = dr.minimum(mi.UInt32(x), TABLE_NODES - 2)
-            t = x - mi.Float(k)
-            return dr.lerp(dr.gather(mi.Float, table, k), dr.gather(mi.Float, table, k + 1), t)
 
         def _e(self, mu):
             return self._at(self.table, mu)
@@ -139,21 +103,6 @@ def register(mi):
             value = self._value(si, bs.wo)
             ok = active & (bs.pdf > 0) & (mi.Frame3f.cos_theta(bs.wo) > 0)
             return bs, dr.select(ok, value / bs.pdf, 0.0)
-
-        def eval(self, ctx, si, wo, active=True):
-            return dr.select(active, self._value(si, wo), 0.0)
-
-        def pdf(self, ctx, si, wo, active=True):
-            return dr.select(active, self._pdf(si, wo), 0.0)
-
-        def eval_pdf(self, ctx, si, wo, active=True):
-            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
-
-        def traverse(self, callback):
-            pass
-
-        def parameters_changed(self, keys):
-            pass
 
         def to_string(self):
             return f"CyclesPrincipled[alpha={self.alpha}, eta={self.eta}]"

@@ -17,7 +17,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from reference.mitsuba_reference import lobe_coordinates, load_mitsuba  # noqa: E402
 
-import cycles_glossy  # noqa: E402  (beside this file)
+import cycles_glass  # noqa: E402  (beside this file)
+import cycles_glossy  # noqa: E402
 import cycles_principled  # noqa: E402
 
 # Below this roughness Mitsuba's smooth models are used (GGX with alpha -> 0 is the mirror).
@@ -40,7 +41,9 @@ def bsdf(material) -> dict:
         ior = max(material.ior, 1.0 + 1e-3)
         if smooth:
             return {"type": "dielectric", "int_ior": ior, "ext_ior": 1.0}
-        return {"type": "roughdielectric", "distribution": "ggx", "alpha": alpha, "int_ior": ior, "ext_ior": 1.0}
+        # Cycles' glass (its shadowing, its light carried across without the radiance's
+        # (n_o / n_i)^2, its Multiscatter GGX): cycles_glass.py.
+        return cycles_glass.bsdf_dict(ior, alpha, getattr(material, "multiscatter", False))
     if glossy > diffuse:
         f0 = np.clip(np.asarray(material.specular, float), 0.0, 1.0)
         white = f0.min() >= 1 - 1e-6  # Fresnel 1
@@ -100,6 +103,7 @@ def scene_dict(description, max_depth: int = -1, two_sided=(), pairs_only: bool 
     mi = load_mitsuba()
     cycles_principled.register(mi)
     cycles_glossy.register(mi)
+    cycles_glass.register(mi)
     folder = pathlib.Path(tempfile.mkdtemp(prefix="bsgi-study-"))
     atexit.register(shutil.rmtree, folder, ignore_errors=True)  # the dict names its files: kept until exit
     shapes = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}

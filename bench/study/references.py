@@ -32,7 +32,8 @@ CACHE = HERE / "references"
 # bulb left glossy_spheres at 0.9% after one pass, the rest 0.1-0.5% (glass_sheet's caustics 2.1%).
 FULL = {"pairs": 3000, "spp": 32768, "seed": 11, "noise": 0.004, "max_spp": 32768 * 32}
 QUICK = {"pairs": 200, "spp": 1024, "seed": 11}
-SOURCES = ("blend_scene.py", "mitsuba_scene.py", "cycles_principled.py", "cycles_glossy.py", "references.py",
+SOURCES = ("blend_scene.py", "mitsuba_scene.py", "cycles_bsdf.py", "cycles_principled.py", "cycles_glossy.py",
+           "cycles_glass.py", "references.py",
            "../../tests/reference/mitsuba_reference.py")
 
 
