@@ -32,34 +32,38 @@ def material(kind, distribution="GGX", roughness=ROUGHNESS):
     return m, node
 
 
-def render_at_view(context, path):
+def toward(view):
+    """The direction `view` radians from the plane's normal, in the y-z plane."""
+    return np.array([0.0, -math.sin(view), math.cos(view)])
+
+
+def render_at_view(context, path, view=VIEW, samples=64):
     """Cycles' mean radiance (direct light) over an orthographic view of the plane's middle
-    along VIEW, the camera in the y-z plane looking at the origin."""
+    along `view`, the camera in the y-z plane looking at the origin."""
     cam = bpy.data.cameras.new("View")
     cam.type, cam.ortho_scale = "ORTHO", 0.3  # a 0.3 x 1.2 patch of the 2 x 2 plane
     camera = bpy.data.objects.new("View", cam)
-    direction = mathutils.Vector((0.0, -math.sin(VIEW), math.cos(VIEW)))
+    direction = mathutils.Vector(toward(view))
     camera.location = 3 * direction
     camera.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
     context.scene.collection.objects.link(camera)
     context.scene.camera = camera
-    return render_exr(context.scene, path, samples=64, bounces=0).reshape(-1, 3).mean(axis=0)
+    return render_exr(context.scene, path, samples=samples, bounces=0).reshape(-1, 3).mean(axis=0)
 
 
-def solved_at_view(context):
-    """The add-on's solve (no bounces) of the plane, its mean radiance along VIEW over the part
-    the camera sees."""
+def solved_at_view(context, view=VIEW, name="Floor"):
+    """The add-on's solve (no bounces) of the plane, its mean (upper) radiance along `view` over
+    the part the camera sees."""
     context.scene.bsgi.preset = "CUSTOM"
     context.scene.bsgi.max_bounces = 0
     job = pipeline.prepare(context)
     solution = pipeline.run(job)
-    floor = next(o for o in job.export.objects if o.name == "Floor")
+    floor = next(o for o in job.export.objects if o.name == name)
     radiance = solution.surfaces[floor.patches[0][1]]
     # The plane's frame has z along its normal (+z); the lobe is isotropic and the world uniform,
     # so only the angle from the normal matters: the mean over the part the camera sees.
     uv = np.array([[0.5 + 0.075 * a, 0.5 + 0.3 * b] for a in (-1, 0, 1) for b in (-1, 0, 1)])
-    toward = np.tile([0.0, -math.sin(VIEW), math.cos(VIEW)], (len(uv), 1))
-    return radiance.evaluate(uv, toward).mean(axis=0)
+    return radiance.evaluate(uv, np.tile(toward(view), (len(uv), 1))).mean(axis=0)
 
 
 @pytest.mark.slow

@@ -5,15 +5,12 @@ uniform white world, and over a black floor that hides the world below, seen fro
 view: Cycles' render against the add-on's solve of the plane's upper hemisphere."""
 import math
 
-import bpy
-import mathutils
 import numpy as np
 import pytest
 
 import scenes
 from test_export import shader_material
-from bsgi_addon import pipeline
-from test_pipeline import render_exr
+from test_glossy_fresnel import render_at_view, solved_at_view
 from test_world_light import world
 
 ROUGHNESS = 0.5
@@ -24,38 +21,6 @@ def glass_plane(distribution):
     m, node = shader_material("Frosted", "ShaderNodeBsdfGlass", Roughness=ROUGHNESS, IOR=IOR)
     node.distribution = distribution
     scenes.add_quad("Glass", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], m)
-
-
-def view_direction(view_degrees):
-    v = math.radians(view_degrees)
-    return np.array([0.0, -math.sin(v), math.cos(v)])
-
-
-def rendered(context, path, view_degrees):
-    """Cycles' mean radiance (direct light) over an orthographic view of the plane's middle."""
-    cam = bpy.data.cameras.new("View")
-    cam.type, cam.ortho_scale = "ORTHO", 0.3
-    camera = bpy.data.objects.new("View", cam)
-    direction = mathutils.Vector(view_direction(view_degrees))
-    camera.location = 3 * direction
-    camera.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
-    return render_exr(context.scene, path, samples=256, bounces=0).reshape(-1, 3).mean(axis=0)
-
-
-def solved(context, view_degrees):
-    """The add-on's solve (no bounces): the plane's upper radiance along the view, over the
-    patch the camera sees."""
-    context.scene.bsgi.preset = "CUSTOM"
-    context.scene.bsgi.max_bounces = 0
-    job = pipeline.prepare(context)
-    solution = pipeline.run(job)
-    glass = next(o for o in job.export.objects if o.name == "Glass")
-    radiance = solution.surfaces[glass.patches[0][1]]
-    uv = np.array([[0.5 + 0.075 * a, 0.5 + 0.3 * b] for a in (-1, 0, 1) for b in (-1, 0, 1)])
-    toward = np.tile(view_direction(view_degrees), (len(uv), 1))
-    return radiance.evaluate(uv, toward).mean(axis=0), job.export.warnings
 
 
 @pytest.mark.slow
@@ -71,11 +36,10 @@ def test_rough_glass_under_a_white_world_is_what_cycles_renders(context, tmp_pat
     # 1 / IOR^2) showed the light from below at 44% of Cycles'.
     glass_plane(distribution)
     world(context, color=(1.0, 1.0, 1.0), strength=1.0)
-    cycles = rendered(context, tmp_path / "view.exr", view_degrees)
-    ours, warnings = solved(context, view_degrees)
-    ratio = ours / cycles
+    view = math.radians(view_degrees)
+    cycles = render_at_view(context, tmp_path / "view.exr", view, samples=256)
+    ratio = solved_at_view(context, view, "Glass") / cycles
     print(f"\n{distribution} at {view_degrees} degrees: bsgi / Cycles {np.round(ratio, 4)} (Cycles {np.round(cycles, 4)})")
-    assert not any("Multiscatter" in w for w in warnings)
     np.testing.assert_allclose(ratio, 1.0, atol=0.04)
 
 
@@ -91,8 +55,8 @@ def test_rough_glass_over_a_black_floor_reflects_what_cycles_renders(context, tm
     scenes.add_quad("Ground", [(-20, -20, -0.3), (20, -20, -0.3), (20, 20, -0.3), (-20, 20, -0.3)],
                     scenes.diffuse_material("Black", (0.0, 0.0, 0.0)))
     world(context, color=(1.0, 1.0, 1.0), strength=1.0)
-    cycles = rendered(context, tmp_path / "view.exr", view_degrees)
-    ours, _ = solved(context, view_degrees)
-    ratio = ours / cycles
+    view = math.radians(view_degrees)
+    cycles = render_at_view(context, tmp_path / "view.exr", view, samples=256)
+    ratio = solved_at_view(context, view, "Glass") / cycles
     print(f"\nover a black floor at {view_degrees} degrees: bsgi / Cycles {np.round(ratio, 4)} (Cycles {np.round(cycles, 4)})")
     np.testing.assert_allclose(ratio, 1.0, atol=0.015)
