@@ -394,13 +394,13 @@ double RoughDielectric::eval_up(const Vec3& wo, const Vec3& wi, double n_o, doub
     return std::abs(ih) * oh * n2 * (1 - F) * D_.D(h) * shadowing(wo, wi, h) / (std::abs(wi.z) * wo.z * denom * denom);
 }
 
-double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const {
+double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t, bool chosen) const {
     double cos_t;
     if (wi.z > 0) {
         const Vec3 h = normalize(wo + wi);
         const double oh = dot(wo, h);
         if (oh <= 0) return 0;
-        const double F = fresnel_dielectric(oh, n_t / n_o, cos_t);
+        const double F = chosen ? fresnel_dielectric(oh, n_t / n_o, cos_t) : 1.0;
         return F * D_.visible_pdf(wo, h) / (4 * oh);
     }
     const double n_i = n_t;
@@ -410,7 +410,7 @@ double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, doubl
     const double F = fresnel_dielectric(oh, n_i / n_o, cos_t);
     const double denom = n_i * ih + n_o * oh;
     // Jacobian of refraction: d omega_h / d omega_i = n_i^2 |wi.h| / (n_i wi.h + n_o wo.h)^2.
-    return (1 - F) * D_.visible_pdf(wo, h) * n_i * n_i * std::abs(ih) / (denom * denom);
+    return (chosen ? 1 - F : 1.0) * D_.visible_pdf(wo, h) * n_i * n_i * std::abs(ih) / (denom * denom);
 }
 
 // Below the surface the microstructure is the mirror image: mirror both directions and swap the
@@ -453,6 +453,45 @@ bool RoughDielectric::sample(const Vec3& wo_in, double u0, double u1, double u2,
     out.delta = false;
     out.weight = gray(eval_up(wo, wi, n_o, n_t) * multiple_scattering(wo_in) * std::abs(wi.z) / p);
     return true;
+}
+
+
+// Both branches of one microfacet drawn by visible normals: the reflected direction with the
+// reflection's density alone, the refracted one with the transmission's (Fresnel's F and 1 - F
+// stay in eval, the weights carry them).
+void RoughDielectric::sample_branches(const Vec3& wo_in, double, double u1, double u2, BsdfSample* out) const {
+    out[0].pdf = out[1].pdf = 0;
+    if (wo_in.z == 0) return;
+    const bool below = wo_in.z < 0;
+    const Vec3 wo = below ? mirror_z(wo_in) : wo_in;
+    const double n_o = below ? eta_ : 1.0, n_t = below ? 1.0 : eta_;
+    const Vec3 m = D_.sample_visible(wo, u1, u2);
+    const double c = dot(wo, m);
+    if (c <= 0) return;
+    double cos_t;
+    const double F = fresnel_dielectric(c, n_t / n_o, cos_t), e = n_o / n_t;
+    const Vec3 branch[2] = {m * (2 * c) - wo, -wo * e + m * (e * c - cos_t)};
+    const double ms = multiple_scattering(wo_in);
+    for (int k = 0; k < 2; ++k) {
+        const Vec3& wi = branch[k];
+        if (k == 0 ? wi.z <= 0 : (F >= 1 || wi.z >= 0)) continue;
+        const double p = pdf_up(wo, wi, n_o, n_t, false);
+        if (!(p > 0)) continue;
+        out[k].wi = below ? mirror_z(wi) : wi;
+        out[k].pdf = p;
+        out[k].delta = false;
+        out[k].weight = gray(eval_up(wo, wi, n_o, n_t) * ms * std::abs(wi.z) / p);
+    }
+}
+
+Vec3 RoughDielectric::eval_gather_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const {
+    pdf_out = 0;
+    if (wo.z == 0) return {0, 0, 0};
+    const bool below = wo.z < 0;
+    const Vec3 o = below ? mirror_z(wo) : wo, i = below ? mirror_z(wi) : wi;
+    const double n_o = below ? eta_ : 1.0, n_t = below ? 1.0 : eta_;
+    pdf_out = pdf_up(o, i, n_o, n_t, false);
+    return gray(eval_up(o, i, n_o, n_t) * multiple_scattering(wo));
 }
 
 }  // namespace bsgi

@@ -730,7 +730,8 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
     const size_t nodes = table.incoming_count();
     wi.resize(nodes);
     for (size_t t = 0; t < nodes; ++t) wi[t] = table.incoming(t);
-    for (size_t k = 0; k < values * size_t(nb); ++k)
+    const size_t per_value = table.samples_per_value();
+    for (size_t k = 0; k < values * per_value; ++k)
         if (samples[k].kind != ScatterTable::Sample::Kind::None) wi.push_back(samples[k].wi);
     L.resize(wi.size());
     incoming(wi.data(), wi.size(), mirror, L.data());
@@ -742,8 +743,8 @@ void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror,
     }
     size_t next = nodes;
     for (size_t v = 0; v < values; ++v)
-        for (int m = 0; m < nb; ++m) {
-            const ScatterTable::Sample& s = samples[v * nb + m];
+        for (size_t m = 0; m < per_value; ++m) {
+            const ScatterTable::Sample& s = samples[v * per_value + m];
             if (s.kind == ScatterTable::Sample::Kind::None) continue;
             const Vec3& Ls = L[next++];
             if (is_zero(Ls)) continue;

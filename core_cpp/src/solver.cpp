@@ -1332,7 +1332,7 @@ size_t estimate_bytes(const Scene& scene, const SolverSettings& settings, const 
         const size_t incoming = size_t(transmits ? 2 : 1) * nodes_along(settings.hemisphere_nodes_theta, density) *
                                 nodes_along(settings.hemisphere_nodes_phi, density);
         table = std::max(table, ScatterTable::bytes(size_t(transmits ? p.sides : 1) * p.na * p.na, incoming,
-                                                    nodes_along(settings.bsdf_samples, density)));
+                                                    nodes_along(settings.bsdf_samples, density), p.bsdf->gather_branches()));
     }
     const size_t tables = size_t(resolve_threads(settings.threads)) * ScatterTable::kRecent * table;
     resident += tables;

@@ -90,4 +90,59 @@ def test_a_table_too_large_to_keep_gives_the_closed_form_too():
     solution = bsgi.solve(scene, s)
     errors = relative_errors(solution, 0, ALPHAS["smooth"])
     print(f"\nsmooth, 8x the nodes: relative errors {np.round(errors, 4)}")
-    assert errors.max() < 0.004  # measured 0.18%
+    # Measured 0.62% (128 draws in 11 rows of equal-area cells). Until 7 December 0.18% here, but
+    # the sqrt(n) x sqrt(n) grid of those days left cells out or in twice at other counts: at
+    # twice the nodes (32 draws, a refined glossy surface's) 3.2%, now 0.99%.
+    assert errors.max() < 0.012
+
+
+GLASS = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+VIEWS = np.radians([0, 30, 50, 70, 80])
+
+
+def glass_radiance(bsdf_samples, ground=False):
+    """A rough glass (Cycles', Multiscatter GGX) under a world of radiance 1, without bounces at
+    preview with that many BSDF draws, over a black floor if asked: its radiance along VIEWS,
+    above (and below) its middle."""
+    glass = bsgi.RoughDielectric(1.5, 0.25, 0.25, multiscatter=True, height_correlated=True, scale_radiance=False)
+    scene = bsgi.Scene()
+    scene.add_bilinear_patch("glass", GLASS, albedo=[0] * 3, emission=[0] * 3, bsdf=glass)
+    if ground:
+        scene.add_bilinear_patch("ground", GLASS * [20, 20, 0] + [0, 0, -0.3], albedo=[0] * 3, emission=[0] * 3)
+    scene.world_radiance = [1.0, 1.0, 1.0]
+    settings = bsgi.SolverSettings.preset("preview")
+    settings.max_bounces, settings.bsdf_samples = 0, bsdf_samples
+    radiance = bsgi.solve(scene, settings).surfaces[0]
+    up = np.column_stack([np.zeros_like(VIEWS), -np.sin(VIEWS), np.cos(VIEWS)])
+    mid = np.full((len(VIEWS), 2), 0.5)
+    return radiance.evaluate(mid, up)[:, 0], radiance.evaluate(mid, up * [1, 1, -1])[:, 0], glass
+
+
+@pytest.mark.parametrize("bsdf_samples", [16, 20, 32])
+def test_a_glass_under_a_white_world_keeps_its_light_at_any_count_of_draws(bsdf_samples):
+    # The glass's lobe keeps all light (tests/core/test_multiple_scattering.py), so its radiance
+    # either side is the world's, 1. Measured on 7 December: within 1.0%, 1.6% and 1.2% (16, 20
+    # and 32 draws). Until then 20 and 32 draws (a final or refined gather's density gives such
+    # counts) took a sqrt(n) x sqrt(n) grid that left part of the square out or in twice: 6.3%
+    # and 6.9% bright; and each draw took one branch by Fresnel's chance: 16 draws 2.8%.
+    above, below, _ = glass_radiance(bsdf_samples)
+    worst = max(np.abs(above - 1).max(), np.abs(below - 1).max())
+    print(f"\n{bsdf_samples} draws: worst {worst:.4f} above {np.round(above, 4)} below {np.round(below, 4)}")
+    assert worst < 0.025
+
+
+def test_a_glass_reflection_gets_draws_of_its_own():
+    # Over a black floor the glass shows the sky it reflects: its reflected directional albedo
+    # (the lobe's own sampling, 400,000 draws). Measured on 7 December: within 3.8% (at 70 and 80
+    # degrees; 0.9% at 0 and 30); drawing one branch by Fresnel's chance, 10.4% (2 of 16 draws
+    # took the reflection at 70 degrees).
+    above, _, glass = glass_radiance(16, ground=True)
+    n = 400000
+    want = []
+    for v in VIEWS:
+        wo = np.tile([np.sin(v), 0.0, np.cos(v)], (n, 1))
+        s = glass.sample(wo, np.random.default_rng(2).uniform(size=(n, 3)))
+        want.append(np.where(s["valid"] & (s["wi"][:, 2] > 0), s["weight"][:, 0], 0.0).mean())
+    error = np.abs(above / np.array(want) - 1)
+    print(f"\nreflected: {np.round(above, 4)} against {np.round(want, 4)}: worst {error.max():.4f}")
+    assert error.max() < 0.07

@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 # 7 December with Cycles' height-correlated shadowing on its GGX sphere in the solve and the
 # reference (0.61%, 1.0003 the day before; open_box the same to 0.01 points).
 MEASURED = {"open_box": (0.0139, 0.9963),  # the block
-            "table_spheres": (0.0074, 1.0007),  # the GGX sphere
+            "table_spheres": (0.0074, 1.0010),  # the GGX sphere (1.0007 until the gather's draws of 7 December)
             "ceiling_light": (0.0042, 1.0006),  # the floor (nothing over the target: one solve)
             "thin_occluder": (0.0050, 0.9952),  # the small wall
             "leaning_board": (0.0071, 0.9987)}  # the narrow wall

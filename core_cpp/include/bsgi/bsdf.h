@@ -41,6 +41,18 @@ public:
     // Draws wi from three uniform numbers in [0, 1); false if this draw scatters nothing
     // (e.g. a lobe direction below the surface): the missing probability.
     virtual bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const = 0;
+    // The gather's draws (ScatterTable): a lobe that splits at each microfacet (a dielectric's
+    // reflection and transmission) gives every branch of a draw, each with its own branch's
+    // density (eval_gather_pdf), instead of one branch chosen by its chance: a glass seen along
+    // its normal chose its reflection (F = 0.04) in one of 16 draws. At most kGatherBranches.
+    static constexpr int kGatherBranches = 2;
+    virtual int gather_branches() const { return 1; }
+    // Fills out[0, gather_branches()); a branch that scatters nothing has pdf 0.
+    virtual void sample_branches(const Vec3& wo, double u0, double u1, double u2, BsdfSample* out) const {
+        if (!sample(wo, u0, u1, u2, out[0])) out[0].pdf = 0;
+    }
+    // eval, and the density of the gather's draws (summed over branches) at wi.
+    virtual Vec3 eval_gather_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const { return eval_pdf(wo, wi, pdf_out); }
     // Index of the medium on the side of w (1 above, eta below for dielectrics).
     virtual double index_on_side(const Vec3& /*w*/) const { return 1; }
     virtual std::string name() const = 0;
@@ -299,6 +311,9 @@ public:
         return 2 * std::min(D_.ax, D_.ay) * std::min(1.0, (e - 1) / e + 0.1);
     }
     bool transmits() const override { return true; }
+    int gather_branches() const override { return 2; }
+    void sample_branches(const Vec3& wo, double u0, double u1, double u2, BsdfSample* out) const override;
+    Vec3 eval_gather_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
     bool multiscatter() const { return bool(albedo_outside_); }
     bool height_correlated() const { return height_correlated_; }
     bool scale_radiance() const { return scale_radiance_; }
@@ -310,7 +325,8 @@ public:
 private:
     // With wo mirrored into the upper hemisphere: n_o is the index there, n_t the other.
     double eval_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const;
-    double pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const;
+    // The density of wi drawn by sample() (chosen: times the branch's chance) or of its branch alone.
+    double pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t, bool chosen = true) const;
     double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const {
         return height_correlated_ ? D_.G2(wo, wi, h) : D_.G1(wo, h) * D_.G1(wi, h);
     }

@@ -42,16 +42,19 @@ public:
     ScatterTable(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb);
     // Whether this table is the one those arguments would build.
     bool matches(const Receiver& r, int first, int last, bool mirror, int nt, int np, int nb) const;
-    // Bytes of the table for `values` outgoing values, `incoming` cosine nodes and nb samples.
-    static size_t bytes(size_t values, size_t incoming, int nb);
+    // Bytes of the table for `values` outgoing values, `incoming` cosine nodes and nb draws of
+    // `branches` samples each (Bsdf::gather_branches).
+    static size_t bytes(size_t values, size_t incoming, int nb, int branches);
 
     // Cosine nodes over the incoming sides: incoming side slowest, then the rule's order.
     size_t incoming_count() const { return incoming_.size(); }
     const Vec3& incoming(size_t t) const { return incoming_[t]; }
     // The terms of node t, (last - first) * per_node of them, side-major.
     const Term* terms(size_t t);
-    // (last - first) * per_node * nb samples: side slowest, then value, then sample.
+    // (last - first) * per_node * samples_per_value() samples: side slowest, then value, then
+    // draw, then branch.
     const std::vector<Sample>& samples() const { return samples_; }
+    size_t samples_per_value() const { return size_t(nb_) * branches_; }
 
     static constexpr size_t kKeptBytes = size_t(32) << 20;
     // Tables a thread keeps (Gatherer::scatter_table).
@@ -72,6 +75,7 @@ private:
     std::vector<double> node_weight_;  // the cosine rule's weight of node t
     double n_strategy_;
     int in_sides_;
+    int branches_ = 1;
     std::vector<Term> terms_;
     std::vector<uint8_t> filled_;  // per node, if the rows are kept
     std::vector<Sample> samples_;
