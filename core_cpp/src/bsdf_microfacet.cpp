@@ -308,13 +308,12 @@ double RoughDielectric::single_scattering_albedo(const GgxDistribution& D, doubl
             if (c <= 0) continue;
             double cos_t;
             const double F = fresnel_dielectric(c, n_t / n_o, cos_t);
-            auto shadowing = [&](const Vec3& wi) { return height_correlated ? D.G2(wo, wi, m) : D.G1(wo, m) * D.G1(wi, m); };
             double weight = 0;
             const Vec3 reflected = m * (2 * c) - wo;
-            if (reflected.z > 0) weight += F * shadowing(reflected);
+            if (reflected.z > 0) weight += F * D.G(wo, reflected, m, height_correlated);
             if (F < 1) {
                 const Vec3 refracted = -wo * e + m * (e * c - cos_t);
-                if (refracted.z < 0) weight += (1 - F) * shadowing(refracted);
+                if (refracted.z < 0) weight += (1 - F) * D.G(wo, refracted, m, height_correlated);
             }
             sum += weight / g_o * (2 * t);
         }

@@ -23,17 +23,11 @@ void stratified(int m, int n, double* u) {
     while (rows * rows > n) --rows;
     while ((rows + 1) * (rows + 1) <= n) ++rows;
     const int cells = n / rows, longer = n % rows;  // rows [0, longer) have cells + 1
-    int row, column, in_row, before;
-    if (m < longer * (cells + 1)) {
-        in_row = cells + 1;
-        row = m / in_row, column = m % in_row, before = row * in_row;
-    } else {
-        const int k = m - longer * (cells + 1);
-        in_row = cells;
-        row = longer + k / cells, column = k % cells, before = m - column;
-    }
+    const bool long_row = m < longer * (cells + 1);
+    const int in_row = long_row ? cells + 1 : cells;
+    const int column = long_row ? m % in_row : (m - longer * (cells + 1)) % cells;
     u[0] = (column + 0.5) / in_row;
-    u[1] = (before + 0.5 * in_row) / n;
+    u[1] = (m - column + 0.5 * in_row) / n;  // m - column: the row's first cell
     u[2] = std::fmod((m + 0.5) * 0.6180339887498949, 1.0);
 }
 

@@ -205,9 +205,7 @@ private:
     // Local frame <-> the lobe's frame (x along the turned tangent).
     Vec3 to_lobe(const Vec3& w) const { return {cos_ * w.x + sin_ * w.y, cos_ * w.y - sin_ * w.x, w.z}; }
     Vec3 from_lobe(const Vec3& w) const { return {cos_ * w.x - sin_ * w.y, sin_ * w.x + cos_ * w.y, w.z}; }
-    double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const {
-        return height_correlated_ ? D_.G2(wo, wi, h) : D_.G1(wo, h) * D_.G1(wi, h);
-    }
+    double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const { return D_.G(wo, wi, h, height_correlated_); }
     GgxDistribution D_;
     Vec3 f0_;
     double cos_ = 1, sin_ = 0;
@@ -327,9 +325,7 @@ private:
     double eval_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t) const;
     // The density of wi drawn by sample() (chosen: times the branch's chance) or of its branch alone.
     double pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t, bool chosen = true) const;
-    double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const {
-        return height_correlated_ ? D_.G2(wo, wi, h) : D_.G1(wo, h) * D_.G1(wi, h);
-    }
+    double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const { return D_.G(wo, wi, h, height_correlated_); }
     // Multiscatter GGX's 1 / E(mu_o) on the side of wo (1 in single scattering).
     double multiple_scattering(const Vec3& wo) const;
     double eta_;

@@ -76,6 +76,10 @@ struct GgxDistribution {
         if (dot(wo, m) * wo.z * m.z <= 0 || dot(wi, m) * wi.z * m.z <= 0) return 0;
         return 1.0 / (1 + lambda(wo) + lambda(wi));
     }
+    // Cycles' G2 (height_correlated) or Mitsuba's separable G1(wo, m) G1(wi, m).
+    double G(const Vec3& wo, const Vec3& wi, const Vec3& m, bool height_correlated) const {
+        return height_correlated ? G2(wo, wi, m) : G1(wo, m) * G1(wi, m);
+    }
     // Density of visible normals seen from w (w.z > 0, m.z > 0): G1(w, m) <w, m> D(m) / w.z.
     double visible_pdf(const Vec3& w, const Vec3& m) const {
         const double wm = dot(w, m);
