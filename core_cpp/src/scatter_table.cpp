@@ -11,14 +11,17 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// Stratified point m of n in [0, 1)^2: floor(sqrt(n)) rows of cells, the first n mod rows of
-// them one cell longer, each row as tall as its share of the n cells, so that every cell has
-// area 1 / n (for a square n the sqrt(n) x sqrt(n) grid), the point at its centre; and a third
-// coordinate spread by the golden ratio: deterministic, so the solve has no noise. (Until 7
-// December a sqrt(n) x sqrt(n) grid for every n: 20 or 32 draws left part of the square
-// unsampled or sampled twice, and a glass under a white sky came out 6-7% bright; a refined or
-// final gather's density gives such counts.)
-void stratified(int m, int n, double* u) {
+// Draw m of n in [0, 1)^3. The BSDF's direction comes from (u1, u2), a Fibonacci lattice
+// ((m + 1/2) / n, the golden ratio's multiples): n distinct values along each coordinate, an
+// even spread at every n. u0, a lobe's choice in a BSDF of several, is the column of m in n
+// equal-area cells of the unit square (floor(sqrt(n)) rows, the first n mod rows one cell
+// longer), so that each lobe's share of the draws is its probability's, row by row, and every
+// row covers a span of u1. Deterministic, so the solve has no noise. (Until 7 December a lobe's
+// direction came from (the cells' row, the golden ratio): 4 distinct values of u1 at 16 draws;
+// GGX floors under a white world were 0.99% from their many-draw value over 9-64 draws, the
+// lattice 0.37%; before that, a sqrt(n) x sqrt(n) grid at every n left cells out or in twice
+// at 20 or 32 draws.)
+void lattice_draw(int m, int n, double* u) {
     int rows = std::max(1, int(std::sqrt(double(n))));
     while (rows * rows > n) --rows;
     while ((rows + 1) * (rows + 1) <= n) ++rows;
@@ -27,7 +30,7 @@ void stratified(int m, int n, double* u) {
     const int in_row = long_row ? cells + 1 : cells;
     const int column = long_row ? m % in_row : (m - longer * (cells + 1)) % cells;
     u[0] = (column + 0.5) / in_row;
-    u[1] = (m - column + 0.5 * in_row) / n;  // m - column: the row's first cell
+    u[1] = (m + 0.5) / n;
     u[2] = std::fmod((m + 0.5) * 0.6180339887498949, 1.0);
 }
 
@@ -64,7 +67,7 @@ ScatterTable::ScatterTable(const Receiver& r, int first, int last, bool mirror, 
         const Vec3& wo = outgoing_[v];
         for (int m = 0; m < nb; ++m) {
             double u[3];
-            stratified(m, nb, u);
+            lattice_draw(m, nb, u);
             BsdfSample drawn[Bsdf::kGatherBranches];
             r.bsdf->sample_branches(wo, u[0], u[1], u[2], drawn);
             for (int k = 0; k < branches_; ++k) {

@@ -74,8 +74,10 @@ def test_coat_fresnel_is_the_dielectrics_remapped_to_f0():
 def test_decomposed_coat_under_a_constant_sky_reflects_its_directional_albedo(albedo):
     # An open floor under a sky of radiance 1 leaves, along every direction, the BSDF's
     # directional albedo there: the solver's D + S (the coat's S going negative where it takes
-    # from the base) at preview against the BSDF's own integral above. Measured: within 0.095%
-    # (albedo 1: exactly 1 at every angle), 0.17% (albedo 0.8).
+    # from the base) at preview against the BSDF's own integral above. Measured on 7 December:
+    # within 0.27% (albedo 1: exactly 1 at every angle) and 0.34% (albedo 0.8) with the coat's 16
+    # draws from a Fibonacci lattice; 0.095% and 0.17% with the draws' former rows, luckier at 16
+    # (at 25 draws 0.47% with those, 0.36% with the lattice).
     floor = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
     bsdf = bsgi.DiffuseGgx([albedo] * 3, 0.25, 0.25, [F0] * 3, layered=True, eta=ETA)
     scene = bsgi.Scene()
@@ -93,7 +95,7 @@ def test_decomposed_coat_under_a_constant_sky_reflects_its_directional_albedo(al
     print(f"\nalbedo {albedo}: worst {error:.2e} over view angles (want {want.min():.3f}-{want.max():.3f})")
     if albedo < 1:
         assert want.max() - want.min() > 0.02  # (measured 0.807-0.833: a view-independent answer fails)
-    assert error < 3e-3
+    assert error < 5e-3
 
 
 # An albedo texture under the coat (bsdf.h CoatedBase): D holds irradiance / pi, S the coat less

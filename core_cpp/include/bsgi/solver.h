@@ -110,7 +110,7 @@ struct SolverSettings {
     int emitter_shadow_depth = 0;
 
     // Hemispherical integral (26)-(32): cosine-weighted nodes in (cos^2 theta, phi); glossy
-    // receivers add bsdf_samples stratified BSDF-sampled directions per outgoing direction,
+    // receivers add bsdf_samples BSDF-sampled directions (a Fibonacci lattice) per outgoing direction,
     // combined with the cosine nodes by multiple importance sampling.
     int hemisphere_nodes_theta = 12;
     int hemisphere_nodes_phi = 24;
