@@ -93,10 +93,10 @@ size_t Gatherer::emitter_grid_bytes(const Surface& e) {
     return (su.size() + 1) * (sv.size() + 1) * (side * side * sizeof(SurfacePoint) + sizeof(EmitterGrid));
 }
 
-Vec3 directional_albedo(const Bsdf& b) {
+Vec3 directional_albedo(const Bsdf& b, const Vec3& wo) {
     const CosineRule& rule = cosine_rule(16, 32);
     Vec3 sum{0, 0, 0};
-    for (int m = 0; m < rule.size(); ++m) sum += b.eval({0, 0, 1}, rule.direction(m)) * rule.weight(m);
+    for (int m = 0; m < rule.size(); ++m) sum += b.eval(wo, rule.direction(m)) * rule.weight(m);
     return sum * (kPi / rule.size());  // pi times the mean of rho over the cosine-weighted rule
 }
 

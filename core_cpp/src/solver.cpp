@@ -142,8 +142,9 @@ double lobe_in_disc(const Bsdf& b) { return std::max(b.lobe_width(), 1e-3) / std
 // 0.79 near grazing, and 7 x 7 angular coefficients were 7% low at 45 degrees, 10% high at 75.
 // The count: the fewest from `start` whose fit of the BSDF's directional albedo over the disc
 // (Schoenberg's, sharpened as the solve sharpens it) stays within `tolerance` of `scale`, per
-// channel. The albedo by a cosine-weighted midpoint rule (wide lobes only: 32 x 64 nodes
-// integrate them to about 1e-4) at 33 cosines, read linearly between them.
+// channel. The albedo by the gather's cosine rule (directional_albedo) at 33 cosines, read
+// linearly between them. (Until 7 December a midpoint rule in cos^2 theta of 32 x 64 nodes,
+// which undersamples the horizon: a roughness-1 metal's albedo at grazing 5% low.)
 constexpr double kWideLobe = 0.5;  // radians: narrower lobes' widths ask for more knots than this would
 struct AlbedoCurve {
     static constexpr int kCosines = 33;  // at mu = (k / (n - 1))^2
@@ -159,21 +160,11 @@ struct AlbedoCurve {
 };
 
 AlbedoCurve albedo_curve(const Bsdf& b) {
-    constexpr int kTheta = 32, kPhi = 64;
     AlbedoCurve curve;
     curve.values.resize(AlbedoCurve::kCosines);
     for (int k = 0; k < AlbedoCurve::kCosines; ++k) {
         const double x = double(k) / (AlbedoCurve::kCosines - 1), mu = std::max(x * x, 1e-3);
-        const Vec3 wo{std::sqrt(1 - mu * mu), 0, mu};
-        Vec3 sum{0, 0, 0};
-        for (int i = 0; i < kTheta; ++i) {
-            const double c2 = (i + 0.5) / kTheta, c = std::sqrt(c2), sn = std::sqrt(1 - c2);
-            for (int j = 0; j < kPhi; ++j) {
-                const double phi = 2 * kPiD * (j + 0.5) / kPhi;
-                sum += b.eval(wo, {sn * std::cos(phi), sn * std::sin(phi), c});
-            }
-        }
-        curve.values[size_t(k)] = sum * (kPiD / (kTheta * kPhi));
+        curve.values[size_t(k)] = directional_albedo(b, {std::sqrt(1 - mu * mu), 0, mu});
         curve.largest = std::max(curve.largest, max_component(curve.values[size_t(k)]));
     }
     return curve;

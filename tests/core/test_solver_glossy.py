@@ -276,8 +276,9 @@ def test_a_rough_lobes_change_with_the_view_gets_angular_knots(preset, tolerance
     # while its lobe is as wide as it gets: the width's 7 x 7 (preview) angular coefficients
     # left it 7% low at 45 degrees and 10% high at 75; the albedo's own fit within the preset's
     # angular_albedo_tolerance (1%, 0.5%) chooses more. Against the BSDF's albedo by quadrature
-    # (closed_forms' rule). Measured: preview 7 -> 24 coefficients, worst 9.6% -> 1.0%
-    # (its error sits at 75-85 degrees); final 8 -> 24, 8.4% -> 1.0%.
+    # (closed_forms' rule). Measured on 7 December: preview 7 -> 24 coefficients, worst 8.8% ->
+    # 0.58% (its error sits at 75-85 degrees); final 8 -> 24, 7.7% -> 0.58% (9.6% -> 1.0% and
+    # 8.4% -> 1.0% with the gather's draws before their Fibonacci lattice).
     from closed_forms import directional_albedo
 
     floor = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
@@ -302,7 +303,7 @@ def test_a_rough_lobes_change_with_the_view_gets_angular_knots(preset, tolerance
     print(f"\n{preset}: {n_off} -> {n_on} angular coefficients, worst {worst_off:.4f} -> {worst_on:.4f}")
     assert n_on > n_off and "change with the view" in reason
     assert worst_off > tolerance_off_worst
-    assert worst_on < 0.02
+    assert worst_on < 0.012
 
 
 def test_a_materials_view_dependence_count_is_its_own_under_each_setting():
