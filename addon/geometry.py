@@ -41,10 +41,7 @@ class ExportedObject:
 
 
 # Cycles shades a smooth face with its corner normals interpolated; so does the solver (the cosine
-# of the light and a glossy lobe's frame read the interpolated normal). Light through a surface
-# (glass) keeps each face's own normal: named where the normals turn further apart than this (the
-# cosine of light 60 degrees off the normal then differs by up to a tenth across a face).
-SMOOTH_SHADING_TURN_DEGREES = 3.0
+# of the light, a glossy lobe's frame and a glass's read the interpolated normal).
 # Corner normals this close to their face's are a flat face (float32 normals differ by 0.03).
 FLAT_FACE_DEGREES = 0.1
 
@@ -100,23 +97,6 @@ def corner_normals(mesh, matrix=None) -> CornerNormals:
     return CornerNormals(corner, turn)
 
 
-def smooth_shading_turn(mesh) -> float:
-    """The largest angle in degrees between a face's normal and its corners' (0 on flat faces)."""
-    return float(corner_normals(mesh).turn.max(initial=0.0))
-
-
-def _warn_smooth_glass(normals: CornerNormals, slots, materials: ObjectMaterials, label: str, warnings) -> None:
-    """Names the smooth-shaded faces whose transmission reads the face's own normal."""
-    turns = [t for t, slot in zip(normals.turn, slots)
-             if materials.solver[min(slot, len(materials.solver) - 1)].kind == "rough_dielectric"]
-    turn = max(turns, default=0.0)
-    if turn > SMOOTH_SHADING_TURN_DEGREES:
-        warnings.append(f"object '{label}': the glass of its smooth-shaded faces is solved with each face's own flat "
-                        f"normal, where Cycles interpolates the normals across the faces (here up to {turn:.0f}° from "
-                        "a face's): the light through it shows the faces; a Subdivision Surface modifier (or a NURBS "
-                        "surface) makes the faces follow the shape")
-
-
 def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | None = None,
                      pending_charts: list | None = None) -> ExportedObject:
     co = np.empty(len(mesh.vertices) * 3, np.float64)
@@ -128,9 +108,6 @@ def _add_mesh_object(scene, obj, mesh, matrix: Matrix, warnings, label: str | No
     label = label or obj.name
     materials = object_materials(obj, matrix, warnings, label, surface_options(obj))
     normals = corner_normals(mesh, matrix)
-    slots = np.zeros(len(mesh.polygons), np.int64)
-    mesh.polygons.foreach_get("material_index", slots)
-    _warn_smooth_glass(normals, slots, materials, label, warnings)
     exported = ExportedObject(obj.name, len(mesh.polygons))
     if any(m.kind == "rough_dielectric" for m in materials.solver):
         thin = materials.use_glass(glass_shape(world, mesh), glass_choice(obj), warnings)

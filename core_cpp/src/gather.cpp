@@ -494,8 +494,7 @@ void Gatherer::direct_over_support(const Receiver& r, size_t j, const std::vecto
     for (size_t c = 0; c < n; ++c) out[c] += sun[c];
 }
 
-void Gatherer::direct_at(const Receiver& r, const SurfacePoint& at, LightParts parts, Vec3* out, size_t& rays) const {
-    const SurfacePoint p = receiver_point(r, at);
+void Gatherer::direct_at(const Receiver& r, const SurfacePoint& p, LightParts parts, Vec3* out, size_t& rays) const {
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     // Glossy receivers: emitter cells no wider than a fraction of the lobe, seen from here.
@@ -667,7 +666,7 @@ void Gatherer::trace_from(const SurfacePoint& p, const Vec3* dirs, size_t n, Vis
 template <typename Incoming>
 void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&& radiance_along, Vec3* out,
                           size_t& rays) const {
-    const SurfacePoint p = receiver_point(r, node_point(r, j));
+    const SurfacePoint p = node_point(r, j);
     const size_t n = r.sides * r.per_node;
     std::fill(out, out + n, Vec3{0, 0, 0});
     const int nt = nodes_along(settings_.hemisphere_nodes_theta, density), np = nodes_along(settings_.hemisphere_nodes_phi, density);
@@ -806,7 +805,7 @@ void basis_terms(const TensorSpline& s, const double* x, std::vector<std::pair<s
 
 void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const std::vector<const Receiver*>& receiver_of,
                              std::vector<TransportTerm>& row, size_t& rays) const {
-    const SurfacePoint p = receiver_point(r, node_point(r, j));
+    const SurfacePoint p = node_point(r, j);
     const int nt = settings_.hemisphere_nodes_theta, np = settings_.hemisphere_nodes_phi;
     const CosineRule& rule = cosine_rule(nt, np);
     const ShadingCosine shading(p, side_out);

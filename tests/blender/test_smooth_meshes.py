@@ -57,13 +57,19 @@ def sphere_pixels(context, camera, n):
 #   1.7% and 7.7%, the rest in the sphere's dark side: the floor's bounce);
 # - Blender's default Principled BSDF (its coat solved, test_principled_materials.py): 1.13% and
 #   5.8%, the base's cosine and the coat's lobe both following the interpolated normals, so its
-#   highlight is round (with the lobe in each face's own frame it was a lit quad: 1.58%).
-SPHERE_MATERIALS = {"diffuse": 0.0101, "default material": 0.0113}
+#   highlight is round (with the lobe in each face's own frame it was a lit quad: 1.58%);
+# - a rough glass (Glass BSDF, roughness 0.5, Multiscatter GGX): 12.9% and 15.4% (7 December;
+#   the flat faces' bands gone). What is left is the light through the glass, not its normals:
+#   the sphere's shadow on the floor, seen through it, is fainter than Cycles' (the sun's light
+#   through two rough interfaces spread by the glass's angular splines; the whole frame 8% bright).
+# Each: (the figure, how much worse the flat faces must be).
+SPHERE_MATERIALS = {"diffuse": (0.0101, 3), "default material": (0.0113, 3), "glass": (0.129, 1.1)}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("material", sorted(SPHERE_MATERIALS))
 def test_smooth_sphere_baked_matches_cycles(context, tmp_path, monkeypatch, material):
+    from test_export import shader_material
     from test_principled_materials import principled
 
     scene = context.scene
@@ -71,6 +77,9 @@ def test_smooth_sphere_baked_matches_cycles(context, tmp_path, monkeypatch, mate
     if material == "default material":
         ball.data.materials.clear()
         ball.data.materials.append(principled("Default"))
+    if material == "glass":
+        ball.data.materials.clear()
+        ball.data.materials.append(shader_material("Frosted", "ShaderNodeBsdfGlass", Roughness=0.5, IOR=1.5)[0])
     scene.bsgi.preset = "PREVIEW"
     reference = render_exr(scene, tmp_path / "reference.exr", samples=2048, bounces=12)
     mask = sphere_pixels(context, camera, reference.shape[0])
@@ -88,5 +97,6 @@ def test_smooth_sphere_baked_matches_cycles(context, tmp_path, monkeypatch, mate
     monkeypatch.setattr(geometry, "FLAT_FACE_DEGREES", 360.0)  # every face its own normal, as before
     flat = baked_difference("flat")
     assert mask.sum() > 1000
-    assert smooth < 2 * SPHERE_MATERIALS[material]
-    assert flat > 3 * smooth
+    measured, flat_worse = SPHERE_MATERIALS[material]
+    assert smooth < (1.5 if material == "glass" else 2) * measured
+    assert flat > flat_worse * smooth

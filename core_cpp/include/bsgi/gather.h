@@ -292,16 +292,9 @@ private:
                                  Visit&& visit, size_t& rays, LightParts parts = LightParts::All) const;
     // direct() at point p of r's surface, from the lights `parts`.
     void direct_at(const Receiver& r, const SurfacePoint& p, LightParts parts, Vec3* out, size_t& rays) const;
-    // The point as r's gather reads it: smooth shading's normal for reflection (a Lambertian
-    // cosine, a lobe's frame); light through a surface keeps the geometric frame (the add-on
-    // names it).
     // Light leaving a hit on h's surface towards -dir, as h's splines read it (leaving_local; a
     // Lambertian surface's read needs only the side, not the shading frame).
     Vec3 leaving(const Receiver& h, const SurfaceHit& hit, const Vec3& dir) const;
-    static SurfacePoint receiver_point(const Receiver& r, SurfacePoint p) {
-        if (r.bsdf->transmits()) p.shading = {0, 0, 0};
-        return p;
-    }
 
     // A direction of a distant light's disc, and the irradiance it brings to a surface facing it.
     struct DistantSample {
