@@ -14,7 +14,8 @@ growth, its final gathers' and estimate's share by four more with twice the inte
 its time as the last one's in proportion. Where a pass refining every surface over the target
 would overrun a budget, the surfaces with the highest estimates are refined, as many as the
 budgets allow (the longest such prefix, found by bisection: each budget grows with each surface
-added); only where not even the worst one fits does refinement stop. The rays and the memory
+added); where the worst one alone does not fit, the next ones are tried without it, and only
+where none fits does refinement stop. The rays and the memory
 estimate are the same wherever the solve runs, so refinement under them is too (the time is
 not). The other parts (the splines the gather read, the bounces' tail) do not fall with the
 surface's own refinement (the first falls with its neighbours'). A surface whose estimate did not
@@ -107,6 +108,30 @@ def predicted_rays(scene: _core.Scene, stats: dict, reports: dict, chosen: dict,
     return rays
 
 
+def longest_fitting_prefix(order: list, overrun: Callable[[list], Optional[str]]) -> tuple:
+    """The surfaces of `order` (worst first) a pass refines: the longest prefix whose refinement
+    `overrun` finds within every budget (bisection: each budget grows with each surface added).
+    Where not even the first one fits alone, it is passed over for the next ones (a 4D surface
+    whose spatial refinement alone overruns the cost budget leaves the cheaper refinements of
+    the surfaces after it possible), until one fits or none is left. Returns (the surfaces
+    chosen, the budget that cut the rest or None)."""
+    budget = None
+    for start in range(len(order)):
+        candidates = order[start:]
+        overruns = {0: None, len(candidates): overrun(candidates)}  # prefix length -> the budget it overruns
+        fitting, lacking = 0, len(candidates)  # the longest prefix that fits, the shortest that does not
+        if overruns[lacking] is None:
+            return candidates, budget
+        while lacking - fitting > 1:
+            middle = (fitting + lacking) // 2
+            overruns[middle] = overrun(candidates[:middle])
+            fitting, lacking = (middle, lacking) if overruns[middle] is None else (fitting, middle)
+        budget = overruns[lacking]
+        if fitting:
+            return candidates[:fitting], budget
+    return [], budget
+
+
 def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
                   solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None,
                   progress: Optional[_core.Progress] = None,
@@ -174,21 +199,14 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
                 break
             # The worst first (ties by scene index, so that every run chooses alike).
             order = sorted(changes, key=lambda i: (-over[i]["estimated_error"], i))
-            overruns = {0: None}  # prefix length -> the budget it overruns
-            overruns[len(order)] = overrun(changes, reports, last_seconds, solution.stats)
-            fitting, lacking = 0, len(order)  # the longest prefix that fits, the shortest that does not
-            if overruns[lacking] is None:
-                fitting = lacking
-            while lacking - fitting > 1:
-                middle = (fitting + lacking) // 2
-                overruns[middle] = overrun({i: changes[i] for i in order[:middle]}, reports, last_seconds, solution.stats)
-                fitting, lacking = (middle, lacking) if overruns[middle] is None else (fitting, middle)
-            if fitting == 0:
-                stopped = overruns[lacking]
+            fitting, budget = longest_fitting_prefix(
+                order, lambda prefix: overrun({i: changes[i] for i in prefix}, reports, last_seconds, solution.stats))
+            if not fitting:
+                stopped = budget
                 break
-            if fitting < len(order):
-                trimmed.append({"pass": passes + 1, "budget": overruns[lacking], "left_out": len(order) - fitting})
-            changes = {i: changes[i] for i in order[:fitting]}
+            if len(fitting) < len(order):
+                trimmed.append({"pass": passes + 1, "budget": budget, "left_out": len(order) - len(fitting)})
+            changes = {i: changes[i] for i in fitting}
             predicted.append(predicted_rays(scene, solution.stats, reports, changes, settings))
             apply(changes)
             previous = {i: over[i]["estimated_error"] for i in changes}

@@ -274,3 +274,28 @@ def test_refinement_probes_the_sides_once(monkeypatch):
     solution = bsgi.solve(shadow_scene(), coarse_settings(refine_to_error=1e-4, refine_passes=1))
     assert solution.refinement["passes"] == 1
     assert len(probes) == 1 and len(passed) == 2 and passed[0] is not None and passed[1] is passed[0]
+
+
+def test_a_pass_refines_the_longest_fitting_prefix_and_passes_over_a_worst_that_never_fits():
+    from bsgi.refine import longest_fitting_prefix
+
+    calls = []
+
+    def budget(limit, alone_too_dear=()):
+        """Overruns "cost" past `limit` surfaces, or with any of `alone_too_dear` in it."""
+        def overrun(prefix):
+            calls.append(len(prefix))
+            return "cost" if len(prefix) > limit or set(prefix) & set(alone_too_dear) else None
+        return overrun
+
+    order = list(range(100))
+    assert longest_fitting_prefix(order, budget(100)) == (order, None)
+    calls.clear()
+    assert longest_fitting_prefix(order, budget(37)) == (order[:37], "cost")
+    assert len(calls) <= 9  # bisection: log2(100) + 2
+    # The worst surface's refinement alone overruns (table_spheres' 4D GGX sphere at final, 7
+    # December): the table after it still gets its cheaper one, where the pass stopped before.
+    assert longest_fitting_prefix([7, 3, 5], budget(10, alone_too_dear=[7])) == ([3, 5], "cost")
+    assert longest_fitting_prefix([7, 3, 5], budget(1, alone_too_dear=[7])) == ([3], "cost")
+    assert longest_fitting_prefix([7, 3], budget(10, alone_too_dear=[7, 3])) == ([], "cost")
+    assert longest_fitting_prefix([], budget(10)) == ([], None)

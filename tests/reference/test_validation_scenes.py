@@ -33,7 +33,10 @@ sys.path.insert(0, str(ROOT / "bench" / "validation"))
 # 7 December with Cycles' height-correlated shadowing on its GGX sphere in the solve and the
 # reference (0.61%, 1.0003 the day before; open_box the same to 0.01 points).
 MEASURED = {"open_box": (0.0139, 0.9963),  # the block
-            "table_spheres": (0.0074, 1.0010),  # the GGX sphere (1.0007 until the gather's draws of 7 December)
+            # the GGX sphere; 7 December with the gather's Fibonacci lattice, whose estimate asks the
+            # sphere for spatial knots the cost budget refuses: the table refined alone (refine.py
+            # longest_fitting_prefix; 0.96% when the pass stopped there), 0.74% and 1.0010 before
+            "table_spheres": (0.0087, 1.0025),
             "ceiling_light": (0.0042, 1.0006),  # the floor (nothing over the target: one solve)
             "thin_occluder": (0.0050, 0.9952),  # the small wall
             "leaning_board": (0.0071, 0.9987)}  # the narrow wall
@@ -44,7 +47,8 @@ MEASURED = {"open_box": (0.0139, 0.9963),  # the block
 # with two final passes instead of four 3.51%, 1.85%, 0.42%, 1.21%, 2.78%; without the coarse
 # correction, 5 December, 3.40%, 1.72%, 0.42%, 1.18%, 2.61%, leaning_board's board 1.0064.)
 MEASURED_ONE_SOLVE = {"open_box": (0.0337, 0.9957),  # the ceiling
-                      "table_spheres": (0.0100, 1.0021),  # the GGX sphere (1.71%, 0.9969 flat-shaded)
+                      "table_spheres": (0.0096, 1.0022),  # the GGX sphere (1.00%, 1.0021 before the
+                      # gather's lattice; 1.71%, 0.9969 flat-shaded)
                       "ceiling_light": (0.0042, 1.0006),  # the floor
                       "thin_occluder": (0.0118, 0.9975),  # the small wall
                       # (added 3 December: the board's back bright, the wedge behind it lit through
