@@ -33,10 +33,11 @@ CASES = [("MULTI_GGX", 30, False, 0.015), ("GGX", 30, False, 0.015), ("MULTI_GGX
 def test_rough_glass_is_what_cycles_renders(context, tmp_path, distribution, view_degrees, black_floor, bound):
     # Under a white world, with Multiscatter GGX a clear glass keeps all of the light (Cycles:
     # 1.0000 +- 1e-4 at both views); single-scattering GGX loses 1 - E(mu_o) of it (Cycles 0.988
-    # at 30 degrees, 0.937 at 70). Measured on 7 December: bsgi / Cycles 1.003 and 1.008
-    # (Multiscatter GGX), 1.003 and 1.007 (GGX). Over a black floor, which hides the world below
-    # but near the horizon, what is seen is the reflected sky (Cycles 0.039 at 30 degrees, 0.102
-    # at 70): 1.013 and 1.034. Before the gather drew both branches of a glass's microfacets
+    # at 30 degrees, 0.937 at 70). Measured on 7 December with the draws' Fibonacci lattice:
+    # bsgi / Cycles 1.002 and 1.007 (Multiscatter GGX), 1.002 and 1.006 (GGX). Over a black floor,
+    # which hides the world below but near the horizon, what is seen is the reflected sky (Cycles
+    # 0.039 at 30 degrees, 0.102 at 70): 1.012 and 1.048 (1.013 and 1.034 with the draws' rows
+    # before the lattice, 3.0% of it the angular spline's at 1024 draws). Before the gather drew both branches of a glass's microfacets
     # (scatter_table.cpp) 1.026, 1.015, 1.006 and 1.22 (2 of 16 draws took the reflection at
     # 70 degrees); before Cycles' glass (single scattering, separable shadowing, radiance
     # carried across with 1 / IOR^2) the light from below showed at 44% of Cycles'.
