@@ -135,36 +135,51 @@ def test_triangles_and_charts_interpolate_their_corners_normals_barycentrically(
     assert np.abs(chart.evaluate(at)["shading_normal"] - want).max() < 1e-12
 
 
-def test_a_glossy_lobe_turns_with_the_shading_normal():
-    # A GGX floor whose shading normal leans 20 degrees, under a sun: Cycles evaluates the lobe in
-    # the shading frame, L(w_o) = f(w_o, l) E (n_s . l) with both directions in that frame (the
-    # radiance frame its splines are in, Surface.evaluate's shading_x, shading_y, shading_normal).
-    # Measured at preview over directions around the highlight: RMS 1.1% of its peak; the lobe in
-    # the geometric frame (as before) would put the highlight 40 degrees away: 25% of the peak.
-    sun, irradiance, alpha = tilted(30, 180), 2.0, 0.3
-    lobe = bsgi.GgxReflection(alpha, alpha, [0.9] * 3)
+def lobe_under_a_sun(bsdf, around):
+    """A patch of `bsdf` whose shading normal leans 20 degrees, under a sun, solved at preview
+    without bounces: its radiance along 200 directions about each of `around` (each a function of
+    the sun's direction in the shading frame) against f(w_o, l) E |n_s . l| with both directions
+    in that frame, the radiance frame its splines are in (Surface.evaluate's shading_x, shading_y,
+    shading_normal). Per centre: (RMS over the peak, the same for the lobe in the face's frame)."""
+    sun, irradiance = tilted(30, 180), 2.0
     scene = bsgi.Scene()
-    patch = bsgi.BilinearPatch("floor", FLOOR, normals=np.tile(tilted(20, 0), (4, 1)))
-    scene.add_surface(patch, albedo=[0] * 3, emission=[0] * 3, bsdf=lobe)
+    patch = bsgi.BilinearPatch("patch", FLOOR, normals=np.tile(tilted(20, 0), (4, 1)))
+    scene.add_surface(patch, albedo=[0] * 3, emission=[0] * 3, bsdf=bsdf)
     scene.add_distant_light("sun", sun, [irradiance] * 3, 0.0)
     radiance = bsgi.solve(scene, settings(max_bounces=0)).surfaces[0]
     uv = np.full((1, 2), 0.5)
     f = patch.evaluate(uv)
     frame = np.stack([f["shading_x"][0], f["shading_y"][0], f["shading_normal"][0]])
     sun_local = frame @ sun
-    mirror = np.array([-sun_local[0], -sun_local[1], sun_local[2]])
     rng = np.random.default_rng(8)
-    out = mirror + rng.normal(scale=0.35, size=(200, 3))
-    out[:, 2] = np.abs(out[:, 2]) + 0.05
-    out /= np.linalg.norm(out, axis=1, keepdims=True)
-    got = radiance.evaluate(np.repeat(uv, len(out), axis=0), out)[:, 0]
-    want = lobe.eval(out, np.tile(sun_local, (len(out), 1)))[:, 0] * irradiance * sun_local[2]
-    geometric = lobe.eval(out, np.tile(sun, (len(out), 1)))[:, 0] * irradiance * sun[2]
-    rms = np.sqrt(np.mean((got - want) ** 2)) / want.max()
-    apart = np.sqrt(np.mean((geometric - want) ** 2)) / want.max()
+    errors = []
+    for centre_of in around:
+        centre = centre_of(sun_local)
+        out = centre + rng.normal(scale=0.35, size=(200, 3))
+        out[:, 2] = np.copysign(np.abs(out[:, 2]) + 0.05, centre[2])
+        out /= np.linalg.norm(out, axis=1, keepdims=True)
+        got = radiance.evaluate(np.repeat(uv, len(out), axis=0), out)[:, 0]
+        want = bsdf.eval(out, np.tile(sun_local, (len(out), 1)))[:, 0] * irradiance * sun_local[2]
+        geometric = bsdf.eval(out, np.tile(sun, (len(out), 1)))[:, 0] * irradiance * sun[2]
+        errors.append((np.sqrt(np.mean((got - want) ** 2)) / want.max(),
+                       np.sqrt(np.mean((geometric - want) ** 2)) / want.max()))
+    return errors
+
+
+def reflected(sun_local):
+    return sun_local * [-1, -1, 1]
+
+
+def test_a_glossy_lobe_turns_with_the_shading_normal():
+    # A GGX floor whose shading normal leans 20 degrees, under a sun: Cycles evaluates the lobe in
+    # the shading frame, L(w_o) = f(w_o, l) E (n_s . l). Measured at preview over directions
+    # around the highlight: RMS 0.8% of its peak (7 December, with the draws' lattice or their
+    # rows before it alike; 1.1% when first measured); the lobe in the geometric frame (as before)
+    # would put the highlight 40 degrees away: 25% of the peak.
+    ((rms, apart),) = lobe_under_a_sun(bsgi.GgxReflection(0.3, 0.3, [0.9] * 3), [reflected])
     print(f"\nGGX lobe in the shading frame: RMS {rms:.3f} of the peak (the geometric frame's lobe {apart:.2f} away)")
     assert apart > 0.15
-    assert rms < 0.025
+    assert rms < 0.016
 
 
 def test_glass_turns_with_the_shading_normal():
@@ -175,31 +190,11 @@ def test_glass_turns_with_the_shading_normal():
     # pane's against its own closed form: 3.8% and 0.26%, the transmitted lobe's angular spline);
     # with the glass gathered in the face's own frame (until 7 December, while other surfaces and
     # the bake read its splines in the shading frame) 20% and 25%.
-    sun, irradiance = tilted(30, 180), 2.0
     glass = bsgi.RoughDielectric(1.5, 0.3, 0.3, multiscatter=False, height_correlated=True, scale_radiance=False)
-    scene = bsgi.Scene()
-    patch = bsgi.BilinearPatch("pane", FLOOR, normals=np.tile(tilted(20, 0), (4, 1)))
-    scene.add_surface(patch, albedo=[0] * 3, emission=[0] * 3, bsdf=glass)
-    scene.add_distant_light("sun", sun, [irradiance] * 3, 0.0)
-    radiance = bsgi.solve(scene, settings(max_bounces=0)).surfaces[0]
-    uv = np.full((1, 2), 0.5)
-    f = patch.evaluate(uv)
-    frame = np.stack([f["shading_x"][0], f["shading_y"][0], f["shading_normal"][0]])
-    sun_local = frame @ sun
-    rng = np.random.default_rng(8)
-    errors = {}
-    for name, centre in (("transmitted", -sun_local), ("reflected", sun_local * [-1, -1, 1])):
-        out = centre + rng.normal(scale=0.35, size=(200, 3))
-        out[:, 2] = np.copysign(np.abs(out[:, 2]) + 0.05, centre[2])
-        out /= np.linalg.norm(out, axis=1, keepdims=True)
-        got = radiance.evaluate(np.repeat(uv, len(out), axis=0), out)[:, 0]
-        want = glass.eval(out, np.tile(sun_local, (len(out), 1)))[:, 0] * irradiance * sun_local[2]
-        geometric = glass.eval(out, np.tile(sun, (len(out), 1)))[:, 0] * irradiance * sun[2]
-        errors[name] = (np.sqrt(np.mean((got - want) ** 2)) / want.max(),
-                        np.sqrt(np.mean((geometric - want) ** 2)) / want.max())
+    errors = lobe_under_a_sun(glass, [lambda sun_local: -sun_local, reflected])
     print("\nglass in the shading frame: " + ", ".join(f"{k} RMS {e:.3f} of the peak (the face's frame {g:.2f})"
-                                                       for k, (e, g) in errors.items()))
-    for (rms, apart), bound in zip(errors.values(), (0.045, 0.005)):
+                                                       for k, (e, g) in zip(("transmitted", "reflected"), errors)))
+    for (rms, apart), bound in zip(errors, (0.045, 0.005)):
         assert apart > 0.15
         assert rms < bound
 
