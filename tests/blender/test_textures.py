@@ -246,7 +246,7 @@ def test_checker_floor_and_image_wall_match_cycles(context, tmp_path):
            scene_textured_floor_wall_rel_diff_vs_cycles=median)
     assert lit.sum() > 0.5 * lit.size
     assert light.sum() > 50 and dark.sum() > 50
-    assert median <= 0.015  # measured 0.0072-0.0073 (Cycles' seeds 1-3)
+    assert median <= 0.01  # measured 0.0047 on 7 December (0.0072-0.0073 with Cycles' seeds 1-3 before)
     assert abs(ratio - 1) <= 0.0006  # measured 0.9999, 1.0002 and 0.9997 with Cycles' seeds 1-3
 
 

@@ -276,9 +276,9 @@ def test_baked_box_on_a_floor_matches_cycles_path_tracing(context, tmp_path, kin
           f"{rel.mean():.4f} over {lit.sum()} lit pixels, median {np.median(rel):.4f}; export (with the world's "
           f"render), solve and bake {seconds:.2f} s")
     record(**{f"scene_world_{kind}_seconds": seconds, f"scene_world_{kind}_rel_diff_vs_cycles": rel.mean()})
-    # Measured: 2.3% (median 0.39%) under the HDRI, 2.5% (0.29%) under the sky: the shadow's
-    # outline, which the floor's spline softens, and the edges of the floor and box; 16
-    # coefficients gave 4.3% under the HDRI.
+    # Measured on 7 December: 1.94% (median 0.38%) under the HDRI, 2.09% (0.18%) under the sky
+    # (2.3% and 2.5% when first measured): the shadow's outline, which the floor's spline
+    # softens, and the edges of the floor and box; 16 coefficients gave 4.3% under the HDRI.
     assert lit.sum() > 0.5 * lit.size
-    mean_bound, median_bound = {"hdri": (0.045, 0.008), "sky": (0.045, 0.006)}[kind]
+    mean_bound, median_bound = {"hdri": (0.039, 0.008), "sky": (0.042, 0.006)}[kind]
     assert rel.mean() < mean_bound and np.median(rel) < median_bound
