@@ -54,12 +54,18 @@ class SurfaceMaterial:
     # Cycles' Multiscatter GGX (the default distribution): the light scattered between
     # microfacets is put back (bsgi.GgxReflection's multiscatter).
     multiscatter: bool = False
+    # Glass's tints, Cycles' reflection and transmission tints: a Glass BSDF's colour on both
+    # branches; a Principled BSDF's square root of its base colour on the light it transmits
+    # (met on the way in and on the way out of a solid), its reflection white.
+    glass_reflection: tuple = (1.0, 1.0, 1.0)
+    glass_transmission: tuple = (1.0, 1.0, 1.0)
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
                                self.rotation, self.transmission * k, self.ior, _scale(self.emission, k),
                                self.albedo_textured, self.emission_textured, self.shadow, self.specular_textured,
-                               self.schlick, multiscatter=self.multiscatter)
+                               self.schlick, multiscatter=self.multiscatter, glass_reflection=self.glass_reflection,
+                               glass_transmission=self.glass_transmission)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -71,7 +77,17 @@ class SurfaceMaterial:
                                self.emission_textured or other.emission_textured,
                                self.shadow if self.shadow is not None else other.shadow,
                                self.specular_textured or other.specular_textured, dominant.schlick,
-                               multiscatter=dominant.multiscatter)
+                               multiscatter=dominant.multiscatter,
+                               glass_reflection=_glass_tint(self, other, "glass_reflection"),
+                               glass_transmission=_glass_tint(self, other, "glass_transmission"))
+
+
+def _glass_tint(a: SurfaceMaterial, b: SurfaceMaterial, name: str) -> tuple:
+    """Two shaders' glass tint as one glass: their tints' mean weighted by what each transmits."""
+    total = a.transmission + b.transmission
+    if total <= 0:
+        return getattr(a, name)
+    return tuple((x * a.transmission + y * b.transmission) / total for x, y in zip(getattr(a, name), getattr(b, name)))
 
 
 def _scale(c, k):
@@ -176,16 +192,15 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
                                stretch=stretch, rotation=2 * math.pi * rotation, specular_textured=specular_textured,
                                schlick=False, multiscatter=multiscatter)
     if kind == "BSDF_GLASS":
-        _warn_tint(socket_color(node, "Color", (1.0, 1.0, 1.0)), node, material, warnings)
+        colour = _unit_tint(socket_color(node, "Color", (1.0, 1.0, 1.0)), node, material, warnings)
         return SurfaceMaterial(transmission=1.0, roughness=_scalar(material, node, "Roughness", 0.0),
-                               ior=socket_value(node, "IOR", 1.5), multiscatter=multiscatter)
+                               ior=socket_value(node, "IOR", 1.5), multiscatter=multiscatter,
+                               glass_reflection=colour, glass_transmission=colour)
     if kind == "BSDF_PRINCIPLED":
         base = socket_color(node, "Base Color")
         metallic = _scalar(material, node, "Metallic")
         # Metals do not transmit: Blender's metallic part covers the transmission.
         transmission = socket_value(node, "Transmission Weight", socket_value(node, "Transmission")) * (1 - metallic)
-        if transmission > 0.5:
-            _warn_tint(base, node, material, warnings)
         ior = socket_value(node, "IOR", 1.5)
         f0 = dielectric_f0(node)  # metals reflect their base colour
         diffuse_weight = 1 - metallic - transmission
@@ -200,6 +215,9 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
             # Cycles' metal Fresnel is its F82 tint model: Schlick's curve from the base colour,
             # bent towards the tint near grazing; the solver has Schlick's alone (the white tint).
             layers.append("specular tint (a metal's edge colour)")
+        if transmission > 0 and min(socket_color(node, "Specular Tint", (1.0, 1.0, 1.0))) < 1:
+            # Cycles tints a glass's f0 (its reflection's generalised Schlick curve), not F.
+            layers.append("specular tint (a glass's reflection colour)")
         if layers:
             warnings.append(f"material '{material.name}': {node.name}'s {', '.join(layers)} "
                             f"{'is' if len(layers) == 1 else 'are'} not solved; the base layers are")
@@ -212,7 +230,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
                                roughness=_scalar(material, node, "Roughness", 0.5), stretch=1 / math.sqrt(1 - 0.9 * a),
                                rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
                                specular_textured=specular_textured, coat=metallic == 0 and transmission == 0,
-                               multiscatter=multiscatter, **textured)
+                               multiscatter=multiscatter,
+                               glass_transmission=tuple(math.sqrt(min(max(c, 0.0), 1.0)) for c in base), **textured)
     if kind == "ADD_SHADER":
         return _shader(linked_node(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(linked_node(node.inputs[1]), material, warnings, depth + 1))
@@ -275,11 +294,15 @@ def _shadow_ray_mix(node, material, warnings, depth) -> SurfaceMaterial:
     return seen
 
 
-def _warn_tint(colour, node, material, warnings):
-    """Glass is solved clear: a tint of its transmission is not."""
-    if min(colour) < 1 - 1e-3:
-        warnings.append(f"material '{material.name}': {node.name}'s glass colour "
-                        f"({', '.join(f'{c:.2f}' for c in colour)}) is not solved; the glass is solved clear")
+def _unit_tint(colour, node, material, warnings) -> tuple:
+    """A Glass BSDF's colour as a tint the solve takes: each channel in [0, 1] (Cycles takes a
+    brighter one as glass that makes light)."""
+    clamped = tuple(min(max(c, 0.0), 1.0) for c in colour)
+    if max(colour) > 1 + 1e-6:
+        warnings.append(f"material '{material.name}': {node.name}'s colour "
+                        f"({', '.join(f'{c:.2f}' for c in colour)}) passes more light than it receives; solved "
+                        f"as ({', '.join(f'{c:.2f}' for c in clamped)})")
+    return clamped
 
 
 def _warn_ignored_inputs(node, material, warnings):
@@ -454,7 +477,8 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         # (as Cycles shows an open sheet; a closed solid's factors cancel), and with Multiscatter
         # GGX the light between microfacets put back (single scattering lost up to 60% at roughness 1).
         glass = bsgi.RoughDielectric(eta, alpha, alpha, multiscatter=described.multiscatter, height_correlated=True,
-                                     scale_radiance=False)
+                                     scale_radiance=False, reflection_tint=described.glass_reflection,
+                                     transmission_tint=described.glass_transmission)
         return SolverMaterial((0, 0, 0), described.emission, "rough_dielectric", alpha=alpha, eta=eta, bsdf=glass,
                               roughness=described.roughness, multiscatter=described.multiscatter,
                               shadow=described.shadow, solid_notes=notes)
@@ -658,6 +682,11 @@ class ObjectMaterials:
                 "(Cycles bends the rays at each face; a pane offsets them by about its thickness)")
             if max(material.emission) > 0:
                 warnings.append(f"object '{self.label}': a thin pane does not emit; its glass's emission is dropped")
+            tint = material.bsdf.transmission_tint
+            if min(tint + material.bsdf.reflection_tint) < 1 - 1e-3:
+                warnings.append(f"object '{self.label}': a thin pane is solved clear; its glass's tint "
+                                f"({', '.join(f'{c:.2f}' for c in tint)} on the light through it) is not solved "
+                                "(solid glass is)")
             self.keywords[slot] = {**self.keywords[slot], "albedo": (0, 0, 0), "emission": (0, 0, 0), "bsdf": None,
                                    "thin_glass": material.eta, "one_interface": slab,
                                    "shadow_transmittance": material.shadow}

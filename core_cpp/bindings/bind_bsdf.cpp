@@ -35,6 +35,8 @@ Vec3 rgb(const Array& a, const char* what) {
     return {a.data()[0], a.data()[1], a.data()[2]};
 }
 
+py::tuple rgb_tuple(const Vec3& v) { return py::make_tuple(v.x, v.y, v.z); }
+
 void put(double* dst, const Vec3& v) { dst[0] = v.x, dst[1] = v.y, dst[2] = v.z; }
 
 }  // namespace
@@ -163,17 +165,36 @@ void bind_bsdf(py::module_& m) {
         .def_property_readonly("layered", &DiffuseGgx::layered)
         .def_property_readonly("glossy_part", [](const DiffuseGgx& b) { return std::const_pointer_cast<Bsdf>(b.glossy_part()); },
                                "The glossy part S of (38): the coat, less E(mu_o) albedo / pi where layered.");
-    py::class_<SmoothDielectric, Bsdf, std::shared_ptr<SmoothDielectric>>(m, "SmoothDielectric")
-        .def(py::init<double>(), py::arg("eta"));
+    py::class_<SmoothDielectric, Bsdf, std::shared_ptr<SmoothDielectric>>(
+        m, "SmoothDielectric", "A smooth dielectric boundary, index eta below its surface; its mirror reflection times "
+        "reflection_tint, its refraction times transmission_tint.")
+        .def(py::init([](double eta, const Array& reflection_tint, const Array& transmission_tint) {
+                 return std::make_shared<SmoothDielectric>(eta, rgb(reflection_tint, "SmoothDielectric: reflection_tint"),
+                                                           rgb(transmission_tint, "SmoothDielectric: transmission_tint"));
+             }),
+             py::arg("eta"), py::arg("reflection_tint") = py::make_tuple(1.0, 1.0, 1.0), py::arg("transmission_tint") = py::make_tuple(1.0, 1.0, 1.0))
+        .def_property_readonly("reflection_tint", [](const SmoothDielectric& b) { return rgb_tuple(b.reflection_tint()); })
+        .def_property_readonly("transmission_tint", [](const SmoothDielectric& b) { return rgb_tuple(b.transmission_tint()); });
     py::class_<RoughDielectric, Bsdf, std::shared_ptr<RoughDielectric>>(
         m, "RoughDielectric",
         "A rough dielectric boundary (GGX reflection and transmission), index eta below its surface. As Cycles' glass: "
         "height_correlated (its shadowing), scale_radiance=False (transmitted light carried without the radiance's "
         "(n_o / n_i)^2: the same through a closed solid, Cycles' through an open sheet), multiscatter (Multiscatter GGX: "
         "the lobe over the single-scattering glass's directional albedo from the side of the view). The defaults are "
-        "Mitsuba 3's roughdielectric.")
-        .def(py::init<double, double, double, bool, bool, bool>(), py::arg("eta"), py::arg("alpha_x"), py::arg("alpha_y"),
-             py::arg("multiscatter") = false, py::arg("height_correlated") = false, py::arg("scale_radiance") = true)
+        "Mitsuba 3's roughdielectric. Tinted as Cycles tints glass: the reflected branch times reflection_tint, the "
+        "transmitted times transmission_tint (Multiscatter GGX's light put back with the transmission tint's repeated "
+        "bounces).")
+        .def(py::init([](double eta, double ax, double ay, bool multiscatter, bool height_correlated, bool scale_radiance,
+                         const Array& reflection_tint, const Array& transmission_tint) {
+                 return std::make_shared<RoughDielectric>(eta, ax, ay, multiscatter, height_correlated, scale_radiance,
+                                                          rgb(reflection_tint, "RoughDielectric: reflection_tint"),
+                                                          rgb(transmission_tint, "RoughDielectric: transmission_tint"));
+             }),
+             py::arg("eta"), py::arg("alpha_x"), py::arg("alpha_y"), py::arg("multiscatter") = false,
+             py::arg("height_correlated") = false, py::arg("scale_radiance") = true, py::arg("reflection_tint") = py::make_tuple(1.0, 1.0, 1.0),
+             py::arg("transmission_tint") = py::make_tuple(1.0, 1.0, 1.0))
+        .def_property_readonly("reflection_tint", [](const RoughDielectric& b) { return rgb_tuple(b.reflection_tint()); })
+        .def_property_readonly("transmission_tint", [](const RoughDielectric& b) { return rgb_tuple(b.transmission_tint()); })
         .def_property_readonly("multiscatter", &RoughDielectric::multiscatter)
         .def_property_readonly("height_correlated", &RoughDielectric::height_correlated)
         .def_property_readonly("scale_radiance", &RoughDielectric::scale_radiance)

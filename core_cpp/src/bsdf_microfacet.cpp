@@ -23,9 +23,13 @@ void check_eta(double eta) {
     if (!std::isfinite(eta) || eta < 0.01 || eta > 10) throw std::invalid_argument("dielectric eta must be in [0.01, 10]");
 }
 
-Vec3 mirror_z(const Vec3& w) { return {w.x, w.y, -w.z}; }
+// A glass's tint passes at most all of the light of its branch.
+void check_tint(const Vec3& t, const char* branch) {
+    for (double c : {t.x, t.y, t.z})
+        if (!(c >= 0 && c <= 1)) throw std::invalid_argument(std::string("dielectric ") + branch + " tint must be in [0, 1] per channel");
+}
 
-Vec3 gray(double x) { return {x, x, x}; }
+Vec3 mirror_z(const Vec3& w) { return {w.x, w.y, -w.z}; }
 
 }  // namespace
 
@@ -160,7 +164,9 @@ std::shared_ptr<const DirectionalAlbedo> white_lobe_albedo(double alpha, bool he
 }  // namespace
 
 MultipleScattering::MultipleScattering(double alpha_x, double alpha_y, bool height_correlated, const Vec3& f_ss)
-    : white_(white_lobe_albedo(std::sqrt(alpha_x * alpha_y), height_correlated)) {
+    : MultipleScattering(white_lobe_albedo(std::sqrt(alpha_x * alpha_y), height_correlated), f_ss) {}
+
+MultipleScattering::MultipleScattering(std::shared_ptr<const DirectionalAlbedo> e, const Vec3& f_ss) : white_(std::move(e)) {
     // E_avg = 2 int_0^1 E(mu) mu dmu (midpoint rule over the table's linear pieces).
     constexpr int kNodes = 1024;
     double e_avg = 0;
@@ -264,7 +270,12 @@ bool DiffuseGgx::sample(const Vec3& wo, double u0, double u1, double u2, BsdfSam
 
 // ---- smooth dielectric ----
 
-SmoothDielectric::SmoothDielectric(double eta) : eta_(eta) { check_eta(eta); }
+SmoothDielectric::SmoothDielectric(double eta, const Vec3& reflection_tint, const Vec3& transmission_tint)
+    : eta_(eta), reflection_tint_(reflection_tint), transmission_tint_(transmission_tint) {
+    check_eta(eta);
+    check_tint(reflection_tint, "reflection");
+    check_tint(transmission_tint, "transmission");
+}
 
 bool SmoothDielectric::sample(const Vec3& wo, double u0, double, double, BsdfSample& out) const {
     if (wo.z == 0) return false;
@@ -276,12 +287,12 @@ bool SmoothDielectric::sample(const Vec3& wo, double u0, double, double, BsdfSam
     if (u0 < F) {
         out.wi = {-wo.x, -wo.y, wo.z};
         out.pdf = F;
-        out.weight = {1, 1, 1};
+        out.weight = reflection_tint_;
     } else {
         const double e = n_o / n_t, side = wo.z > 0 ? 1.0 : -1.0;
         out.wi = -wo * e + Vec3{0, 0, side} * (e * c - cos_t);
         out.pdf = 1 - F;
-        out.weight = gray(e * e);  // radiance scales by (n_o / n_i)^2 across the boundary
+        out.weight = transmission_tint_ * (e * e);  // radiance scales by (n_o / n_i)^2 across the boundary
     }
     return true;
 }
@@ -344,23 +355,26 @@ std::shared_ptr<const DirectionalAlbedo> glass_albedo(double alpha, double n_o, 
 }  // namespace
 
 RoughDielectric::RoughDielectric(double eta, double alpha_x, double alpha_y, bool multiscatter, bool height_correlated,
-                                 bool scale_radiance)
-    : eta_(eta), D_{alpha_x, alpha_y}, height_correlated_(height_correlated), scale_radiance_(scale_radiance) {
+                                 bool scale_radiance, const Vec3& reflection_tint, const Vec3& transmission_tint)
+    : eta_(eta), D_{alpha_x, alpha_y}, height_correlated_(height_correlated), scale_radiance_(scale_radiance),
+      reflection_tint_(reflection_tint), transmission_tint_(transmission_tint) {
     check_eta(eta);
     check_alpha(alpha_x);
     check_alpha(alpha_y);
+    check_tint(reflection_tint, "reflection");
+    check_tint(transmission_tint, "transmission");
     if (multiscatter) {
         // Cycles reads its table at the isotropic roughness sqrt(alpha_x alpha_y).
         const double alpha = std::sqrt(alpha_x * alpha_y);
-        albedo_outside_ = glass_albedo(alpha, 1.0, eta, height_correlated);
-        albedo_inside_ = glass_albedo(alpha, eta, 1.0, height_correlated);
+        outside_.emplace(glass_albedo(alpha, 1.0, eta, height_correlated), transmission_tint);
+        inside_.emplace(glass_albedo(alpha, eta, 1.0, height_correlated), transmission_tint);
     }
 }
 
-double RoughDielectric::multiple_scattering(const Vec3& wo) const {
-    if (!albedo_outside_) return 1;
-    const DirectionalAlbedo& e = wo.z > 0 ? *albedo_outside_ : *albedo_inside_;
-    return 1 / std::max(e(std::abs(wo.z)), 1e-3);
+Vec3 RoughDielectric::branch_weight(const Vec3& wo, const Vec3& wi) const {
+    const Vec3& tint = wo.z * wi.z > 0 ? reflection_tint_ : transmission_tint_;
+    if (!outside_) return tint;
+    return tint * (wo.z > 0 ? *outside_ : *inside_).factor(std::abs(wo.z));
 }
 
 // The microfacet normal that refracts wi (below, index n_i) into wo (above, index n_o), facing
@@ -415,8 +429,8 @@ double RoughDielectric::pdf_up(const Vec3& wo, const Vec3& wi, double n_o, doubl
 // Below the surface the microstructure is the mirror image: mirror both directions and swap the
 // indices.
 Vec3 RoughDielectric::eval(const Vec3& wo, const Vec3& wi) const {
-    if (wo.z > 0) return gray(eval_up(wo, wi, 1.0, eta_) * multiple_scattering(wo));
-    if (wo.z < 0) return gray(eval_up(mirror_z(wo), mirror_z(wi), eta_, 1.0) * multiple_scattering(wo));
+    if (wo.z > 0) return branch_weight(wo, wi) * eval_up(wo, wi, 1.0, eta_);
+    if (wo.z < 0) return branch_weight(wo, wi) * eval_up(mirror_z(wo), mirror_z(wi), eta_, 1.0);
     return {0, 0, 0};
 }
 
@@ -450,7 +464,7 @@ bool RoughDielectric::sample(const Vec3& wo_in, double u0, double u1, double u2,
     out.wi = below ? mirror_z(wi) : wi;
     out.pdf = p;
     out.delta = false;
-    out.weight = gray(eval_up(wo, wi, n_o, n_t) * multiple_scattering(wo_in) * std::abs(wi.z) / p);
+    out.weight = branch_weight(wo_in, out.wi) * (eval_up(wo, wi, n_o, n_t) * std::abs(wi.z) / p);
     return true;
 }
 
@@ -470,7 +484,6 @@ void RoughDielectric::sample_branches(const Vec3& wo_in, double, double u1, doub
     double cos_t;
     const double F = fresnel_dielectric(c, n_t / n_o, cos_t), e = n_o / n_t;
     const Vec3 branch[2] = {m * (2 * c) - wo, -wo * e + m * (e * c - cos_t)};
-    const double ms = multiple_scattering(wo_in);
     for (int k = 0; k < 2; ++k) {
         const Vec3& wi = branch[k];
         if (k == 0 ? wi.z <= 0 : (F >= 1 || wi.z >= 0)) continue;
@@ -479,7 +492,7 @@ void RoughDielectric::sample_branches(const Vec3& wo_in, double, double u1, doub
         out[k].wi = below ? mirror_z(wi) : wi;
         out[k].pdf = p;
         out[k].delta = false;
-        out[k].weight = gray(eval_up(wo, wi, n_o, n_t) * ms * std::abs(wi.z) / p);
+        out[k].weight = branch_weight(wo_in, out[k].wi) * (eval_up(wo, wi, n_o, n_t) * std::abs(wi.z) / p);
     }
 }
 
@@ -490,7 +503,7 @@ Vec3 RoughDielectric::eval_gather_pdf(const Vec3& wo, const Vec3& wi, double& pd
     const Vec3 o = below ? mirror_z(wo) : wo, i = below ? mirror_z(wi) : wi;
     const double n_o = below ? eta_ : 1.0, n_t = below ? 1.0 : eta_;
     pdf_out = pdf_up(o, i, n_o, n_t, false);
-    return gray(eval_up(o, i, n_o, n_t) * multiple_scattering(wo));
+    return branch_weight(wo, wi) * eval_up(o, i, n_o, n_t);
 }
 
 }  // namespace bsgi

@@ -173,9 +173,36 @@ def test_transmission_becomes_rough_dielectric(context):
     m, _ = shader_material("Glass", "ShaderNodeBsdfGlass", Roughness=0.5, IOR=1.3)
     got, _ = solver_material(m)
     assert got.kind == "rough_dielectric" and got.eta == pytest.approx(1.3)
-    # Solved clear: a tint (the Principled base colour, 0.8 by default) is named.
-    _, warnings = solver_material(principled("Tinted", **{"Transmission Weight": 1.0, "Roughness": 0.5}))
-    assert any("'Tinted'" in w and "glass colour (0.80, 0.80, 0.80) is not solved" in w for w in warnings)
+    # Tinted as Cycles tints glass: a Principled BSDF's transmitted light by the square root of its
+    # base colour (0.8 by default), its reflection white; a Glass BSDF's both by its colour.
+    got, warnings = solver_material(principled("Tinted", **{"Transmission Weight": 1.0, "Roughness": 0.5,
+                                                            "Base Color": (0.81, 0.49, 0.25, 1)}))
+    assert got.bsdf.transmission_tint == pytest.approx((0.9, 0.7, 0.5)) and got.bsdf.reflection_tint == (1, 1, 1)
+    assert not warnings
+    m, _ = shader_material("Amber", "ShaderNodeBsdfGlass", Roughness=0.5, Color=(0.9, 0.6, 0.2, 1))
+    got, _ = solver_material(m)
+    assert got.bsdf.reflection_tint == pytest.approx((0.9, 0.6, 0.2))
+    assert got.bsdf.transmission_tint == pytest.approx((0.9, 0.6, 0.2))
+    # A colour brighter than white makes light in Cycles: clamped, and named.
+    m, _ = shader_material("Glowing glass", "ShaderNodeBsdfGlass", Roughness=0.5, Color=(1.5, 0.6, 0.2, 1))
+    got, warnings = solver_material(m)
+    assert got.bsdf.transmission_tint == pytest.approx((1.0, 0.6, 0.2))
+    assert any("'Glowing glass'" in w and "solved as (1.00, 0.60, 0.20)" in w for w in warnings)
+    # A glass's coloured reflection (Specular Tint) is not solved, and named.
+    _, warnings = solver_material(principled("Tinted edge", **{"Transmission Weight": 1.0, "Specular Tint": (1, 0.5, 0.5, 1)}))
+    assert any("'Tinted edge'" in w and "a glass's reflection colour" in w for w in warnings)
+
+
+def test_mixed_glass_tints_by_what_each_transmits(context):
+    # Mix Shader 0.25 of a blue glass with a red one: one glass whose tint is their mean by weight.
+    m, mix = shader_material("Two glasses", "ShaderNodeMixShader", Fac=0.25)
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    for k, colour in ((1, (0.2, 0.4, 1.0, 1)), (2, (1.0, 0.4, 0.2, 1))):
+        glass = nodes.new("ShaderNodeBsdfGlass")
+        glass.inputs["Color"].default_value = colour
+        links.new(glass.outputs[0], mix.inputs[k])
+    got, _ = solver_material(m)
+    assert got.bsdf.transmission_tint == pytest.approx((0.4, 0.4, 0.8))
 
 
 @pytest.mark.parametrize("inputs", [{"Metallic": 1.0, "Roughness": 0.0}, {"Transmission Weight": 1.0, "Roughness": 0.05}])

@@ -92,8 +92,19 @@ def test_smooth_glass_on_a_plane_is_a_thin_pane_and_not_baked(context):
 
 
 def test_principled_transmission_on_a_plane_is_a_thin_pane(context):
-    room(context, principled("Clear", **{"Transmission Weight": 1.0, "Roughness": 0.05}))
-    assert thin_surfaces(exported(context)) == ["Pane: face 0"]
+    room(context, principled("Clear", **{"Transmission Weight": 1.0, "Roughness": 0.05, "Base Color": (1, 1, 1, 1)}))
+    result = exported(context)
+    assert thin_surfaces(result) == ["Pane: face 0"]
+    assert not any("tint" in n for n in notes_on(result, "Pane"))
+
+
+def test_a_tinted_pane_is_solved_clear_and_named(context):
+    # Solid glass carries its tint (bsgi.RoughDielectric); a pane's light through it does not.
+    room(context, principled("Green", **{"Transmission Weight": 1.0, "Roughness": 0.05, "Base Color": (0.64, 1, 0.64, 1)}))
+    result = exported(context)
+    assert thin_surfaces(result) == ["Pane: face 0"]
+    assert any("solved clear" in n and "(0.80, 1.00, 0.80 on the light through it)" in n
+               for n in notes_on(result, "Pane")), notes_on(result, "Pane")
 
 
 def test_a_solidified_pane_is_a_thin_slab_of_two_interfaces(context):

@@ -149,6 +149,11 @@ def test_smooth_dielectric_splits_power_by_fresnel_and_bends_by_snell():
         assert np.allclose(s["weight"][reflected], 1)
         assert np.allclose(s["weight"][t, 0] * (n_i / n_o) ** 2, 1)
         assert not b.eval(wo, s["wi"]).any() and not b.pdf(wo, s["wi"]).any()
+        # Tinted: each branch's throughput times its tint, the choice between them unchanged.
+        reflection, transmission = np.array([0.9, 0.5, 0.2]), np.array([0.3, 0.6, 0.9])
+        tinted = bsgi.SmoothDielectric(eta, reflection_tint=reflection, transmission_tint=transmission).sample(wo, u)
+        assert np.allclose(tinted["wi"], s["wi"]) and np.allclose(tinted["pdf"], s["pdf"])
+        assert np.allclose(tinted["weight"], s["weight"] * np.where(reflected[:, None], reflection, transmission))
 
 
 SAMPLED = {
@@ -164,6 +169,9 @@ SAMPLED = {
     "layered_coat_multiscatter": (lambda: bsgi.DiffuseGgx([0.5, 0.5, 0.5], 0.5, 0.5, [0.04] * 3, layered=True, eta=1.5,
                                                           multiscatter=True), False),
     "rough_dielectric": (lambda: bsgi.RoughDielectric(1.5, 0.35, 0.25), True),
+    # A tint scales the branches' weights, not their density.
+    "rough_dielectric_tinted": (lambda: bsgi.RoughDielectric(1.5, 0.35, 0.25, multiscatter=True, reflection_tint=[0.9, 0.5, 0.2],
+                                                             transmission_tint=[0.3, 0.6, 0.9]), True),
 }
 
 
@@ -244,6 +252,8 @@ def test_emission_is_one_sided_and_cosine_sampled():
     (lambda: bsgi.AshikhminShirley([0.1] * 3, [0.1] * 3, np.nan, 1), "nu"),
     (lambda: bsgi.GgxReflection(0.0, 0.1, [1, 1, 1]), "alpha"),
     (lambda: bsgi.RoughDielectric(-1.5, 0.1, 0.1), "eta"),
+    (lambda: bsgi.RoughDielectric(1.5, 0.1, 0.1, transmission_tint=[1.2, 1, 1]), "transmission tint"),
+    (lambda: bsgi.SmoothDielectric(1.5, reflection_tint=[0.5, np.nan, 1]), "reflection tint"),
     (lambda: bsgi.Emission([-1, 0, 0]), "radiance"),
 ])
 def test_bad_parameters_are_refused(make, message):

@@ -154,6 +154,8 @@ public:
     // E of the isotropic white lobe of alpha sqrt(alpha_x alpha_y) (Cycles reads its table at that
     // roughness) and the lobe's shadowing, made once per alpha and shared; f_ss of the lobe's Fresnel.
     MultipleScattering(double alpha_x, double alpha_y, bool height_correlated, const Vec3& f_ss);
+    // Any lobe's: E its directional albedo (a glass's from one side, reflected plus transmitted).
+    MultipleScattering(std::shared_ptr<const DirectionalAlbedo> e, const Vec3& f_ss);
     // The factor on the single-scattering lobe along a view of cosine mu_o.
     Vec3 factor(double mu_o) const;
 
@@ -267,10 +269,11 @@ private:
 
 // A smooth dielectric boundary (glass, water): mirror reflection and Snell refraction, chosen by
 // the Fresnel reflectance. Both lobes are delta lobes: eval and pdf are zero, sample() returns
-// the direction and throughput (refraction scales radiance by (n_o / n_i)^2).
+// the direction and throughput (refraction scales radiance by (n_o / n_i)^2). Tints as
+// RoughDielectric's.
 class SmoothDielectric final : public Bsdf {
 public:
-    explicit SmoothDielectric(double eta);
+    explicit SmoothDielectric(double eta, const Vec3& reflection_tint = {1, 1, 1}, const Vec3& transmission_tint = {1, 1, 1});
     Vec3 eval(const Vec3&, const Vec3&) const override { return {0, 0, 0}; }
     double pdf(const Vec3&, const Vec3&) const override { return 0; }
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
@@ -278,9 +281,12 @@ public:
     std::string name() const override { return "dielectric"; }
     double lobe_width() const override { return 0; }
     bool transmits() const override { return true; }
+    const Vec3& reflection_tint() const { return reflection_tint_; }
+    const Vec3& transmission_tint() const { return transmission_tint_; }
 
 private:
     double eta_;
+    Vec3 reflection_tint_, transmission_tint_;
 };
 
 // A rough dielectric boundary: GGX reflection and transmission (Walter et al. 2007, eq. 21 for
@@ -293,10 +299,16 @@ private:
 // shows through an open sheet); multiscatter, Multiscatter GGX's light between microfacets put
 // back: the lobe scaled by 1 / E(mu_o), E the single-scattering glass's directional albedo
 // (reflected plus transmitted energy, from the side of the view), so the lobe keeps all light.
+// Tinted glass as Cycles tints it: the reflected branch times reflection_tint, the transmitted
+// times transmission_tint (a Glass BSDF's colour is both; a Principled BSDF's transmission the
+// square root of its base colour, met on the way in and out), and Multiscatter GGX's light put
+// back as MultipleScattering's with the transmission tint as F_ss (Cycles' assumption that the
+// transmission makes most of a glass's colour): a tinted glass is darker than its tint.
 class RoughDielectric final : public Bsdf {
 public:
     RoughDielectric(double eta, double alpha_x, double alpha_y, bool multiscatter = false, bool height_correlated = false,
-                    bool scale_radiance = true);
+                    bool scale_radiance = true, const Vec3& reflection_tint = {1, 1, 1},
+                    const Vec3& transmission_tint = {1, 1, 1});
     Vec3 eval(const Vec3& wo, const Vec3& wi) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
     bool sample(const Vec3& wo, double u0, double u1, double u2, BsdfSample& out) const override;
@@ -312,7 +324,9 @@ public:
     int gather_branches() const override { return 2; }
     void sample_branches(const Vec3& wo, double u0, double u1, double u2, BsdfSample* out) const override;
     Vec3 eval_gather_pdf(const Vec3& wo, const Vec3& wi, double& pdf_out) const override;
-    bool multiscatter() const { return bool(albedo_outside_); }
+    bool multiscatter() const { return bool(outside_); }
+    const Vec3& reflection_tint() const { return reflection_tint_; }
+    const Vec3& transmission_tint() const { return transmission_tint_; }
     bool height_correlated() const { return height_correlated_; }
     bool scale_radiance() const { return scale_radiance_; }
     // The single-scattering lobe's directional albedo (reflected plus transmitted energy) seen
@@ -326,12 +340,14 @@ private:
     // The density of wi drawn by sample() (chosen: times the branch's chance) or of its branch alone.
     double pdf_up(const Vec3& wo, const Vec3& wi, double n_o, double n_t, bool chosen = true) const;
     double shadowing(const Vec3& wo, const Vec3& wi, const Vec3& h) const { return D_.G(wo, wi, h, height_correlated_); }
-    // Multiscatter GGX's 1 / E(mu_o) on the side of wo (1 in single scattering).
-    double multiple_scattering(const Vec3& wo) const;
+    // The factor on the single-scattering lobe of the branch wi takes: its tint, times
+    // Multiscatter GGX's factor on the side of wo.
+    Vec3 branch_weight(const Vec3& wo, const Vec3& wi) const;
     double eta_;
     GgxDistribution D_;
     bool height_correlated_ = false, scale_radiance_ = true;
-    std::shared_ptr<const DirectionalAlbedo> albedo_outside_, albedo_inside_;  // null: single scattering
+    Vec3 reflection_tint_, transmission_tint_;
+    std::optional<MultipleScattering> outside_, inside_;  // none: single scattering
 };
 
 // Emitted radiance L_S^emit of (6): uniform over the front (or both) sides. sample() draws
