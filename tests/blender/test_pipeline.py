@@ -12,7 +12,7 @@ from bsgi_addon import bake, pipeline
 from bsgi_addon.errors import ExportError
 
 
-def render_exr(scene, path, samples, bounces):
+def render_exr(scene, path, samples, bounces, seed=1):
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
@@ -22,7 +22,7 @@ def render_exr(scene, path, samples, bounces):
     scene.cycles.diffuse_bounces = bounces
     scene.cycles.sample_clamp_direct = 0
     scene.cycles.sample_clamp_indirect = 0
-    scene.cycles.seed = 1
+    scene.cycles.seed = seed
     scene.render.resolution_x = scene.render.resolution_y = 96
     scene.render.resolution_percentage = 100
     scene.render.image_settings.file_format = "OPEN_EXR"
