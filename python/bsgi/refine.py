@@ -14,8 +14,9 @@ growth, its final gathers' and estimate's share by four more with twice the inte
 its time as the last one's in proportion. Where a pass refining every surface over the target
 would overrun a budget, the surfaces with the highest estimates are refined, as many as the
 budgets allow (the longest such prefix, found by bisection: each budget grows with each surface
-added); where the worst one alone does not fit, the next ones are tried without it, and only
-where none fits does refinement stop. The rays and the memory
+added); where the worst one alone does not fit, the next ones are tried without it, and a surface left
+out whose refinement is of both parts gets its larger part alone where that fits; only where
+nothing fits does refinement stop. The rays and the memory
 estimate are the same wherever the solve runs, so refinement under them is too (the time is
 not). The other parts (the splines the gather read, the bounces' tail) do not fall with the
 surface's own refinement (the first falls with its neighbours'). A surface whose estimate did not
@@ -132,6 +133,26 @@ def longest_fitting_prefix(order: list, overrun: Callable[[list], Optional[str]]
     return [], budget
 
 
+def larger_part(change: dict, report: dict) -> dict:
+    """Of a refinement of both parts (spatial coefficients and integration nodes), the one whose
+    part of the estimate is larger; {} for a refinement of one part."""
+    if len(change) < 2:
+        return {}
+    parts = report["error_parts"]
+    key = "spatial_coeffs" if parts["fit"] >= parts["integration"] else "integration_factor"
+    return {key: change[key]}
+
+
+def with_lesser_refinements(chosen: dict, left_out: list, lesser: dict,
+                            overrun: Callable[[dict], Optional[str]]) -> dict:
+    """`chosen` (scene index -> change) and, worst first, each surface of `left_out` with its
+    lesser refinement (`lesser`: one part of two) where the pass still fits every budget with it."""
+    for i in left_out:
+        if lesser.get(i) and overrun({**chosen, i: lesser[i]}) is None:
+            chosen = {**chosen, i: lesser[i]}
+    return chosen
+
+
 def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
                   solve_once: Callable[[list], _core.Solution], sides: Optional[list] = None,
                   progress: Optional[_core.Progress] = None,
@@ -175,7 +196,7 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             apply(before)
         return None
 
-    trimmed = []  # per pass a budget trimmed: its number, the budget, the surfaces it left out
+    trimmed = []  # per pass a budget trimmed: its number, the budget, the surfaces it left out, those refined in part
     traced, predicted = [], []  # per pass its rays (the estimate's with them); per pass after the first, as predicted
     try:
         pass_start = time.perf_counter()
@@ -201,12 +222,19 @@ def refined_solve(scene: _core.Scene, settings: _core.SolverSettings,
             order = sorted(changes, key=lambda i: (-over[i]["estimated_error"], i))
             fitting, budget = longest_fitting_prefix(
                 order, lambda prefix: overrun({i: changes[i] for i in prefix}, reports, last_seconds, solution.stats))
-            if not fitting:
+            # A surface left out whose refinement is of both parts may fit with its larger part alone
+            # (a 4D surface's spatial coefficients without its integration nodes' four times the rays).
+            left_out = [i for i in order if i not in fitting]
+            chosen = with_lesser_refinements(
+                {i: changes[i] for i in fitting}, left_out, {i: larger_part(changes[i], over[i]) for i in left_out},
+                lambda trial: overrun(trial, reports, last_seconds, solution.stats))
+            if not chosen:
                 stopped = budget
                 break
             if len(fitting) < len(order):
-                trimmed.append({"pass": passes + 1, "budget": budget, "left_out": len(order) - len(fitting)})
-            changes = {i: changes[i] for i in fitting}
+                trimmed.append({"pass": passes + 1, "budget": budget, "left_out": len(order) - len(chosen),
+                                "in_part": len(chosen) - len(fitting)})
+            changes = chosen
             predicted.append(predicted_rays(scene, solution.stats, reports, changes, settings))
             apply(changes)
             previous = {i: over[i]["estimated_error"] for i in changes}

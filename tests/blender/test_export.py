@@ -83,7 +83,7 @@ def test_mix_shader_blends_its_inputs(context):
 
 def test_textured_glass_is_named_in_warnings_textured_glossy_is_solved(context):
     # A Glossy BSDF's node-driven Color is solved (its glossy-colour texture); a Glass BSDF's is
-    # not (the glass is solved clear), and says so.
+    # not (the glass is solved with its socket's own colour), and says so.
     m, node = shader_material("Shiny", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9, 1))
     floor = scenes.floor_under_lamp()
     floor.data.materials[0] = m

@@ -209,7 +209,7 @@ def test_a_cost_budget_refines_the_worst_surface_first_and_keeps_the_rays_within
     assert estimates["floor"] > estimates["floor 2"] > 1e-4
     assert floors["floor"]["refined"] == 1 and floors["floor"]["shape"] == [12, 12]
     assert floors["floor 2"]["refined"] == 0 and floors["floor 2"]["status"] == "over target"
-    assert r["passes"] == 1 and r["stopped"] == "passes" and r["trimmed"] == [{"pass": 1, "budget": "cost", "left_out": 1}]
+    assert r["passes"] == 1 and r["stopped"] == "passes" and r["trimmed"] == [{"pass": 1, "budget": "cost", "left_out": 1, "in_part": 0}]
     # The prediction bounds what the pass traced.
     assert first_rays < r["rays"] + r["estimate_rays"] <= (1 + 2) * first_rays
     # Without the budget both are refined; with one under a single floor's, neither is.
@@ -299,3 +299,30 @@ def test_a_pass_refines_the_longest_fitting_prefix_and_passes_over_a_worst_that_
     assert longest_fitting_prefix([7, 3, 5], budget(1, alone_too_dear=[7])) == ([3], "cost")
     assert longest_fitting_prefix([7, 3], budget(10, alone_too_dear=[7, 3])) == ([], "cost")
     assert longest_fitting_prefix([], budget(10)) == ([], None)
+
+
+def test_a_surface_left_out_gets_the_larger_part_of_its_refinement_where_that_fits():
+    # table_spheres at final (7 December): the GGX sphere's fit and integration both over half its
+    # estimate, both refined (spatial growth 2.25 times four times the final gather's rays) overran
+    # the cost budget alone, so it was never refined; its spatial coefficients alone fit.
+    from bsgi.refine import larger_part, with_lesser_refinements
+
+    both = {"spatial_coeffs": 48, "integration_factor": 2}
+    report = {"error_parts": {"fit": 0.014, "input": 0.007, "integration": 0.0099, "tail": 0.0}}
+    assert larger_part(both, report) == {"spatial_coeffs": 48}
+    report["error_parts"]["integration"] = 0.02
+    assert larger_part(both, report) == {"integration_factor": 2}
+    assert larger_part({"spatial_coeffs": 48}, report) == {}  # one part: nothing lesser
+
+    cost = {"spatial_coeffs": 2.0, "integration_factor": 3.0}
+
+    def overrun(chosen, limit=5.0):
+        """Each change costs its parts' sums: a pass fits within `limit`."""
+        return "cost" if sum(cost[k] for c in chosen.values() for k in c) > limit else None
+
+    chosen = {3: {"spatial_coeffs": 20}}  # 2 of the 5 spent
+    lesser = {7: {"spatial_coeffs": 48}, 5: {"integration_factor": 2}, 9: {}}
+    # Worst first: 7's spatial part fits (4), then 5's integration would not (7).
+    assert with_lesser_refinements(chosen, [7, 5, 9], lesser, overrun) == {3: {"spatial_coeffs": 20}, 7: {"spatial_coeffs": 48}}
+    assert with_lesser_refinements(chosen, [5, 7], lesser, overrun) == {3: {"spatial_coeffs": 20}, 5: {"integration_factor": 2}}
+    assert with_lesser_refinements({}, [9], lesser, overrun) == {}
