@@ -100,9 +100,6 @@ def describe(material) -> Material:
     from bsgi_addon.materials import describe_material
 
     d = describe_material(material, [])
-    if d.transmission > 0 and min(d.glass_reflection + d.glass_transmission) < 1 - 1e-3:
-        # (cycles_glass.py's plugin is clear glass; a tinted one would be a silently wrong reference.)
-        raise ValueError(f"material '{material.name}': tinted glass is not in the reference converter")
     return Material(d.albedo, d.specular, d.roughness, d.transmission, d.ior, d.emission, d.stretch, d.rotation, d.schlick,
                     d.coat, d.multiscatter)
 
