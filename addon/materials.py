@@ -90,6 +90,11 @@ def _glass_tint(a: SurfaceMaterial, b: SurfaceMaterial, name: str) -> tuple:
     return tuple((x * a.transmission + y * b.transmission) / total for x, y in zip(getattr(a, name), getattr(b, name)))
 
 
+def _unit_colour(c) -> tuple:
+    """A colour with each channel clamped to [0, 1] (a reflectance or a tint)."""
+    return tuple(min(max(x, 0.0), 1.0) for x in c)
+
+
 def _scale(c, k):
     return tuple(x * k for x in c)
 
@@ -231,7 +236,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
                                rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
                                specular_textured=specular_textured, coat=metallic == 0 and transmission == 0,
                                multiscatter=multiscatter,
-                               glass_transmission=tuple(math.sqrt(min(max(c, 0.0), 1.0)) for c in base), **textured)
+                               glass_transmission=tuple(math.sqrt(c) for c in _unit_colour(base)), **textured)
     if kind == "ADD_SHADER":
         return _shader(linked_node(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(linked_node(node.inputs[1]), material, warnings, depth + 1))
@@ -297,7 +302,7 @@ def _shadow_ray_mix(node, material, warnings, depth) -> SurfaceMaterial:
 def _unit_tint(colour, node, material, warnings) -> tuple:
     """A Glass BSDF's colour as a tint the solve takes: each channel in [0, 1] (Cycles takes a
     brighter one as glass that makes light)."""
-    clamped = tuple(min(max(c, 0.0), 1.0) for c in colour)
+    clamped = _unit_colour(colour)
     if max(colour) > 1 + 1e-6:
         warnings.append(f"material '{material.name}': {node.name}'s colour "
                         f"({', '.join(f'{c:.2f}' for c in colour)}) passes more light than it receives; solved "
@@ -487,7 +492,7 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
     if glossy > diffuse:
         if diffuse > 0.05:
             warnings.append(f"material '{name}': solved as glossy (GGX); its diffuse part is dropped")
-        f0 = tuple(min(1.0, max(0.0, c)) for c in described.specular)
+        f0 = _unit_colour(described.specular)
         alpha = _alpha(name, described.roughness, warnings)
         ax, ay = _anisotropic_alphas(name, described, alpha, warnings)
         return SolverMaterial((0, 0, 0), described.emission, "ggx", alpha=alpha, alpha_x=ax, alpha_y=ay,
@@ -499,7 +504,7 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
     # folded into one Lambertian albedo, base (1 - E) + E, E the lobe's hemispherical albedo (a
     # rough lobe reflects far less than its f0: roughness 1 leaves 0.016 of f0 0.04).
     lobe = layer_albedo(tuple(described.specular), described.roughness, multiscatter=described.multiscatter)
-    albedo = tuple(min(1.0, max(0.0, a * (1 - e) + e)) for a, e in zip(described.albedo, lobe))
+    albedo = _unit_colour(a * (1 - e) + e for a, e in zip(described.albedo, lobe))
     visible = glossy > 0 and coat_peak_ratio(described.specular, described.roughness, described.albedo) >= coat_threshold()
     # Cycles' diffuse-colour pass (textures.py bakes it) is the base seen along the normal, under
     # the lobe's albedo in that direction.
@@ -511,8 +516,8 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
         # Its highlight shows: the layered coat itself (2D base + 4D coat, (38)); `albedo` is the
         # folded Lambertian, for an object set to a diffuse representation.
         alpha = _alpha(name, described.roughness, warnings)
-        f0 = tuple(min(1.0, max(0.0, c)) for c in described.specular)
-        base = tuple(min(1.0, max(0.0, c)) for c in described.albedo)
+        f0 = _unit_colour(described.specular)
+        base = _unit_colour(described.albedo)
         # Cycles' coat reflects with a dielectric's Fresnel curve (the IOR of its f0), not Schlick's.
         root = math.sqrt(min(max(sum(f0) / 3, 1e-6), 0.99))
         eta = (1 + root) / (1 - root)

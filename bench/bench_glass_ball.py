@@ -16,6 +16,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 
 SCRIPT = """
@@ -81,12 +83,10 @@ def blocks(image, k: int):
 
 def to_64(image):
     """Cycles' 96 x 96 render as 64 x 64 by area (each pixel split in 2 x 2, then 3 x 3 blocks)."""
-    import numpy as np
     return blocks(np.repeat(np.repeat(image, 2, axis=0), 2, axis=1), 3)
 
 
 def run() -> dict:
-    import numpy as np
     figures = {}
     with tempfile.TemporaryDirectory(prefix="bsgi-glass-ball-") as folder:
         in_blender("CYCLES", folder)

@@ -166,20 +166,21 @@ std::shared_ptr<const DirectionalAlbedo> white_lobe_albedo(double alpha, bool he
 MultipleScattering::MultipleScattering(double alpha_x, double alpha_y, bool height_correlated, const Vec3& f_ss)
     : MultipleScattering(white_lobe_albedo(std::sqrt(alpha_x * alpha_y), height_correlated), f_ss) {}
 
-MultipleScattering::MultipleScattering(std::shared_ptr<const DirectionalAlbedo> e, const Vec3& f_ss) : white_(std::move(e)) {
+MultipleScattering::MultipleScattering(std::shared_ptr<const DirectionalAlbedo> e, const Vec3& f_ss) : albedo_(std::move(e)) {
     // E_avg = 2 int_0^1 E(mu) mu dmu (midpoint rule over the table's linear pieces).
     constexpr int kNodes = 1024;
     double e_avg = 0;
     for (int k = 0; k < kNodes; ++k) {
         const double mu = (k + 0.5) / kNodes;
-        e_avg += (*white_)(mu) * 2 * mu / kNodes;
+        e_avg += (*albedo_)(mu) * 2 * mu / kNodes;
     }
     auto fms = [e_avg](double f) { return f * e_avg / (1 - f * (1 - e_avg)); };
     fms_ = {fms(f_ss.x), fms(f_ss.y), fms(f_ss.z)};
 }
 
 Vec3 MultipleScattering::factor(double mu_o) const {
-    const double e = std::max((*white_)(mu_o), 1e-3);  // (E > 0.3 down to grazing, even at alpha 1)
+    // (A GGX lobe's E > 0.3 down to grazing, even at alpha 1; a glass's from inside > 0.1.)
+    const double e = std::max((*albedo_)(mu_o), 1e-3);
     return Vec3{1, 1, 1} + fms_ * ((1 - e) / e);
 }
 

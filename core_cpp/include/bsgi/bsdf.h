@@ -160,7 +160,7 @@ public:
     Vec3 factor(double mu_o) const;
 
 private:
-    std::shared_ptr<const DirectionalAlbedo> white_;
+    std::shared_ptr<const DirectionalAlbedo> albedo_;  // E
     Vec3 fms_;
 };
 
