@@ -125,6 +125,17 @@ void bind_bsdf(py::module_& m) {
 
     py::class_<Lambert, Bsdf, std::shared_ptr<Lambert>>(m, "Lambert")
         .def(py::init([](const Array& albedo) { return std::make_shared<Lambert>(rgb(albedo, "Lambert: albedo")); }), py::arg("albedo"));
+    py::class_<BumpedLambert, Bsdf, std::shared_ptr<BumpedLambert>>(
+        m, "BumpedLambert",
+        "Lambertian reflection about a bumped normal, as Cycles shades a Diffuse BSDF under a normal map: albedo / pi "
+        "max(0, n . wi) G1(wi) over the light above the surface, G1 Cycles' bump shadowing term (with "
+        "bump_correction, the material's Bump Map Correction). Its direction argument wo is the bumped normal n.")
+        .def(py::init([](const Array& albedo, bool bump_correction) {
+                 return std::make_shared<BumpedLambert>(rgb(albedo, "BumpedLambert: albedo"), bump_correction);
+             }),
+             py::arg("albedo"), py::arg("bump_correction") = true)
+        .def("shadowing", &BumpedLambert::shadowing, py::arg("cos_n"), py::arg("cos_i"),
+             "Cycles' bump shadowing term: a bumped normal at cosine cos_n to the surface's, light at cos_i to it.");
     py::class_<NormalizedPhong, Bsdf, std::shared_ptr<NormalizedPhong>>(m, "NormalizedPhong")
         .def(py::init([](const Array& kd, const Array& ks, double n) {
                  return std::make_shared<NormalizedPhong>(rgb(kd, "NormalizedPhong: kd"), rgb(ks, "NormalizedPhong: ks"), n);

@@ -3,6 +3,7 @@
 
 #include "bindings.h"
 #include "bsgi/disk_patch.h"
+#include "bsgi/normal_map.h"
 #include "bsgi/radiance.h"
 #include "bsgi/sides.h"
 #include "bsgi/solver.h"
@@ -264,6 +265,22 @@ void bind_scene(py::module_& m) {
             "surface or the diffuse base of a decomposed one: the spline holds irradiance / pi and the outgoing "
             "radiance is albedo(u, v) times it.")
         .def(
+            "set_normal_texture",
+            [](Scene& s, size_t i, const Image& normals, bool bump_correction) {
+                if (i >= s.size()) throw py::index_error("set_normal_texture: no surface " + std::to_string(i));
+                const std::string what = "surface '" + s[i].surface->name() + "': normal map";
+                if (normals.ndim() != 3 || normals.shape(2) != 3)
+                    throw std::invalid_argument(what + " must be an array of shape (height, width, 3)");
+                auto map = normal_map(*s[i].surface, int(normals.shape(1)), int(normals.shape(0)),
+                                      std::vector<float>(normals.data(), normals.data() + normals.size()), what);
+                s.set_normal_texture(i, std::move(map), bump_correction);
+            },
+            py::arg("index"), py::arg("normals"), py::arg("bump_correction") = true,
+            "Bumps the shading normal of Lambertian surface `index`: an (height, width, 3) image of world-space "
+            "normals over its (u, v), laid out as for set_albedo_texture (a Normal Map or Bump node's normals). "
+            "The surface is then solved as a BumpedLambert: a 4D spline over its bumped normal, read where it is "
+            "seen at the normal the map gives there. bump_correction: the material's Bump Map Correction.")
+        .def(
             "set_specular_texture",
             [](Scene& s, size_t i, const Image& specular) {
                 if (i >= s.size()) throw py::index_error("set_specular_texture: no surface " + std::to_string(i));
@@ -414,7 +431,7 @@ void bind_scene(py::module_& m) {
                          std::optional<TensorSpline> lower_diffuse, std::optional<Image> albedo,
                          std::optional<Image> emission, bool two_sided_emission, std::optional<Image> specular,
                          std::optional<TensorSpline> tint_zero, std::optional<TensorSpline> lower_tint_zero,
-                         std::optional<Array> coat_share, std::optional<Array> coat_albedo) {
+                         std::optional<Array> coat_share, std::optional<Array> coat_albedo, std::optional<Image> normals) {
                  const Representation r = kind == "glossy" ? Representation::Glossy
                                           : kind == "decomposed" ? Representation::Decomposed
                                           : kind == "diffuse" ? Representation::Diffuse
@@ -433,11 +450,16 @@ void bind_scene(py::module_& m) {
                                                  (r == Representation::Decomposed
                                                       ? " and a 2D diffuse part (and one for the back side with lower)"
                                                       : ""));
-                 if (albedo && r == Representation::Glossy)
-                     throw std::invalid_argument("SurfaceRadiance: an albedo texture needs a diffuse or decomposed surface");
+                 if (albedo && r == Representation::Glossy && !normals)
+                     throw std::invalid_argument("SurfaceRadiance: an albedo texture needs a diffuse or decomposed surface "
+                                                 "(or a glossy one with normals)");
+                 if (normals && r != Representation::Glossy)
+                     throw std::invalid_argument("SurfaceRadiance: normals (a normal map) need a glossy surface (4D over the "
+                                                 "bumped normal)");
                  SurfaceRadiance out{r, HemisphereMap(disc_radius), upper, std::move(lower), std::move(diffuse),
                                      std::move(lower_diffuse)};
                  if (albedo) out.albedo = texture(*albedo, "SurfaceRadiance: albedo", true);
+                 if (normals) out.normals = texture(*normals, "SurfaceRadiance: normals", true);
                  if (emission) out.emission = texture(*emission, "SurfaceRadiance: emission", false);
                  if (specular && (r != Representation::Glossy || !tint_zero || !rgb_of(tint_zero, 4) ||
                                   !rgb_of(lower_tint_zero, 4) || bool(lower) != bool(lower_tint_zero)))
@@ -466,8 +488,11 @@ void bind_scene(py::module_& m) {
              py::arg("diffuse") = std::nullopt, py::arg("lower_diffuse") = std::nullopt, py::arg("albedo") = std::nullopt,
              py::arg("emission") = std::nullopt, py::arg("two_sided_emission") = false, py::arg("specular") = std::nullopt,
              py::arg("tint_zero") = std::nullopt, py::arg("lower_tint_zero") = std::nullopt,
-             py::arg("coat_share") = std::nullopt, py::arg("coat_albedo") = std::nullopt,
+             py::arg("coat_share") = std::nullopt, py::arg("coat_albedo") = std::nullopt, py::arg("normals") = std::nullopt,
              "Rebuilds a solved surface's radiance (as a solution file stores it).")
+        .def_property_readonly("normals", [](const SurfaceRadiance& r) { return image(r.normals); },
+                               "A normal map's bumped normals in the surface's radiance frame, as (n + 1) / 2 "
+                               "(height, width, 3), or None: the 4D splines are over the bumped normal.")
         .def_property_readonly("coat_share", [](const SurfaceRadiance& r) -> py::object {
                                    if (!r.coat) return py::none();
                                    const auto& t = r.coat->share->table();

@@ -1,4 +1,4 @@
-// Lambert, normalised Phong, Ashikhmin-Shirley, emission.
+// Lambert (and about a bumped normal), normalised Phong, Ashikhmin-Shirley, emission.
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -54,6 +54,39 @@ double Lambert::pdf(const Vec3& wo, const Vec3& wi) const { return (wo.z <= 0 ||
 bool Lambert::sample(const Vec3& wo, double, double u1, double u2, BsdfSample& out) const {
     if (wo.z <= 0) return false;
     return finish(*this, wo, cosine_hemisphere(u1, u2), out);
+}
+
+// ---- Lambert about a bumped normal ----
+
+BumpedLambert::BumpedLambert(const Vec3& albedo, bool bump_correction) : albedo_(albedo), bump_correction_(bump_correction) {
+    check_reflectance(albedo, "BumpedLambert albedo");
+}
+
+double BumpedLambert::shadowing(double cos_n, double cos_i) const {
+    // As Cycles' bump_shadowing_term (closure/bsdf.h), its float thresholds included.
+    if (!bump_correction_ || cos_n >= 1 || cos_i >= 1) return 1;
+    if (cos_i < 1e-6) return 0;
+    const double alpha2 = std::clamp(0.125 * (1 / (cos_n * cos_n) - 1), 0.0, 1.0);
+    const double lambda = 0.5 * (std::sqrt(1 + alpha2 * (1 / (cos_i * cos_i) - 1)) - 1);
+    return 1 / (1 + lambda);
+}
+
+Vec3 BumpedLambert::eval(const Vec3& n, const Vec3& wi) const {
+    const double cos_bumped = dot(n, wi);
+    if (n.z <= 0 || wi.z <= 0 || cos_bumped <= 0) return {0, 0, 0};
+    // Without the cosine to z that the gather multiplies by: the bumped normal's instead.
+    return albedo_ * (kInvPi * cos_bumped / wi.z * shadowing(n.z, wi.z));
+}
+
+double BumpedLambert::pdf(const Vec3& n, const Vec3& wi) const {
+    return (n.z <= 0 || wi.z <= 0) ? 0 : std::max(dot(n, wi), 0.0) * kInvPi;
+}
+
+bool BumpedLambert::sample(const Vec3& n, double, double u1, double u2, BsdfSample& out) const {
+    if (n.z <= 0) return false;
+    const Vec3 wi = Frame::from_normal(n).to_world(cosine_hemisphere(u1, u2));
+    if (wi.z <= 0) return false;
+    return finish(*this, n, wi, out);
 }
 
 // ---- normalised Phong ----

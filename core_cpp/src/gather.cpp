@@ -530,6 +530,10 @@ double Gatherer::ray_solid_angle(double density) const {
 
 Vec3 Gatherer::leaving(const Receiver& h, const SurfaceHit& hit, const Vec3& dir) const {
     if (h.kind == Representation::Diffuse && !h.partner) return hit.frame.to_local(-dir);  // (its side alone)
+    if (h.normals) {  // seen from either side, its radiance is its bumped normal's there
+        const Vec3 n = bumped_normal(*h.normals, hit.u, hit.v);
+        return dot(dir, hit.frame.z) <= 0 ? n : -n;
+    }
     SurfaceHit shaded = hit;
     caster_.look_up_shading(shaded);
     return leaving_local(shaded, dir);
@@ -720,7 +724,7 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
 template <typename Incoming>
 void Gatherer::gather_sides(const Receiver& r, int first, int last, bool mirror, int nt, int np, double density,
                             Incoming&& incoming, Vec3* out) const {
-    const int nb = nodes_along(settings_.bsdf_samples, density);
+    const int nb = r.bsdf->gathered_by_draws() ? nodes_along(settings_.bsdf_samples, density) : 0;
     ScatterTable& table = scatter_table(r, first, last, mirror, nt, np, nb);
     const size_t values = size_t(last - first) * r.per_node;
     Vec3* sides_out = out + size_t(first) * r.per_node;

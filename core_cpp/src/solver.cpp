@@ -259,7 +259,15 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     // the lobe reflects as much as the base (a strong coat), the full 4D spline is kept.
     const bool mild = sum && max_component(directional_albedo(*p.bsdf->glossy_part())) <= 0.5 * max_component(p.bsdf->diffuse_albedo());
     const bool textured = bool(ss.material.albedo_texture);
-    if (ss.options.representation == Representation::Auto) {
+    if (ss.material.normal_texture) {
+        // Its radiance changes with its bumped normal, not with the view (Scene::set_normal_texture
+        // has checked it is Lambertian).
+        p.kind = Representation::Glossy;
+        const Vec3 albedo = textured ? Vec3{1, 1, 1} : static_cast<const Lambert&>(*p.bsdf).albedo();
+        p.bsdf = std::make_shared<BumpedLambert>(albedo, ss.material.bump_correction);
+        why << "Lambertian material under a normal map " << ss.material.normal_texture->width() << " x "
+            << ss.material.normal_texture->height() << ": 4D over its bumped normal";
+    } else if (ss.options.representation == Representation::Auto) {
         // An albedo texture colours the diffuse base, which only D of (38) keeps apart.
         p.kind = lambertian ? Representation::Diffuse
                             : (mild || textured ? Representation::Decomposed : Representation::Glossy);
@@ -705,6 +713,7 @@ Receiver make_receiver(const Scene& scene, const Plan& p, const SpatialKnots& kn
         r.albedo = scene[p.surface].material.albedo_texture.get();
         r.tint = scene[p.surface].material.specular_texture.get();
     }
+    r.normals = scene[p.surface].material.normal_texture.get();
     std::vector<KnotVector> axes{ku, kv};
     if (p.kind == Representation::Glossy) {
         const double R = r.map.radius();
@@ -2632,6 +2641,8 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
             kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 && r.bsdf->transmits() ? "glossy 4D + transmission" : "glossy 4D");
         }
         out->albedo = m.albedo_texture;
+        out->normals = m.normal_texture;
+        if (m.normal_texture) kind = "bumped 4D";
         out->coat = r.coat;
         out->emission = emission;
         out->two_sided_emission = m.two_sided_emission;

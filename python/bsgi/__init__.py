@@ -42,6 +42,7 @@ from __future__ import annotations
 
 from ._core import (
     Bsdf,
+    BumpedLambert,
     Emission,
     FitRule,
     HemisphereMap,
@@ -91,6 +92,7 @@ __all__ = [
     "AshikhminShirley",
     "BilinearPatch",
     "Bsdf",
+    "BumpedLambert",
     "DiffuseGgx",
     "Emission",
     "FitRule",

@@ -114,6 +114,7 @@ SCENE_CALLS = (
     "set_albedo_texture",
     "set_emission_texture",
     "set_specular_texture",
+    "set_normal_texture",
     "set_spatial_coeffs",
     "set_integration_factor",
 )

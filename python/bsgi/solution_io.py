@@ -42,9 +42,10 @@ def settings_from_dict(values: dict) -> _core.SolverSettings:
     return settings_from({k: v for k, v in values.items() if hasattr(_core.SolverSettings, k)})
 
 
-# A SurfaceRadiance's textures, and the base of an albedo texture under a layered coat (the
-# coat's directional albedo and the albedo its S took its share at; absent in older files).
-COAT_AND_TEXTURES = ("albedo", "emission", "specular", "coat_share", "coat_albedo")
+# A SurfaceRadiance's textures (a normal map's bumped normals among them), and the base of an
+# albedo texture under a layered coat (the coat's directional albedo and the albedo its S took its
+# share at; absent in older files).
+COAT_AND_TEXTURES = ("albedo", "emission", "specular", "coat_share", "coat_albedo", "normals")
 
 
 @dataclass

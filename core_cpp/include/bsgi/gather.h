@@ -71,6 +71,8 @@ struct Receiver {
     // A textured GGX f0: this receiver is the surface at f0 = 1 and its partner at f0 = 0; the
     // texture T weighs them T and 1 - T.
     const Texture* tint = nullptr;
+    // A normal map (normal_map.h): the splines are over the bumped normal, read at the map's.
+    const Texture* normals = nullptr;
     int sides = 1;                    // spline slots: 2 if the back side is solved
     std::array<bool, 2> live{true, false};
     HemisphereMap map{1.0};

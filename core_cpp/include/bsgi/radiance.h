@@ -9,6 +9,7 @@
 #include <string>
 
 #include "bsgi/hemisphere_map.h"
+#include "bsgi/normal_map.h"
 #include "bsgi/scene.h"
 #include "bsgi/tensor_spline.h"
 
@@ -51,18 +52,23 @@ struct SurfaceRadiance {
     std::shared_ptr<const Texture> specular;
     bool two_sided_emission = false;  // the emission leaves the back side too
 
+    // A Lambertian surface under a normal map: upper (and lower) are over its bumped normal.
+    std::shared_ptr<const Texture> normals;
+
     // Radiance leaving (u, v) along `local` (a direction in the frame (1)-(3), any length).
-    Vec3 evaluate(double u, double v, const Vec3& local) const {
+    Vec3 evaluate(double u, double v, const Vec3& along) const {
+        const Vec3 local = normals ? (along.z < 0 ? -bumped_normal(*normals, u, v) : bumped_normal(*normals, u, v)) : along;
+        const bool detail = kind == Representation::Diffuse || normals;  // the albedo texture multiplies the spline
         if (local.z < 0) {
             Vec3 L = lower ? tinted(evaluate_side(kind, map, *lower, u, v, local), lower_tint_zero, u, v, local) : Vec3{0, 0, 0};
             if (lower_diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *lower_diffuse, u, v, local), u, v, local);
-            else if (kind == Representation::Diffuse) L = textured(L, u, v, local);
+            else if (detail) L = textured(L, u, v, local);
             if (emission && two_sided_emission) L += emission->at(u, v);
             return L;
         }
         Vec3 L = tinted(evaluate_side(kind, map, upper, u, v, local), tint_zero, u, v, local);
         if (diffuse) L += textured(evaluate_side(Representation::Diffuse, map, *diffuse, u, v, local), u, v, local);
-        else if (kind == Representation::Diffuse) L = textured(L, u, v, local);
+        else if (detail) L = textured(L, u, v, local);
         if (emission) L += emission->at(u, v);
         return L;
     }

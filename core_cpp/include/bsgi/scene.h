@@ -45,6 +45,9 @@ struct Material {
     std::shared_ptr<const Bsdf> bsdf;
     std::optional<SpotCone> cone;
     std::shared_ptr<const Texture> albedo_texture, emission_texture, specular_texture;
+    // A Lambertian surface's bumped normals (normal_map.h): it is then a BumpedLambert.
+    std::shared_ptr<const Texture> normal_texture;
+    bool bump_correction = true;  // Cycles' Bump Map Correction (the material's setting)
     std::optional<ThinGlass> thin_glass;
     bool two_sided_emission = false;
     bool emits() const { return max_component(emission) > 0; }
@@ -110,6 +113,9 @@ public:
             throw std::invalid_argument("surface '" + name + "': zero area (its points lie on a line or a point)");
         if (options.spatial_coeffs < 0 || options.angular_coeffs < 0)
             throw std::invalid_argument("surface '" + name + "': coefficient counts must be >= 0 (0: automatic)");
+        if (dynamic_cast<const BumpedLambert*>(material.bsdf.get()))
+            throw std::invalid_argument("surface '" + name + "': a BumpedLambert reads its direction as a bumped normal; "
+                                        "give the surface a Lambert and its normal map (set_normal_texture)");
         if (material.thin_glass) {
             // A pane's light is the light crossing it: it gets no spline of its own.
             if (!(std::isfinite(material.thin_glass->eta) && material.thin_glass->eta >= 1))
@@ -206,6 +212,21 @@ public:
             throw std::invalid_argument(what + ": needs the glossy representation, not 'diffuse'");
         s.material.bsdf = std::move(tinted);
         s.material.specular_texture = std::move(texture);
+    }
+    // Surface i's shading normal is bumped as `map` says (normal_map.h, from Scene's bindings):
+    // a Lambertian surface only (Cycles bumps any closure; the solve models the diffuse one).
+    void set_normal_texture(size_t i, std::shared_ptr<const Texture> map, bool bump_correction) {
+        SceneSurface& s = at(i, "set_normal_texture");
+        const std::string what = "surface '" + s.surface->name() + "': normal map";
+        if (!map) throw std::invalid_argument(what + ": no image");
+        if (s.material.bsdf && !dynamic_cast<const Lambert*>(s.material.bsdf.get()))
+            throw std::invalid_argument(what + ": is solved on Lambertian surfaces only, not under a " +
+                                        s.material.bsdf->name() + " BSDF");
+        if (s.material.thin_glass) throw std::invalid_argument(what + ": a thin pane has no shading to bump");
+        if (s.options.representation == Representation::Diffuse || s.options.representation == Representation::Decomposed)
+            throw std::invalid_argument(what + ": needs the glossy representation (4D over the bumped normal)");
+        s.material.normal_texture = std::move(map);
+        s.material.bump_correction = bump_correction;
     }
     // Albedo or specular textures: their colour cannot ride on scalar form-factor weights.
     bool has_albedo_textures() const {
