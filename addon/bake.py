@@ -138,6 +138,9 @@ def _radiance_at(radiance, uv: np.ndarray, disc: np.ndarray, lower: bool, smooth
         points = np.concatenate([np.broadcast_to(uv[None], (len(disc), len(uv), 2)),
                                  np.broadcast_to(disc[:, None], (len(disc), len(uv), 2))], axis=2)
         glossy = spline.evaluate(np.ascontiguousarray(points.reshape(-1, 4))).reshape(len(disc), len(uv), 3)
+        if getattr(radiance, "normals", None) is not None:
+            # Over a bumped normal (bsgi.BumpedLambert): irradiance / pi where an albedo texture is the detail.
+            glossy = glossy * _texels_seen(radiance, uv, disc, smooth, f0)
         out += glossy if weight is None else glossy * weight
     emission = None if lower and not getattr(radiance, "two_sided_emission", False) else getattr(radiance, "emission", None)
     if emission is not None:
@@ -418,7 +421,7 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
         samples = fitting
     radius = _disc_radius(obj, faces)
     tangent, normal = frame_pixels(layout)
-    sources, face_slots = detail or ({}, [])
+    sources, face_slots, bumps = detail or ({}, [], {})
     smooth = {i for i, slot in enumerate(face_slots) if slot in sources}
     # Textured glossy colours and bases under a layered coat: this atlas holds their radiance at
     # f0 (the base colour) = 0, a second one at 1 (black elsewhere), which their material blends
@@ -435,29 +438,43 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
     elif bpy.data.images.get(f"{name} f0 1") is not None:  # an earlier bake's
         bpy.data.images.remove(bpy.data.images[f"{name} f0 1"])
 
-    def made(material_name, with_detail=None):
+    # A bumped surface's atlas is over its bumped normal: its slot's material looks it up along the
+    # user's normal nodes; the object's own along the surface's normal (flat) where all its
+    # view-dependent faces are bumped.
+    bumped = [r is not None and getattr(r, "normals", None) is not None for _, radiances in faces for r in radiances]
+    glossy = [r is not None and r.kind != "diffuse" for _, radiances in faces for r in radiances]
+    all_bumped = any(bumped) and bumped == glossy
+    if any(bumped) and not all_bumped:
+        warnings.append(f"object '{obj.name}': its bumped faces show their radiance along the view where their "
+                        "material's own normal nodes cannot be shown (give bumped and glossy faces separate objects)")
+
+    def made(material_name, with_detail=None, slot=None):
         tint = white if with_detail is not None and with_detail[1][0] in BLENDED else None
+        bump = bumps.get(slot) if slot is not None else None
         return view_radiance.material(material_name, layout.uv_map, *images, spatial_size=(w, h), disc_radius=radius,
                                       angular_samples=samples, sides=sides,
-                                      detail=with_detail and (with_detail[0], with_detail[1][1]), tint=tint)
+                                      detail=with_detail and (with_detail[0], with_detail[1][1]), tint=tint,
+                                      bumped=bump if bump is not None else "flat" if all_bumped else None)
 
     material = made(name)
     slots = user_slots(obj)
-    if sources:
-        material[PROP_SLOT_MATERIALS] = [made(f"{name} slot {k}", (slots[k], sources[k])).name if k in sources else ""
-                                         for k in range(len(slots))]
+    if sources or bumps:
+        material[PROP_SLOT_MATERIALS] = [
+            made(f"{name} slot {k}", (slots[k], sources[k]) if k in sources else None, k).name
+            if k in sources or k in bumps else "" for k in range(len(slots))]
     elif PROP_SLOT_MATERIALS in material:
         del material[PROP_SLOT_MATERIALS]
     return material, warnings
 
 
 def _detail_slots(obj, faces):
-    """({slot: ("albedo", "coat" or "specular", colour source)}, slot per face) for the slots of a mesh
-    whose material's colour nodes the bake can show (textures.colour_source, tint_source) and
-    whose faces all carry that texture (and, for an albedo, no emission texture); ({}, [])
-    otherwise."""
+    """({slot: ("albedo", "coat" or "specular", colour source)}, slot per face, {slot: (material,
+    shader)}) for the slots of a mesh whose material's colour nodes the bake can show
+    (textures.colour_source, tint_source) and whose faces all carry that texture (and, for an
+    albedo, no emission texture), and for those whose faces are all bumped and whose shader's
+    Normal nodes the bake can show (textures.normal_source); ({}, [], {}) otherwise."""
     if not faces or obj.type not in {"MESH", "SURFACE"} or (obj.type == "SURFACE" and len(faces) != 1):
-        return {}, []
+        return {}, [], {}
     slots = user_slots(obj)
     if obj.type == "SURFACE":  # one spline, shown through its mesh's UVMap like the user's nodes
         indices = [user_spline_material_index(obj, list(obj.data.splines).index(geometry.baked_splines(obj)[0]))]
@@ -465,8 +482,8 @@ def _detail_slots(obj, faces):
         indices = [p.material_index for p in obj.data.polygons][:1 if faces[0][0] == "chart" else None]
     face_slots = [min(i, len(slots) - 1) for i in indices]
     if len(face_slots) != len(faces):
-        return {}, []
-    sources = {}
+        return {}, [], {}
+    sources, bumps = {}, {}
     folded = solved_diffuse(obj)
     for k, material in enumerate(slots):
         mine = [r for (_, radiances), slot in zip(faces, face_slots) if slot == k for r in radiances]
@@ -479,7 +496,10 @@ def _detail_slots(obj, faces):
         source = textures.tint_source(material)
         if source is not None and mine and all(r is not None and r.specular is not None for r in mine):
             sources[k] = ("specular", source)
-    return sources, face_slots
+        shader = textures.normal_source(material)
+        if shader is not None and mine and all(r is not None and getattr(r, "normals", None) is not None for r in mine):
+            bumps[k] = (material, shader)
+    return sources, face_slots, bumps
 
 
 def bake_object(obj, faces, chart_uvs=None) -> list:

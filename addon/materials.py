@@ -59,13 +59,18 @@ class SurfaceMaterial:
     # (met on the way in and on the way out of a solid), its reflection white.
     glass_reflection: tuple = (1.0, 1.0, 1.0)
     glass_transmission: tuple = (1.0, 1.0, 1.0)
+    # A Diffuse or Principled BSDF whose Normal input is driven (a Normal Map or Bump node):
+    # Blender evaluates the bumped normal (textures.py bakes it), the core solves its diffuse part
+    # over it (bsgi.Scene.set_normal_texture). What drives it ("normal map", "bump map", a node's
+    # name), empty if nothing does.
+    bumped: str = ""
 
     def scaled(self, k: float) -> "SurfaceMaterial":
         return SurfaceMaterial(_scale(self.albedo, k), _scale(self.specular, k), self.roughness, self.stretch,
                                self.rotation, self.transmission * k, self.ior, _scale(self.emission, k),
                                self.albedo_textured, self.emission_textured, self.shadow, self.specular_textured,
                                self.schlick, multiscatter=self.multiscatter, glass_reflection=self.glass_reflection,
-                               glass_transmission=self.glass_transmission)
+                               glass_transmission=self.glass_transmission, bumped=self.bumped)
 
     def plus(self, other: "SurfaceMaterial") -> "SurfaceMaterial":
         """Sum of two shaders (Add Shader, the two halves of a Mix Shader)."""
@@ -79,7 +84,8 @@ class SurfaceMaterial:
                                self.specular_textured or other.specular_textured, dominant.schlick,
                                multiscatter=dominant.multiscatter,
                                glass_reflection=_glass_tint(self, other, "glass_reflection"),
-                               glass_transmission=_glass_tint(self, other, "glass_transmission"))
+                               glass_transmission=_glass_tint(self, other, "glass_transmission"),
+                               bumped=self.bumped or other.bumped)
 
 
 def _glass_tint(a: SurfaceMaterial, b: SurfaceMaterial, name: str) -> tuple:
@@ -176,7 +182,7 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
         node.type != "BSDF_PRINCIPLED" or _scalar(material, node, "Metallic") > 0)
     kind = node.type
     if kind == "BSDF_DIFFUSE":
-        return SurfaceMaterial(albedo=socket_color(node, "Color"), **textured)
+        return SurfaceMaterial(albedo=socket_color(node, "Color"), bumped=_bumped(node), **textured)
     if kind == "EMISSION":
         return SurfaceMaterial(emission=_scale(socket_color(node, "Color"), socket_value(node, "Strength", 1.0)),
                                **textured)
@@ -236,7 +242,8 @@ def _shader(node, material, warnings, depth=0) -> SurfaceMaterial:
                                rotation=2 * math.pi * rotation, transmission=transmission, ior=ior, emission=emission,
                                specular_textured=specular_textured, coat=metallic == 0 and transmission == 0,
                                multiscatter=multiscatter,
-                               glass_transmission=tuple(math.sqrt(c) for c in _unit_colour(base)), **textured)
+                               glass_transmission=tuple(math.sqrt(c) for c in _unit_colour(base)), bumped=_bumped(node),
+                               **textured)
     if kind == "ADD_SHADER":
         return _shader(linked_node(node.inputs[0]), material, warnings, depth + 1).plus(
             _shader(linked_node(node.inputs[1]), material, warnings, depth + 1))
@@ -310,15 +317,28 @@ def _unit_tint(colour, node, material, warnings) -> tuple:
     return clamped
 
 
+# Shaders whose Normal input the solve models (on their diffuse reflection).
+BUMPED_SHADERS = {"BSDF_DIFFUSE", "BSDF_PRINCIPLED"}
+
+
+def _bumped(node) -> str:
+    """What drives a shader's Normal input where the solve models it, else ""."""
+    return normal_input_name(node) if node.type in BUMPED_SHADERS and linked_node(node.inputs["Normal"]) else ""
+
+
+def normal_input_name(node) -> str:
+    """What drives a shader's Normal input, as the user made it: "normal map", "bump map" or the node's name."""
+    source = linked_node(node.inputs["Normal"])
+    return {"NORMAL_MAP": "normal map", "BUMP": "bump map"}.get(source.type, f"'{source.name}'")
+
+
 def _warn_ignored_inputs(node, material, warnings):
     """Inputs that change how a surface looks but that the solve does not model, named as what
-    the user made them (a normal map, a bump, a transparency mask)."""
+    the user made them (a normal map or a bump on a glossy or glass shader, a transparency mask)."""
     normal = node.inputs.get("Normal")
-    if normal is not None and normal.is_linked:
-        source = linked_node(normal)
-        what = {"NORMAL_MAP": "normal map", "BUMP": "bump map"}.get(source.type, f"'{source.name}'")
-        warnings.append(f"material '{material.name}': {node.name}'s Normal input ({what}) is ignored; the surface's "
-                        "own normals are used")
+    if normal is not None and node.type not in BUMPED_SHADERS and linked_node(normal) is not None:
+        warnings.append(f"material '{material.name}': {node.name}'s Normal input ({normal_input_name(node)}) is "
+                        "ignored; the surface's own normals are used (bumps are solved on diffuse reflection)")
     alpha = node.inputs.get("Alpha")
     if alpha is not None and alpha.is_linked:
         warnings.append(f"material '{material.name}': {node.name}'s Alpha input (transparency driven by nodes) is "
@@ -419,6 +439,10 @@ class SolverMaterial:
     roughness: float = 0.0
     shadow: float | None = None
     solid_notes: list = field(default_factory=list)
+    # "lambert" under a normal map or bump (SurfaceMaterial.bumped), with the material's Bump Map
+    # Correction (Cycles' bump shadowing term).
+    bumped: bool = False
+    bump_correction: bool = True
 
 
 def _alpha(name: str, roughness: float, warnings) -> float:
@@ -451,6 +475,10 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     named in a warning."""
     name = material.name if material is not None else "(none)"
     chosen = _solver_material(name, described, warnings)
+    if described.bumped:
+        chosen = _bumped_material(name, chosen, described.bumped, warnings)
+        cycles = getattr(material, "cycles", None)
+        chosen.bump_correction = bool(getattr(cycles, "use_bump_map_correction", True))
     chosen.emission_textured = described.emission_textured
     if chosen.kind == "ggx" and described.specular_textured:
         # Its f0 over each surface (Cycles' glossy-colour pass), which the core blends exactly:
@@ -465,6 +493,23 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
             warnings.append(f"material '{name}': its colour is driven by nodes on a {chosen.kind.replace('_', ' ')} "
                             "surface, which is solved with the socket's own value (textures colour diffuse surfaces "
                             "and the lobe of glossy ones)")
+    return chosen
+
+
+def _bumped_material(name: str, chosen: SolverMaterial, what: str, warnings) -> SolverMaterial:
+    """A material whose normal is bumped: its diffuse reflection is solved over the bumped normal
+    (Lambertian only: a layered coat is folded into its base, named); a glossy or glass one keeps
+    its own normals, named."""
+    if chosen.kind == "diffuse_ggx":
+        warnings.append(f"material '{name}': its Normal input ({what}) is solved on its diffuse base, with its coat (the "
+                        "specular layer) folded into the base's albedo: the coat's highlights are not solved")
+        chosen = SolverMaterial(chosen.folded_albedo, chosen.emission, specular=chosen.specular,
+                                pass_weight=chosen.pass_weight)
+    if chosen.kind != "lambert":
+        warnings.append(f"material '{name}': its Normal input ({what}) is ignored on a {chosen.kind.replace('_', ' ')} surface; "
+                        "the surface's own normals are used (bumps are solved on diffuse reflection)")
+        return chosen
+    chosen.bumped = True
     return chosen
 
 

@@ -1,10 +1,11 @@
 """Textured materials: node trees that drive a material's colour (a Principled BSDF's Base Color, a
-Diffuse BSDF's Color, a Glossy BSDF's Color) or its emission are evaluated by Blender itself, not by
-the add-on: a Cycles bake of the diffuse-colour pass (of the glossy-colour pass for glossy surfaces,
-and of the emission pass) onto a temporary copy of the object,
+Diffuse BSDF's Color, a Glossy BSDF's Color), its emission or its normal (a Normal Map or Bump node)
+are evaluated by Blender itself, not by the add-on: a Cycles bake of the diffuse-colour pass (of the
+glossy-colour pass for glossy surfaces, of the emission pass, and of the normal pass in object
+space) onto a temporary copy of the object,
 whose temporary UV map lays each solver surface's parameter square on a tile of a float image.
-The tiles become the surfaces' albedo and emission textures over their own (u, v)
-(Scene.set_albedo_texture / set_emission_texture / set_specular_texture): the solve keeps irradiance
+The tiles become the surfaces' albedo, emission and normal textures over their own (u, v)
+(Scene.set_albedo_texture / set_emission_texture / set_specular_texture / set_normal_texture): the solve keeps irradiance
 / pi (a glossy surface: its reflected radiance per unit of its mean colour) in the spline and the
 texture as its detail, the paper's decomposition (38) with the texture as the detail factor.
 
@@ -21,8 +22,8 @@ import bpy
 import numpy as np
 
 from .errors import ExportError
-from .materials import (AVERAGED_INPUTS, active_output, describe_material, dielectric_f0, linked_node, socket_value,
-                        solved_diffuse, solver_material, user_slots)
+from .materials import (AVERAGED_INPUTS, BUMPED_SHADERS, active_output, describe_material, dielectric_f0, linked_node,
+                        socket_value, solved_diffuse, solver_material, user_slots)
 
 BAKE_UV = "BSGI Texture Bake"
 NURBS_UV = "UVMap"  # Blender's UV map of a NURBS surface's mesh: the normalized (u, v)
@@ -37,14 +38,18 @@ def texture_texels(scene) -> int:
 
 
 def has_textures(obj) -> bool:
-    """Whether any of the object's materials has node-driven colour or emission."""
+    """Whether any of the object's materials has node-driven colour, emission or normal."""
     return any(_slot_flags(obj))
 
 
 def _slot_flags(obj):
     for m in user_slots(obj):
-        described = describe_material(m, [])
-        yield described.albedo_textured or described.emission_textured or described.specular_textured
+        solved = solver_material(m, describe_material(m, []), [])
+        yield solved.albedo_textured or solved.emission_textured or solved.specular_textured or solved.bumped
+
+
+def _baked(material) -> bool:
+    return material.albedo_textured or material.emission_textured or material.specular_textured or material.bumped
 
 
 def missing_images(material) -> list:
@@ -72,7 +77,7 @@ def apply_textures(depsgraph, scene, objects, warnings) -> dict:
         if obj is None:
             continue
         materials = [solver_material(m, describe_material(m, []), []) for m in user_slots(obj)]
-        if not any(m.albedo_textured or m.emission_textured or m.specular_textured for m in materials):
+        if not any(_baked(m) for m in materials):
             continue
         if exported.kind == "nurbs" and len(exported.patches) > 1:
             warnings.append(f"object '{exported.name}': its materials' node-driven colour or emission is solved with "
@@ -98,12 +103,23 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
             layout = _ChartLayout(4 * texels, uvs.reshape(-1, 2))
         else:
             layout = _TileLayout(mesh, [kind for kind, _, _ in exported.patches], texels)
-        for which, pass_type in (("albedo", "DIFFUSE"), ("specular", "GLOSSY"), ("emission", "EMIT")):
-            if any(getattr(m, f"{which}_textured") for m in materials):
-                pixels = _bake(copy, mesh, layout, pass_type)
-                _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings,
-                              folded=solved_diffuse(obj))
+        for which, pass_type in (("albedo", "DIFFUSE"), ("specular", "GLOSSY"), ("emission", "EMIT"),
+                                 ("normal", "NORMAL")):
+            if not any(_flag(m, which) for m in materials):
+                continue
+            if which == "normal" and solved_diffuse(obj):
+                warnings.append(f"object '{exported.name}': its materials' bumped normals are not solved (the object's "
+                                "representation is set to diffuse; a bumped surface's radiance is 4D over its normal)")
+                continue
+            pixels = _bake(copy, mesh, layout, pass_type)
+            _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings,
+                          folded=solved_diffuse(obj), matrix=np.array(copy.matrix_world))
         return layout.width * layout.height
+
+
+def _flag(material, which) -> bool:
+    """Whether the slot's `which` pass is baked for it: its colour, glossy colour, emission or normal."""
+    return material.bumped if which == "normal" else getattr(material, f"{which}_textured")
 
 
 class _TileLayout:
@@ -160,10 +176,11 @@ def _bilinear(image, x, y):
             + (image[y1, x0] * (1 - a) + image[y1, x1] * a) * b).astype(np.float32)
 
 
-def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings, folded=False):
-    """Gives the surfaces of the slots whose `which` ("albedo", "specular", "emission") is
-    node-driven their texture cut from the baked pass. folded: the object is solved diffuse (a
-    layered coat's albedo folded, SolverMaterial.folded_albedo)."""
+def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings, folded=False, matrix=None):
+    """Gives the surfaces of the slots whose `which` ("albedo", "specular", "emission", "normal")
+    is node-driven their texture cut from the baked pass. folded: the object is solved diffuse (a
+    layered coat's albedo folded, SolverMaterial.folded_albedo). matrix: the object's (4, 4), for
+    the normal pass's object-space normals."""
     slot_of = np.zeros(len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("material_index", slot_of)
     if exported.kind in {"chart", "nurbs"}:  # one surface over the image
@@ -174,7 +191,7 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warni
             slot = int(slot_of[poly_index])
             if kind == "ngon":
                 material = materials[min(slot, len(materials) - 1)]
-                if getattr(material, f"{which}_textured"):
+                if _flag(material, which):
                     warnings.append(f"object '{exported.name}': face {poly_index} has more than four corners; its "
                                     "node-driven colour and emission use the sockets' own values (triangulate it "
                                     "to bake them)")
@@ -182,9 +199,16 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warni
             surfaces.append((first, slot, layout.texture(pixels, poly_index, kind)))
     for index, slot, image in surfaces:
         material = materials[min(slot, len(materials) - 1)]
-        if not getattr(material, f"{which}_textured"):
+        if not _flag(material, which):
             continue
-        if which == "albedo":
+        if which == "normal":
+            normals = _world_normals(image, matrix)
+            if normals is None:
+                warnings.append(f"object '{exported.name}': surface {index}'s bumped normals did not bake; it is solved "
+                                "with its own normals")
+                continue
+            scene.set_normal_texture(index, normals, bump_correction=material.bump_correction)
+        elif which == "albedo":
             # The base colour (the pass Cycles evaluates is it under the specular lobe, seen along
             # the normal): under a layered coat the base itself (the core layers each texel),
             # else folded as the solve's albedo is, base (1 - E) + E.
@@ -200,6 +224,22 @@ def _set_textures(scene, mesh, exported, layout, pixels, materials, which, warni
             scene.set_emission_texture(index, image)
             if image.max() > 0:  # Cycles' Emission shader emits from both sides of a mesh
                 scene.set_two_sided_emission(index)
+
+
+def _world_normals(image, matrix):
+    """Unit world-space normals from Cycles' object-space normal pass (its (n + 1) / 2), turned
+    by the inverse transpose of the object's matrix; a texel the bake left empty takes the mean
+    of the others (None if all are)."""
+    n = 2 * np.asarray(image, np.float64) - 1
+    n = n @ np.linalg.inv(np.asarray(matrix, np.float64)[:3, :3])  # rows: n^T M^-1 = (M^-T n)^T
+    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    good = length[..., 0] > 1e-3
+    if not good.any():
+        return None
+    n = np.where(good[..., None], n / np.maximum(length, 1e-12), 0)
+    mean = n[good].mean(axis=0)
+    n[~good] = mean / max(np.linalg.norm(mean), 1e-12)
+    return n.astype(np.float32)
 
 
 @contextmanager
@@ -230,8 +270,9 @@ def _temporary_copy(depsgraph, obj):
 
 
 def _bake(copy, mesh, layout, kind) -> np.ndarray:
-    """Cycles' diffuse colour ('DIFFUSE'), glossy colour ('GLOSSY') or emission ('EMIT') of the
-    copy's materials over the layout's UVs: (height, width, 3)."""
+    """Cycles' diffuse colour ('DIFFUSE'), glossy colour ('GLOSSY'), emission ('EMIT') or shading
+    normal in object space as (n + 1) / 2 ('NORMAL', bumps included) of the copy's materials over
+    the layout's UVs: (height, width, 3)."""
     uv = mesh.uv_layers.new(name=BAKE_UV, do_init=False)
     if uv is None:
         raise ExportError(f"object '{copy.name}': no room for a UV map to bake its textures (8 at most)")
@@ -251,6 +292,8 @@ def _bake(copy, mesh, layout, kind) -> np.ndarray:
             options = dict(type=kind, uv_layer=BAKE_UV, margin=PAD, use_clear=True, target="IMAGE_TEXTURES")
             if kind in {"DIFFUSE", "GLOSSY"}:
                 options["pass_filter"] = {"COLOR"}
+            if kind == "NORMAL":
+                options.update(normal_space="OBJECT", normal_r="POS_X", normal_g="POS_Y", normal_b="POS_Z")
             bpy.ops.object.bake(**options)
         pixels = np.empty(layout.width * layout.height * 4, np.float32)
         image.pixels.foreach_get(pixels)
@@ -275,6 +318,7 @@ def _bake_settings(copy):
         (bake, "margin"): bake.margin,
         (bake, "use_clear"): bake.use_clear,
         (bake, "target"): bake.target,
+        **{(bake, name): getattr(bake, name) for name in ("normal_space", "normal_r", "normal_g", "normal_b")},
     }
     selected = [o for o in view_layer.objects if o.select_get()]
     active = view_layer.objects.active
@@ -326,6 +370,21 @@ def colour_source(material, folded: bool = False):
             return None
         weight = 1 - max(solved.specular)
     return node, colour, weight, tuple(solved.specular)
+
+
+def normal_source(material):
+    """The shader node of the material's own tree whose Normal input the bake can show (the
+    user's normal map or bump nodes, at their own resolution), when the material's output takes
+    a Diffuse or Principled BSDF so driven and the solve made it a bumped Lambertian; else None."""
+    if material is None or material.node_tree is None:
+        return None
+    output = active_output(material.node_tree, "OUTPUT_MATERIAL")
+    node = linked_node(output.inputs["Surface"]) if output is not None else None
+    if node is None or node.type not in BUMPED_SHADERS or node.id_data != material.node_tree:
+        return None
+    if not any(link.is_valid and not link.is_muted for link in node.inputs["Normal"].links):
+        return None
+    return node if solver_material(material, describe_material(material, []), []).bumped else None
 
 
 def tint_source(material):

@@ -21,6 +21,9 @@ from __future__ import annotations
 import bpy
 
 VIEW_GROUP = "BSGI View Radiance"
+# The same lookup along a given direction: a bumped Lambertian surface's atlas is over its bumped
+# normal (bsgi.BumpedLambert), which its material gives (the user's Normal Map or Bump nodes).
+NORMAL_GROUP = "BSGI Normal Radiance"
 TEXELS_GROUP = "BSGI Texels"
 # Bumped when a group's contents change, so files baked by an older add-on get the new groups.
 VERSION = 2
@@ -144,18 +147,24 @@ def _build_texels(tree):
         tree.links.new(b.math("MULTIPLY", wx, wy), output.inputs[f"Weight {k}"])
 
 
-def _build_view(tree):
+def _build_view(tree, along_input=False):
     """Frame and view direction -> the four angular tiles around the view's (alpha, beta):
-    Tile k (the tile's origin in the atlas), Scale (a tile's size in the atlas) and Weight k."""
+    Tile k (the tile's origin in the atlas), Scale (a tile's size in the atlas) and Weight k.
+    along_input: the direction is the group's Direction input (world space) instead of the view."""
     i, output = _new_interface(
         tree, [("Tangent", "NodeSocketVector"), ("Normal", "NodeSocketVector"), ("Disc Radius", "NodeSocketFloat"),
-               ("Angular Samples", "NodeSocketFloat"), ("Sides", "NodeSocketFloat")],
+               ("Angular Samples", "NodeSocketFloat"), ("Sides", "NodeSocketFloat")]
+        + ([("Direction", "NodeSocketVector")] if along_input else []),
         _numbered("Tile", "NodeSocketVector") + _numbered("Weight", "NodeSocketFloat") + [("Scale", "NodeSocketVector")])
     b = _Builder(tree)
-    geometry = tree.nodes.new("ShaderNodeNewGeometry")
-    geometry.location = (-400, -400)
+    if along_input:
+        direction = i["Direction"]
+    else:
+        geometry = tree.nodes.new("ShaderNodeNewGeometry")
+        geometry.location = (-400, -400)
+        direction = geometry.outputs["Incoming"]
     radius, samples, sides = i["Disc Radius"], i["Angular Samples"], i["Sides"]
-    alpha, beta, below = _disc_coordinates(b, geometry.outputs["Incoming"], i["Tangent"], i["Normal"], radius)
+    alpha, beta, below = _disc_coordinates(b, direction, i["Tangent"], i["Normal"], radius)
     # Seen from below: the lower hemisphere's tiles (rows A .. 2A - 1) where the object has
     # them (Sides = 2), black otherwise, as the core's SurfaceRadiance::evaluate.
     shown = b.math("SUBTRACT", 1.0, b.math("MULTIPLY", below, b.math("SUBTRACT", 2.0, sides)))
@@ -214,8 +223,12 @@ class _MaterialBuilder:
         return total
 
 
+def _build_normal_view(tree):
+    _build_view(tree, along_input=True)
+
+
 def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, disc_radius: float,
-             angular_samples: int, sides: int, detail=None, tint=None):
+             angular_samples: int, sides: int, detail=None, tint=None, bumped=None):
     """The baked emission material of one object: the frame images and the radiance atlas
     looked up through the groups, at the coordinates of the UV map `uv_map` in the spatial
     atlas of spatial_size = (width, height) texels.
@@ -230,12 +243,19 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     f0 = 0), the user's colour nodes give f0 = T instead and the material shows
     atlas + T (tint - atlas): Schlick's Fresnel is affine in f0, so this is the radiance at f0 = T,
     with T at the colour nodes' own resolution. A base colour under a layered coat is blended the
-    same way (the atlases at base colour 0 and 1: the surface's radiance is affine in it)."""
+    same way (the atlases at base colour 0 and 1: the surface's radiance is affine in it).
+
+    With bumped, the atlas is over the bumped normal of a Lambertian surface under a normal map
+    (bsgi.BumpedLambert) and is looked up along a normal instead of the view: with bumped = (user
+    material, its shader node) the material is a copy of the user's whose own nodes feeding the
+    shader's Normal input (the normal map at its own resolution) give it; with bumped = "flat",
+    the surface's own normal (its bumps not shown)."""
     old = bpy.data.materials.get(name)
-    if detail is not None:
+    user = detail[0] if detail is not None else bumped[0] if isinstance(bumped, tuple) else None
+    if user is not None:
         if old is not None:
             bpy.data.materials.remove(old)
-        mat = detail[0].copy()
+        mat = user.copy()
         mat.name = name
         for node in [n for n in mat.node_tree.nodes if n.type == "OUTPUT_MATERIAL"]:
             mat.node_tree.nodes.remove(node)
@@ -245,7 +265,7 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     if mat.node_tree is None:
         mat.use_nodes = True
     tree = mat.node_tree
-    if detail is None:
+    if user is None:
         tree.nodes.clear()
     link = tree.links.new
     m = _MaterialBuilder(tree)
@@ -254,7 +274,8 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     link(uv.outputs["UV"], texels.inputs["UV"])
     texels.inputs["Size"].default_value = (*spatial_size, 1.0)
     spatial = [(texels.outputs[f"UV {k}"], texels.outputs[f"Weight {k}"]) for k in range(1, 5)]
-    view = m.node("ShaderNodeGroup", 5, node_tree=_group(VIEW_GROUP, _build_view))
+    view = m.node("ShaderNodeGroup", 5, node_tree=_group(NORMAL_GROUP, _build_normal_view) if bumped is not None
+                  else _group(VIEW_GROUP, _build_view))
     view.inputs["Disc Radius"].default_value = disc_radius
     view.inputs["Angular Samples"].default_value = angular_samples
     view.inputs["Sides"].default_value = sides
@@ -276,7 +297,14 @@ def material(name: str, uv_map: str, atlas, tangent, normal, *, spatial_size, di
     total = m.blend(atlas, lookups, 8)
     m.row = 0
     link(m.blend(tangent, spatial, 2), view.inputs["Tangent"])
-    link(m.blend(normal, spatial, 2), view.inputs["Normal"])
+    frame_normal = m.blend(normal, spatial, 2)
+    link(frame_normal, view.inputs["Normal"])
+    if bumped is not None:
+        # The copy's own node feeding its shader's Normal input (the user's normal map), else flat.
+        shader = tree.nodes[bumped[1].name] if isinstance(bumped, tuple) else None
+        source = None if shader is None else next((lk.from_socket for lk in shader.inputs["Normal"].links
+                                                   if lk.is_valid and not lk.is_muted), None)
+        link(source if source is not None else frame_normal, view.inputs["Direction"])
     emission = m.node("ShaderNodeEmission", 11)
     if detail is not None:
         # albedo = the user's colour x diffuse weight + specular, as the solve's albedo texture.

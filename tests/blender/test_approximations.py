@@ -8,7 +8,8 @@ from bsgi_addon import pipeline
 
 
 def _patterned_material():
-    """A Principled BSDF with a normal map and an alpha mask: inputs the solve cannot model."""
+    """A Principled BSDF with a normal map and an alpha mask: its coat is folded under the bump, the
+    mask is not modelled."""
     m = bpy.data.materials.new("Tiles")
     if m.node_tree is None:
         m.use_nodes = True
@@ -37,7 +38,7 @@ def test_report_names_each_approximation_once_per_material_with_its_objects(cont
     tiles_entry = by_owner["material 'Tiles'"]
     assert tiles_entry["objects"] == ["Floor", "Step"]
     assert len(tiles_entry["notes"]) == 2  # once each, although two objects use it
-    assert any("Normal input (normal map) is ignored" in n for n in tiles_entry["notes"])
+    assert any("Normal input (normal map) is solved on its diffuse base" in n and "coat" in n for n in tiles_entry["notes"])
     assert any("Alpha input" in n and "opaque" in n for n in tiles_entry["notes"])
     assert by_owner["light 'Lamp'"]["objects"] == []
 

@@ -206,3 +206,24 @@ def test_the_bsdf_draws_match_its_density():
     albedo = 0.6 / np.pi * (np.maximum(w @ n, 0) * cycles_shadowing(n[2], mu)).mean() * 2 * np.pi
     mean = draws["weight"][:, 0] * valid
     assert abs(mean.mean() - albedo) < 4 * mean.std() / math.sqrt(count)
+
+
+def test_a_bumped_solution_is_stored_and_a_bumped_scene_pickles(tmp_path):
+    # The solution file keeps the map (SurfaceRadiance.normals) and a scene sent to Ray's workers
+    # keeps it too (rebuildable replays set_normal_texture).
+    import pickle
+
+    n = np.stack([tilted(10 * k, 40 * k) for k in range(6)]).reshape(2, 3, 3)
+    scene = floor_scene(n)
+    scene.add_distant_light("sun", tilted(30, 10), E)
+    settings = bsgi.SolverSettings()
+    settings.max_bounces = 0
+    solution = bsgi.solve(scene, settings)
+    dirs = views(len(UV))
+    want = solution.surfaces[0].evaluate(UV, dirs)
+    bsgi.save_solution(tmp_path / "bumped.npz", solution.surfaces, ["floor"], settings)
+    stored = bsgi.load_solution(tmp_path / "bumped.npz").surfaces[0]
+    np.testing.assert_array_equal(stored.normals, solution.surfaces[0].normals)
+    np.testing.assert_array_equal(stored.evaluate(UV, dirs), want)
+    again = bsgi.solve(pickle.loads(pickle.dumps(scene)), settings).surfaces[0]
+    np.testing.assert_array_equal(again.evaluate(UV, dirs), want)
