@@ -37,6 +37,16 @@ std::shared_ptr<const Texture> normal_map(const Surface& surface, int width, int
     return std::make_shared<Texture>(width, height, std::move(encoded), what, true);
 }
 
+double largest_tilt(const Texture& map) {
+    double lowest = 1;
+    const std::vector<float>& t = map.rgb();
+    for (size_t i = 0; i < t.size(); i += 3) {
+        const Vec3 n{2.0 * t[i] - 1, 2.0 * t[i + 1] - 1, 2.0 * t[i + 2] - 1};
+        if (length(n) > 1e-9) lowest = std::min(lowest, above(n).z);
+    }
+    return std::acos(std::clamp(lowest, -1.0, 1.0));
+}
+
 Vec3 bumped_normal(const Texture& map, double u, double v) {
     const Vec3 t = map.at(u, v);
     const Vec3 n{2 * t.x - 1, 2 * t.y - 1, 2 * t.z - 1};

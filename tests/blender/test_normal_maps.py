@@ -108,7 +108,7 @@ def test_a_tilted_normal_map_is_a_tilted_plane_under_the_sun(context, principled
     err = np.abs(got / want - 1).max()
     print(f"\nbumped floor ({'principled' if principled else 'diffuse'}, correction {correction}): worst {err:.2e} "
           f"of the tilted plane's {want[0]:.4f}")
-    assert err < 1e-4  # measured 3.0e-5 (1.4e-5 without the correction): the texture's float32 normals
+    assert err < 6e-4  # measured 2.9e-4 with the correction (G1 over the spline's cap), 1.4e-5 without
     # The normals the solve took: the map's, in the floor's frame, everywhere.
     normals = 2 * floor.normals.reshape(-1, 3).astype(float) - 1
     off = np.abs(normals - [math.sin(theta), 0, math.cos(theta)]).max()
@@ -168,6 +168,7 @@ def test_a_washboard_normal_map_baked_is_what_cycles_renders(context, tmp_path):
           f"columns from {columns_ref.min():.4f} to {columns_ref.max():.4f} (Cycles), {columns_baked.min():.4f} to "
           f"{columns_baked.max():.4f} (baked), the flat floor {flat:.4f}")
     assert columns_ref.max() - columns_ref.min() > 0.3 * flat  # the ridges show
-    # Measured: mean 0.9996, per pixel 0.24% (Cycles' own noise at 256 samples among it).
+    # Measured: mean 0.9989, per pixel 0.32% (Cycles' own noise at 256 samples about 0.2% of it;
+    # 11 x 11 angular over the 57.5-degree cap; 1.3% and 0.9901 at the lobe's 7 x 7).
     assert abs(baked.mean() / reference.mean() - 1) < 2e-3
     assert rel.mean() < 0.005

@@ -72,10 +72,11 @@ def test_a_tilted_map_under_a_sun_shades_as_a_tilted_plane(theta, sun, correctio
     expected = ALBEDO / math.pi * E * max(0.0, float(n @ d)) * (cycles_shadowing(n[2], d[2]) if correction else 1.0)
     err = np.abs(got - expected).max() / (ALBEDO / math.pi * E).max()
     print(f"theta {theta} sun {sun} correction {correction}: max error {err:.2e} of the flat value")
-    # Measured (17 x 17 angular): below 2e-4 but for a bumped normal near the sun's terminator
-    # (n . d = 0, where the clamped cosine has a kink the spline rounds over a knot span): 1.2e-2
-    # at 20 degrees under the low sun, 3.3e-3 at 45 degrees away from the sun at 30.
-    assert err < (2.5e-2 if (theta, sun, correction) == (20, (75, 180), False) else 7e-3)
+    # Measured (the default settings: 7-9 angular coefficients over a cap of 1.5 x the tilt + 5
+    # degrees): at most 1.3e-3 but for 45 degrees away from the sun at 30, 4.5e-3: the sun's
+    # terminator (n . d = 0, where the clamped cosine has a kink the spline rounds over a span)
+    # lies at 60 degrees, inside the 72.5-degree cap.
+    assert err < 7e-3
 
 
 def test_a_flat_map_is_the_unbumped_floor():
@@ -108,9 +109,9 @@ def test_a_uniform_world_gives_the_tilted_planes_sky(theta):
             expected = ALBEDO * W * (1 + n[2]) / 2
         err = np.abs(got / expected - 1).max()
         print(f"theta {theta} correction {correction}: {got.mean() / expected:.5f} of the closed form, worst {err:.2e}")
-        # Measured: 1.1e-4 to 3.1e-4 without the correction; with it 2.6e-5 to 1.3e-4, and 7.0e-3 at
+        # Measured: 1.7e-4 to 5.3e-4 without the correction; with it 1.7e-4 to 8.0e-4, and 7.3e-3 at
         # 60 degrees (G1 falls steeply towards the horizon: the cosine nodes' quadrature).
-        assert err < (1.5e-2 if correction and theta == 60 else 6e-4)
+        assert err < (1.5e-2 if correction and theta == 60 else 1.5e-3)
 
 
 def test_the_radiance_follows_the_map_point_by_point():
@@ -127,7 +128,7 @@ def test_the_radiance_follows_the_map_point_by_point():
     expected = ALBEDO / math.pi * np.outer(np.maximum(row @ d, 0), E)
     err = np.abs(got - expected).max() / (ALBEDO / math.pi * E).max()
     print(f"washboard: max error {err:.2e} of the flat value")
-    assert err < 6e-3
+    assert err < 2.5e-3  # measured 1.0e-3
 
 
 def test_the_back_side_turns_the_map_around():

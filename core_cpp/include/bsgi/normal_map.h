@@ -24,6 +24,9 @@ constexpr double kLeastBumpedCosine = 1e-3;
 std::shared_ptr<const Texture> normal_map(const Surface& surface, int width, int height, const std::vector<float>& world,
                                           const std::string& what);
 
+// The largest angle (radians) between a texel's bumped normal and the surface's own.
+double largest_tilt(const Texture& map);
+
 // The bumped normal at (u, v) leaving the front side (z > 0); the back side's is its opposite
 // (Cycles turns a back-facing point's mapped normal around).
 Vec3 bumped_normal(const Texture& map, double u, double v);

@@ -10,6 +10,7 @@
 
 #include "bsgi/bsdf.h"
 #include "bsgi/environment.h"
+#include "bsgi/normal_map.h"
 #include "bsgi/surface.h"
 #include "bsgi/texture.h"
 #include "bsgi/thin_glass.h"
@@ -225,9 +226,14 @@ public:
         if (s.material.thin_glass) throw std::invalid_argument(what + ": a thin pane has no shading to bump");
         if (s.options.representation == Representation::Diffuse || s.options.representation == Representation::Decomposed)
             throw std::invalid_argument(what + ": needs the glossy representation (4D over the bumped normal)");
+        bumped_tilt_ = std::max(bumped_tilt_, largest_tilt(*map));
         s.material.normal_texture = std::move(map);
         s.material.bump_correction = bump_correction;
     }
+    // The largest tilt of any normal map's normal from its surface's own (radians): the bumped
+    // surfaces' radiance splines span the normals within it (one cap for all, so that an object's
+    // surfaces bake on one disc).
+    double bumped_tilt() const { return bumped_tilt_; }
     // Albedo or specular textures: their colour cannot ride on scalar form-factor weights.
     bool has_albedo_textures() const {
         for (const auto& s : surfaces_)
@@ -287,6 +293,8 @@ private:
     }
 
     std::vector<SceneSurface> surfaces_;
+
+    double bumped_tilt_ = 0;
     Vec3 world_{0, 0, 0};
     std::shared_ptr<const EnvironmentMap> world_map_;
     std::vector<DistantLight> distant_;
