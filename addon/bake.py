@@ -97,11 +97,14 @@ def angular_samples(faces) -> int:
     return samples
 
 
-def _disc_radius(obj, faces) -> float:
-    radii = {r.disc_radius for _, radiances in faces for r in radiances if r is not None and r.kind != "diffuse"}
+def _disc_radius(obj, faces, bumped: bool = False) -> float:
+    """The disc radius of the object's view-dependent faces (bumped: of its bumped faces, whose
+    splines span the scene's cap of bumped normals instead)."""
+    radii = {r.disc_radius for _, radiances in faces for r in radiances
+             if r is not None and r.kind != "diffuse" and (getattr(r, "normals", None) is not None) == bumped}
     if len(radii) > 1:
-        raise ValueError(f"object '{obj.name}': its glossy faces use different disc radii {sorted(radii)}; "
-                         "solve them together")
+        raise ValueError(f"object '{obj.name}': its {'bumped' if bumped else 'glossy'} faces use different disc radii "
+                         f"{sorted(radii)}; solve them together")
     return radii.pop() if radii else 1.0
 
 
@@ -380,23 +383,28 @@ def frame_pixels(layout: Layout):
     return tangent, normal
 
 
-def atlas_pixels(layout: Layout, faces, samples: int, radius: float, sides: int, smooth=frozenset(),
+def atlas_pixels(layout: Layout, faces, samples: int, radius, sides: int, smooth=frozenset(),
                  f0: float = 0.0) -> np.ndarray:
     """(sides * A * height, A * width, 4): the spatial atlas once per angular sample, tile (i, j)
     at the disc point (alpha_i, beta_j) = -R + 2R (i, j) / (A - 1) (the centre for A = 1); the
     lower hemisphere's tiles in the rows above the upper ones'. Samples outside the disc hold
     the spline's own values there (its domain is the square [-R, R]^2), so blending towards
     the rim stays smooth. The faces in smooth hold their smooth factors (_radiance_at), a
-    textured glossy colour's at f0."""
-    grid = np.linspace(-radius, radius, samples) if samples > 1 else np.zeros(1)
-    beta, alpha = np.meshgrid(grid, grid, indexing="ij")
-    disc = np.stack([alpha.ravel(), beta.ravel()], axis=1)  # row j * A + i
+    textured glossy colour's at f0. radius: the disc's, or one per face."""
+    radii = radius if isinstance(radius, (list, tuple)) else [radius] * len(faces)
+
+    def disc_points(r):
+        grid = np.linspace(-r, r, samples) if samples > 1 else np.zeros(1)
+        beta, alpha = np.meshgrid(grid, grid, indexing="ij")
+        return np.stack([alpha.ravel(), beta.ravel()], axis=1)  # row j * A + i
+
     h, w = layout.shape
     values = np.zeros((sides, samples * samples, h, w, 3))
     for index, (_, radiances) in enumerate(faces):
         check_cancelled()
         mask = layout.face == index
         uv = layout.uv[mask]
+        disc = disc_points(radii[index])
         for side in range(sides):
             values[side][:, mask] = np.mean([_radiance_at(r, uv, disc, side == 1, index in smooth, f0)
                                              for r in radiances], axis=0)
@@ -419,39 +427,44 @@ def _bake_layout(obj, name: str, layout: Layout, faces, detail=None):
                         f"directions instead of {samples} x {samples} (the image would pass "
                         f"{MAX_ATLAS_TEXELS} texels); glossy highlights are blurred")
         samples = fitting
-    radius = _disc_radius(obj, faces)
     tangent, normal = frame_pixels(layout)
     sources, face_slots, bumps = detail or ({}, [], {})
+    # A bumped surface's atlas is over its bumped normal, on the disc of the scene's bumped normals:
+    # its slot's material looks it up along the user's normal nodes; the object's own along the
+    # surface's normal (flat) where all its view-dependent faces are bumped, else along the view,
+    # on the glossy faces' disc.
+    bumped = [any(r is not None and getattr(r, "normals", None) is not None for r in radiances) for _, radiances in faces]
+    glossy = [any(r is not None and r.kind != "diffuse" for r in radiances) for _, radiances in faces]
+    all_bumped = any(bumped) and bumped == glossy
+    radius, bumped_radius = _disc_radius(obj, faces), _disc_radius(obj, faces, bumped=True)
+    if all_bumped:
+        radius = bumped_radius
+    shown_bumped = [b and (all_bumped or (i < len(face_slots) and face_slots[i] in bumps)) for i, b in enumerate(bumped)]
+    if any(b and not shown for b, shown in zip(bumped, shown_bumped)):
+        warnings.append(f"object '{obj.name}': its bumped faces show their radiance along the view where their "
+                        "material's own normal nodes cannot be shown (give bumped and glossy faces separate objects)")
+    face_radii = [bumped_radius if shown else radius for shown in shown_bumped]
     smooth = {i for i, slot in enumerate(face_slots) if slot in sources}
     # Textured glossy colours and bases under a layered coat: this atlas holds their radiance at
     # f0 (the base colour) = 0, a second one at 1 (black elsewhere), which their material blends
     # by the user's colour nodes (the radiance is affine in either).
     tinted = {i for i in smooth if sources[face_slots[i]][0] in BLENDED}
-    atlas = atlas_pixels(layout, faces, samples, radius, sides, smooth)
+    atlas = atlas_pixels(layout, faces, samples, face_radii, sides, smooth)
     check_cancelled()
     images = (_radiance_image(name, atlas), _radiance_image(f"{name} tangent", tangent),
               _radiance_image(f"{name} normal", normal))
     white = None
     if tinted:
         only = [(kind, radiances if i in tinted else [None]) for i, (kind, radiances) in enumerate(faces)]
-        white = _radiance_image(f"{name} f0 1", atlas_pixels(layout, only, samples, radius, sides, tinted, 1.0))
+        white = _radiance_image(f"{name} f0 1", atlas_pixels(layout, only, samples, face_radii, sides, tinted, 1.0))
     elif bpy.data.images.get(f"{name} f0 1") is not None:  # an earlier bake's
         bpy.data.images.remove(bpy.data.images[f"{name} f0 1"])
-
-    # A bumped surface's atlas is over its bumped normal: its slot's material looks it up along the
-    # user's normal nodes; the object's own along the surface's normal (flat) where all its
-    # view-dependent faces are bumped.
-    bumped = [r is not None and getattr(r, "normals", None) is not None for _, radiances in faces for r in radiances]
-    glossy = [r is not None and r.kind != "diffuse" for _, radiances in faces for r in radiances]
-    all_bumped = any(bumped) and bumped == glossy
-    if any(bumped) and not all_bumped:
-        warnings.append(f"object '{obj.name}': its bumped faces show their radiance along the view where their "
-                        "material's own normal nodes cannot be shown (give bumped and glossy faces separate objects)")
 
     def made(material_name, with_detail=None, slot=None):
         tint = white if with_detail is not None and with_detail[1][0] in BLENDED else None
         bump = bumps.get(slot) if slot is not None else None
-        return view_radiance.material(material_name, layout.uv_map, *images, spatial_size=(w, h), disc_radius=radius,
+        return view_radiance.material(material_name, layout.uv_map, *images, spatial_size=(w, h),
+                                      disc_radius=bumped_radius if bump is not None else radius,
                                       angular_samples=samples, sides=sides,
                                       detail=with_detail and (with_detail[0], with_detail[1][1]), tint=tint,
                                       bumped=bump if bump is not None else "flat" if all_bumped else None)

@@ -252,10 +252,14 @@ def _temporary_copy(depsgraph, obj):
     copies = []
     copy = None
     try:
+        # (Clearing the slots sets every face's material index to 0: they are put back after.)
+        slots = np.zeros(len(mesh.polygons), np.int32)
+        mesh.polygons.foreach_get("material_index", slots)
         mesh.materials.clear()
         for material in user_slots(obj):
             copies.append(material.copy() if material is not None else None)
             mesh.materials.append(copies[-1])
+        mesh.polygons.foreach_set("material_index", slots)
         copy = bpy.data.objects.new(f"{BAKE_UV} {obj.name}", mesh)
         copy.matrix_world = evaluated.matrix_world
         depsgraph.scene.collection.objects.link(copy)

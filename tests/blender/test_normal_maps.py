@@ -172,3 +172,41 @@ def test_a_washboard_normal_map_baked_is_what_cycles_renders(context, tmp_path):
     # 11 x 11 angular over the 57.5-degree cap; 1.3% and 0.9901 at the lobe's 7 x 7).
     assert abs(baked.mean() / reference.mean() - 1) < 2e-3
     assert rel.mean() < 0.005
+
+
+def test_an_object_of_a_bumped_and_a_glossy_material_bakes_each_on_its_disc(context):
+    # One mesh, a bumped diffuse face and a metal face: the bumped slot's material looks its atlas
+    # up along the user's Normal Map on the bumped cap's disc, the metal's along the view on the
+    # glossy disc (they differ: the cap spans the map's normals only).
+    bumped = bumped_material("Washboard", washboard)
+    metal = bpy.data.materials.new("Metal")
+    shader = metal.node_tree.nodes["Principled BSDF"]
+    shader.inputs["Metallic"].default_value, shader.inputs["Roughness"].default_value = 1.0, 0.4
+    mesh = bpy.data.meshes.new("Two")
+    mesh.from_pydata([(-1, -1, 0), (0, -1, 0), (0, 1, 0), (-1, 1, 0), (1, -1, 0), (1, 1, 0)], [],
+                     [(0, 1, 2, 3), (1, 4, 5, 2)])
+    uv = mesh.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", np.array([0, 0, 1, 0, 1, 1, 0, 1] * 2, np.float32))
+    mesh.materials.append(bumped)
+    mesh.materials.append(metal)
+    mesh.polygons[1].material_index = 1
+    obj = bpy.data.objects.new("Floor", mesh)
+    context.scene.collection.objects.link(obj)
+    light = bpy.data.lights.new("Sun", "SUN")
+    light.energy = STRENGTH
+    sun = bpy.data.objects.new("Sun", light)
+    sun.rotation_euler = (0, math.radians(TILT), 0)
+    context.scene.collection.objects.link(sun)
+    context.scene.bsgi.preset = "DRAFT"
+    report = pipeline.solve_and_bake(context)
+    slot_materials = [bpy.data.materials[name] for name in obj["bsgi_slot_materials"] if name]
+    assert len(slot_materials) == 1
+    groups = {n.node_tree.name: n.inputs["Disc Radius"].default_value
+              for m in (slot_materials[0], obj.material_slots[1].material) for n in m.node_tree.nodes
+              if n.type == "GROUP" and "Disc Radius" in n.inputs}
+    print(f"\ndiscs: {groups}")
+    assert set(groups) == {"BSGI Normal Radiance", "BSGI View Radiance"}
+    assert groups["BSGI Normal Radiance"] < 0.8 < groups["BSGI View Radiance"]
+    direction = next(n for n in slot_materials[0].node_tree.nodes if n.type == "GROUP" and "Direction" in n.inputs)
+    assert direction.inputs["Direction"].links[0].from_node.type == "NORMAL_MAP"
+    assert not any("along the view" in w for w in report.get("warnings", []))

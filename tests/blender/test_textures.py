@@ -915,3 +915,26 @@ def test_glossy_colours_the_bake_cannot_show_by_their_nodes_show_the_baked_textu
         assert bake.stored_faces(obj)[0][1][0].specular is not None
         assert obj.material_slots[0].material.name == f"BSGI {obj.name}"
     assert "BSGI A f0 1" not in bpy.data.images
+
+
+def test_a_textured_slot_of_a_two_material_mesh_gets_its_own_texture(context):
+    # The bake's temporary copy keeps each face's material slot (clearing a mesh's slots sets
+    # every face to the first; until 7 December the second face baked the first slot's colour).
+    grey = scenes.diffuse_material("Grey", (0.5, 0.5, 0.5))
+    mesh = bpy.data.meshes.new("Two")
+    mesh.from_pydata([(-1, -1, 0), (0, -1, 0), (0, 1, 0), (-1, 1, 0), (1, -1, 0), (1, 1, 0)], [],
+                     [(0, 1, 2, 3), (1, 4, 5, 2)])
+    mesh.uv_layers.new(name="UVMap").data.foreach_set("uv", np.array([0, 0, 1, 0, 1, 1, 0, 1] * 2, np.float32))
+    mesh.materials.append(grey)
+    mesh.materials.append(principled("Checker", checker))
+    mesh.polygons[1].material_index = 1
+    obj = bpy.data.objects.new("Two", mesh)
+    context.scene.collection.objects.link(obj)
+    scenes.add_area_light(location=(0, 0, 1.5), size=1.0, energy=50.0)
+    context.scene.bsgi.preset = "DRAFT"
+    job, solution = solved_textures(context)
+    first, second = (solution.surfaces[p[1]] for p in exported_object(job.export, "Two").patches)
+    assert first.albedo is None
+    texels = second.albedo.reshape(-1, 3)
+    print(f"\nthe checker face's texels: {len(np.unique(texels.round(3), axis=0))} colours, mean {texels.mean(axis=0)}")
+    np.testing.assert_allclose(texels.mean(axis=0), np.add(LIGHT, DARK) / 2, atol=1e-3)
