@@ -9,16 +9,14 @@ pixel blocks of the shadow, the floor's mean against Cycles', the solve's second
 own noise (two seeds' RMS difference over sqrt 2)."""
 from __future__ import annotations
 
-import json
-import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from blender_process import run_script  # noqa: E402
 
 SCRIPT = """
 import json, os, sys, time
@@ -68,11 +66,7 @@ else:
 
 
 def in_blender(what: str, folder: str) -> dict:
-    with tempfile.TemporaryDirectory(prefix="bsgi-bench-home-") as home:
-        out = subprocess.run([sys.executable, "-c", SCRIPT, str(ROOT / "addon"), str(ROOT / "tests" / "blender"), what,
-                              folder], cwd=ROOT, env={**os.environ, "HOME": home}, check=True, capture_output=True,
-                             text=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    return run_script(SCRIPT, what, folder)
 
 
 def blocks(image, k: int):

@@ -8,14 +8,11 @@ Figures per preset: seconds and coefficients, bumped and flat, and their ratios;
 floor's angular coefficients."""
 from __future__ import annotations
 
-import json
-import os
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from blender_process import run_script  # noqa: E402
 
 SCRIPT = """
 import json, math, os, sys, time
@@ -53,11 +50,7 @@ print(json.dumps({"seconds": seconds, "coefficients": int(solution.stats["coeffi
 
 
 def in_blender(preset: str, variant: str) -> dict:
-    with tempfile.TemporaryDirectory(prefix="bsgi-bench-home-") as home:
-        out = subprocess.run([sys.executable, "-c", SCRIPT, str(ROOT / "addon"), str(ROOT / "tests" / "blender"), preset,
-                              variant], cwd=ROOT, env={**os.environ, "HOME": home}, check=True, capture_output=True,
-                             text=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    return run_script(SCRIPT, preset, variant)
 
 
 def run() -> dict:

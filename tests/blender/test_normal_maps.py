@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bsgi_addon import pipeline
-from test_pipeline import render_exr
+from test_pipeline import render_exr, render_floor_from_above
 from test_textures import add_uv_quad, exported_object
 
 ALBEDO, STRENGTH, COLOR, TILT = 0.6, 3.0, (1.0, 0.8, 0.6), 40.0
@@ -149,13 +149,7 @@ def test_a_washboard_normal_map_baked_is_what_cycles_renders(context, tmp_path):
         world.use_nodes = True
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.3, 0.3, 1)
     context.scene.world = world
-    cam = bpy.data.cameras.new("Top")
-    cam.type, cam.ortho_scale = "ORTHO", 2.0
-    camera = bpy.data.objects.new("Top", cam)
-    camera.location = (0, 0, 3)
-    context.scene.collection.objects.link(camera)
-    context.scene.camera = camera
-    reference = render_exr(context.scene, tmp_path / "cycles.exr", samples=256, bounces=0)
+    reference, _ = render_floor_from_above(context, tmp_path / "cycles.exr", samples=256)
     context.scene.bsgi.preset = "PREVIEW"
     context.scene.bsgi.max_bounces = 0
     report = pipeline.solve_and_bake(context)

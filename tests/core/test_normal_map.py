@@ -11,6 +11,7 @@ import pytest
 
 import bsgi
 from reference.scene_spec import quad
+from test_solver_distant_light import solve  # direct light alone unless told
 
 ALBEDO = 0.7
 E = np.array([3.0, 2.0, 1.0])
@@ -39,14 +40,6 @@ def floor_scene(normals, bump_correction=True, albedo=ALBEDO):
     scene.add_bilinear_patch("floor", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[albedo] * 3, emission=[0, 0, 0])
     scene.set_normal_texture(0, np.asarray(normals, np.float32), bump_correction=bump_correction)
     return scene
-
-
-def solve(scene, **kw):
-    s = bsgi.SolverSettings()
-    s.max_bounces = 0
-    for k, v in kw.items():
-        setattr(s, k, v)
-    return bsgi.solve(scene, s)
 
 
 def views(n, below=False):
