@@ -35,9 +35,10 @@ PROP_BAKED_IMAGE = "bsgi_baked"  # on the images a bake makes (the user's stay w
 # The splines of a SurfaceRadiance (bakes before two-sided surfaces stored the first three, before
 # textured glossy colour the first four).
 SIDES = ("upper", "lower", "diffuse", "lower_diffuse", "tint_zero", "lower_tint_zero")
-# The textures of a SurfaceRadiance (bakes before textured glossy colour stored the first two),
+# The textures of a SurfaceRadiance (bakes before textured glossy colour stored the first two,
+# before normal maps the first three),
 # and the base of an albedo texture under a layered coat (bsgi.SurfaceRadiance.coat_share).
-TEXTURES = ("albedo", "emission", "specular")
+TEXTURES = ("albedo", "emission", "specular", "normals")
 # Detail slots whose material blends two atlases by the user's colour (a glossy colour's f0, a
 # base colour under a layered coat) instead of multiplying one.
 BLENDED = ("specular", "coat")

@@ -219,3 +219,54 @@ def test_an_object_of_a_bumped_and_a_glossy_material_bakes_each_on_its_disc(cont
     direction = next(n for n in slot_materials[0].node_tree.nodes if n.type == "GROUP" and "Direction" in n.inputs)
     assert direction.inputs["Direction"].links[0].from_node.type == "NORMAL_MAP"
     assert not any("along the view" in w for w in report.get("warnings", []))
+    # The radiance stored on the object keeps the bumped normals: a bake redone without a solve.
+    from bsgi_addon import bake
+
+    stored = bake.stored_faces(obj)
+    assert stored[0][1][0].normals is not None and stored[1][1][0].normals is None
+    bake.rebake(obj)
+
+
+@pytest.mark.slow
+def test_a_bump_node_under_a_textured_colour_baked_is_what_cycles_renders(context, tmp_path):
+    # A Principled BSDF (no specular) whose Base Color is a Checker and whose Normal is a Bump
+    # node over a Wave texture's bands: Cycles' normal pass evaluates the bump for the solve, the
+    # bake multiplies its atlas by the Checker and looks it up along the Bump node.
+    from test_textures import checker
+
+    m = bpy.data.materials.new("Bumpy checker")
+    tree = m.node_tree
+    shader = tree.nodes["Principled BSDF"]
+    shader.inputs["Specular IOR Level"].default_value = 0.0
+    tree.links.new(checker(tree).outputs["Color"], shader.inputs["Base Color"])
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    wave = tree.nodes.new("ShaderNodeTexWave")
+    wave.inputs["Scale"].default_value = 3.0
+    tree.links.new(coords.outputs["UV"], wave.inputs["Vector"])
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = 1.0
+    bump.inputs["Distance"].default_value = 0.02
+    tree.links.new(wave.outputs["Fac"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], shader.inputs["Normal"])
+    floor_under_sun(context, m)
+    context.scene.bsgi.texture_texels = 64
+    reference, _ = render_floor_from_above(context, tmp_path / "cycles.exr", samples=256)
+    context.scene.bsgi.preset = "PREVIEW"
+    context.scene.bsgi.max_bounces = 0
+    report = pipeline.solve_and_bake(context)
+    assert not any("Normal input" in w for w in report.get("warnings", [])), report.get("warnings")
+    baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
+    rel = np.abs(baked - reference).sum(axis=2) / reference.sum(axis=2)
+    spread = reference.mean(axis=2).std() / reference.mean()
+    print(f"\nbumped checker: baked / Cycles mean {baked.mean() / reference.mean():.4f}, per pixel {rel.mean():.4f} "
+          f"(median {np.median(rel):.4f}); the render's spread {spread:.3f}")
+    # Without the bump (the Normal input unlinked: the flat floor) the bake is what Cycles renders
+    # of a flat floor, not of this one.
+    tree.links.remove(shader.inputs["Normal"].links[0])
+    pipeline.solve_and_bake(context)
+    flat = render_exr(context.scene, tmp_path / "flat.exr", samples=16, bounces=0)
+    flat_rel = (np.abs(flat - reference).sum(axis=2) / reference.sum(axis=2)).mean()
+    print(f"the flat floor's bake: per pixel {flat_rel:.4f} from Cycles' render of the bumped one")
+    assert flat_rel > 3 * rel.mean()
+    assert abs(baked.mean() / reference.mean() - 1) < 3e-3  # measured 0.9990
+    assert rel.mean() < 0.01  # measured 0.0052
