@@ -424,7 +424,7 @@ void bind_geometry(py::module_& m) {
             [](const PyRayCaster& r, const Array& origins, const Array& directions, std::optional<Array> tnear,
                std::optional<Array> tfar, int threads) {
                 const RayBatch b = batch(origins, directions, tnear, tfar);
-                py::array_t<double> out(py::ssize_t(b.count));
+                py::array_t<double> out({py::ssize_t(b.count), py::ssize_t(3)});
                 double* o = out.mutable_data();
                 {
                     py::gil_scoped_release release;
@@ -434,8 +434,8 @@ void bind_geometry(py::module_& m) {
             },
             py::arg("origins"), py::arg("directions"), py::arg("tnear") = py::none(), py::arg("tfar") = py::none(),
             py::arg("threads") = 0,
-            "Fraction of light passing along each ray within (tnear, tfar): the product of the panes' thin-sheet "
-            "transmittance, 0 if an opaque surface is in the way.")
+            "Fraction of light passing along each ray within (tnear, tfar), (N, 3) RGB: the product of the panes' "
+            "thin-sheet transmittance times their tints, 0 if an opaque surface is in the way.")
         .def(
             "raw_closest_hit",
             [](const PyRayCaster& r, const Array& origins, const Array& directions, int threads) {

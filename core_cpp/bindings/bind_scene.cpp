@@ -178,26 +178,39 @@ void bind_scene(py::module_& m) {
             "add_surface",
             [](Scene& s, std::shared_ptr<Surface> surface, const Array& albedo, const Array& emission, bool receiver,
                bool occluder, std::shared_ptr<const Bsdf> bsdf, const std::string& representation, int spatial_coeffs,
-               int angular_coeffs, std::optional<double> thin_glass, bool one_interface, std::optional<double> shadow) {
+               int angular_coeffs, std::optional<double> thin_glass, bool one_interface, std::optional<Array> shadow,
+               std::optional<Array> transmission_tint, std::optional<Array> reflection_tint) {
                 const std::string name = surface ? surface->name() : "";
                 Material m = material(name, albedo, emission, std::move(bsdf));
+                // A grey (one number) or RGB colour of the pane's.
+                auto colour = [&](const Array& a, const char* what) -> Vec3 {
+                    if (a.ndim() == 0) return Vec3{1, 1, 1} * a.data()[0];
+                    return rgb(a, "surface '" + name + "': " + what);
+                };
                 if (thin_glass) {
-                    if (shadow && !(*shadow >= 0)) throw std::invalid_argument("surface '" + name + "': shadow_transmittance must be >= 0");
-                    m.thin_glass = ThinGlass{*thin_glass, one_interface, shadow ? *shadow : -1.0};
-                } else if (one_interface || shadow) {
-                    throw std::invalid_argument("surface '" + name + "': one_interface and shadow_transmittance are for thin glass (give thin_glass)");
+                    ThinGlass glass{*thin_glass, one_interface};
+                    if (shadow) glass.shadow = colour(*shadow, "shadow_transmittance");
+                    if (transmission_tint) glass.transmission_tint = colour(*transmission_tint, "transmission_tint");
+                    if (reflection_tint) glass.reflection_tint = colour(*reflection_tint, "reflection_tint");
+                    m.thin_glass = glass;
+                } else if (one_interface || shadow || transmission_tint || reflection_tint) {
+                    throw std::invalid_argument("surface '" + name + "': one_interface, shadow_transmittance and the tints are "
+                                                "for thin glass (give thin_glass)");
                 }
                 return s.add(std::move(surface), m, receiver, occluder, options(name, representation, spatial_coeffs, angular_coeffs));
             },
             py::arg("surface"), py::arg("albedo"), py::arg("emission"), py::arg("receiver") = true, py::arg("occluder") = true,
             py::arg("bsdf") = nullptr, py::arg("representation") = "auto", py::arg("spatial_coeffs") = 0,
             py::arg("angular_coeffs") = 0, py::arg("thin_glass") = py::none(), py::arg("one_interface") = false,
-            py::arg("shadow_transmittance") = py::none(),
+            py::arg("shadow_transmittance") = py::none(), py::arg("transmission_tint") = py::none(),
+            py::arg("reflection_tint") = py::none(),
             "Adds any bsgi surface (NurbsSurface, MeshChart, patches); the scene shares it. thin_glass=eta makes it a "
             "window pane of smooth glass of that index: rays pass straight through it with the thin sheet's Fresnel "
-            "transmittance (one_interface: one face of a thin closed slab, 1 - R per crossing), it reflects "
-            "specularly and gets no spline (not a receiver). shadow_transmittance: what visibility rays get "
-            "instead of the Fresnel factor (Cycles' Light Path trick: the Transparent BSDF's colour).")
+            "transmittance (one_interface: one face of a thin closed slab, 1 - R per crossing) times "
+            "transmission_tint, it reflects specularly (times reflection_tint) and gets no spline (not a receiver); "
+            "the tints (RGB or one grey, in [0, 1]) per crossing, as Cycles tints each glass event. "
+            "shadow_transmittance (RGB or grey): what visibility rays get instead of the Fresnel factor and the tint "
+            "(Cycles' Light Path trick: the Transparent BSDF's colour).")
         .def(
             "is_thin_glass", [](const Scene& s, size_t i) {
                 if (i >= s.size()) throw py::index_error("no surface " + std::to_string(i));

@@ -485,7 +485,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                     if (u < 0 || u > 1 || v < 0 || v > 1) break;
                     const Vec3 x = A.o + A.du * u + A.dv * v;
                     ++rays, ++seen;
-                    lit += caster_->transmittance(caster_->spawn(x, A.n, dir), dir) > 0;
+                    lit += max_component(caster_->transmittance(caster_->spawn(x, A.n, dir), dir)) > 0;
                 }
                 bounding += seen == 2 && lit == 1;
             }

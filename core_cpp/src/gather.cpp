@@ -345,12 +345,13 @@ void Gatherer::emitter_cell(const SurfacePoint& r, const Surface& emitter, const
             const double stop = 1.0 - 2 * offset / length(segment);
             ++rays;
             if (stop <= 0) continue;
-            const double pass = caster_.transmittance(origin, segment, 0.0, stop);  // 0: shadowed; < 1: through panes
-            ++(pass > 0 ? lit : dark);
-            if (pass <= 0) continue;
+            const Vec3 pass = caster_.transmittance(origin, segment, 0.0, stop);  // 0: shadowed; < 1: through panes
+            const bool through = max_component(pass) > 0;
+            ++(through ? lit : dark);
+            if (!through) continue;
             const double w = cell_rule_.weights[p] * cell_rule_.weights[k] * ds * dt;
             const Vec3 Le = light.emission_over(s0 + ds * edge[p], s0 + ds * edge[p + 1], t0 + dt * edge[k], t0 + dt * edge[k + 1]);
-            const Vec3 value = Le * (pass * w * g * correction);
+            const Vec3 value = Le * pass * (w * g * correction);
             if (shadow_split) kept.emplace_back(d / len, value);
             else visit(d / len, value);
         }
@@ -378,9 +379,9 @@ void Gatherer::for_each_emitter_sample(int receiver, const SurfacePoint& r, doub
         const double cos_r = dot(d.direction, r.frame.z);
         if (cos_r == 0 || !sides[cos_r < 0]) continue;
         ++rays;
-        const double pass = caster_.transmittance(caster_.spawn(r.p, r.frame.z, d.direction), d.direction);
-        if (pass <= 0) continue;
-        visit(d.direction, d.irradiance * (pass * receiver_cosine(r, d.direction)));
+        const Vec3 pass = caster_.transmittance(caster_.spawn(r.p, r.frame.z, d.direction), d.direction);
+        if (!(max_component(pass) > 0)) continue;
+        visit(d.direction, d.irradiance * pass * receiver_cosine(r, d.direction));
     }
 }
 
@@ -626,28 +627,29 @@ void Gatherer::world(const Receiver& r, size_t j, Vec3* out, size_t& rays) const
 }
 
 template <typename Visit>
-void Gatherer::through_panes(const Vec3& o, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const {
+void Gatherer::through_panes(const Vec3& o, const Vec3& dir, const Vec3& weight, int depth, Visit&& visit, size_t& rays) const {
     ++rays;
     past_panes(caster_.closest_hit(o, dir), dir, weight, depth, visit, rays);
 }
 
 template <typename Visit>
-void Gatherer::past_panes(const SurfaceHit& hit, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const {
+void Gatherer::past_panes(const SurfaceHit& hit, const Vec3& dir, const Vec3& weight, int depth, Visit&& visit, size_t& rays) const {
     const ThinGlass* glass = caster_.pane(hit.surface);
     if (!glass) {
         visit(hit, dir, weight);
         return;
     }
     if (depth >= RayCaster::kMaxPanes) return;
-    // The pane passes 1 - R straight on and reflects R (the thin sheet's factors): one ray each,
-    // the reflected one only while it carries a noticeable share (a pane's second reflection
-    // carries under 1% at normal incidence).
+    // The pane passes 1 - R straight on and reflects R (the thin sheet's factors, times its
+    // tints): one ray each, the reflected one only while it carries a noticeable share (a pane's
+    // second reflection carries under 1% at normal incidence).
     const Vec3 n = hit.frame.z;
-    const double c = dot(dir, n), R = glass->reflectance(c);
-    through_panes(caster_.spawn(hit.p, n, dir), dir, weight * (1 - R), depth + 1, visit, rays);
-    if (weight * R > kMinPaneReflection) {
+    const double c = dot(dir, n);
+    through_panes(caster_.spawn(hit.p, n, dir), dir, weight * glass->transmittance(c), depth + 1, visit, rays);
+    const Vec3 reflected = weight * glass->reflected(c);
+    if (max_component(reflected) > kMinPaneReflection) {
         const Vec3 mirrored = dir - n * (2 * c);
-        through_panes(caster_.spawn(hit.p, n, mirrored), mirrored, weight * R, depth + 1, visit, rays);
+        through_panes(caster_.spawn(hit.p, n, mirrored), mirrored, reflected, depth + 1, visit, rays);
     }
 }
 
@@ -664,7 +666,8 @@ void Gatherer::trace_from(const SurfacePoint& p, const Vec3* dirs, size_t n, Vis
     }
     rays += n;
     for (size_t m = 0; m < n; ++m)
-        past_panes(hits[m], dirs[m], 1.0, 0, [&](const SurfaceHit& hit, const Vec3& d, double w) { visit(m, hit, d, w); }, rays);
+        past_panes(hits[m], dirs[m], Vec3{1, 1, 1}, 0, [&](const SurfaceHit& hit, const Vec3& d, const Vec3& w) { visit(m, hit, d, w); },
+                   rays);
 }
 
 template <typename Incoming>
@@ -687,7 +690,7 @@ void Gatherer::hemisphere(const Receiver& r, size_t j, double density, Incoming&
             dirs[m] = frame.to_world(mirror ? Vec3{local[m].x, local[m].y, -local[m].z} : local[m]);
             L[m] = {0, 0, 0};
         }
-        trace_from(p, dirs.data(), count, [&](size_t m, const SurfaceHit& hit, const Vec3& d, double w) {
+        trace_from(p, dirs.data(), count, [&](size_t m, const SurfaceHit& hit, const Vec3& d, const Vec3& w) {
             L[m] += radiance_along(hit, d) * w;
         }, rays);
     };
@@ -822,8 +825,10 @@ void Gatherer::transport_row(const Receiver& r, int side_out, size_t j, const st
         if (side_out == 1) wi.z = -wi.z;  // the back side gathers from below
         dirs[m] = p.frame.to_world(wi);
     }
-    // Through window panes too: the terms of each surface seen, weighted by what the panes pass.
-    trace_from(p, dirs.data(), dirs.size(), [&](size_t m, const SurfaceHit& hit, const Vec3& d, double pass) {
+    // Through window panes too: the terms of each surface seen, weighted by what the panes pass
+    // (grey: rows are built only without coloured transport, Scene::has_coloured_transport).
+    trace_from(p, dirs.data(), dirs.size(), [&](size_t m, const SurfaceHit& hit, const Vec3& d, const Vec3& through) {
+        const double pass = through.x;
         if (hit.surface < 0 || !receiver_of[hit.surface]) return;
         // rho/pi * pi * mean; albedo applied later
         const double scale = kPi * rule.weight(int(m)) * shading.factor(rule.direction(int(m))) / rule.size();

@@ -137,22 +137,23 @@ bool RayCaster::occluded(const Vec3& o, const Vec3& d, double tnear, double tfar
     return closest_hit(o, d, tnear, tfar).surface >= 0;
 }
 
-double RayCaster::transmittance(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
-    if (!has_panes_) return occluded(o, d, tnear, tfar) ? 0.0 : 1.0;
-    if (!rays_.occluded(o, d, tnear, tfar)) return 1.0;
+Vec3 RayCaster::transmittance(const Vec3& o, const Vec3& d, double tnear, double tfar) const {
+    const Vec3 none{0, 0, 0}, all{1, 1, 1};
+    if (!has_panes_) return occluded(o, d, tnear, tfar) ? none : all;
+    if (!rays_.occluded(o, d, tnear, tfar)) return all;
     // Walk the hits in order: a pane multiplies, anything else stops the light.
     const double len = length(d), step = offset_ / len;
-    double T = 1;
+    Vec3 T = all;
     for (int crossed = 0; crossed <= kMaxPanes; ++crossed) {
         const SurfaceHit h = closest_hit(o, d, tnear, tfar);
         if (h.surface < 0) return T;
         const ThinGlass* glass = pane(h.surface);
-        if (!glass || crossed == kMaxPanes) return 0.0;
-        T *= glass->shadow_transmittance(dot(d, h.frame.z) / len);
+        if (!glass || crossed == kMaxPanes) return none;
+        T = T * glass->shadow_transmittance(dot(d, h.frame.z) / len);
         tnear = h.t + step;  // past the pane, as spawn() lifts an origin
         if (!(tnear < tfar)) return T;
     }
-    return 0.0;
+    return none;
 }
 
 void RayCaster::closest_hit_batch(const RayBatch& rays, const HitArrays& out, int threads) const {
@@ -199,7 +200,8 @@ void RayCaster::transmittance_batch(const RayBatch& rays, double* result, int th
             const double* d = rays.directions + 3 * i;
             const double tnear = rays.tnear ? std::max(0.0, rays.tnear[i]) : 0.0;
             const double tfar = rays.tfar ? rays.tfar[i] : std::numeric_limits<double>::infinity();
-            result[i] = transmittance({o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar);
+            const Vec3 T = transmittance({o[0], o[1], o[2]}, {d[0], d[1], d[2]}, tnear, tfar);
+            result[3 * i] = T.x, result[3 * i + 1] = T.y, result[3 * i + 2] = T.z;
         }
     });
 }

@@ -271,7 +271,7 @@ bool sees_emitter(const RayCaster& caster, const SurfacePoint& p, const Vec3& n,
             const Vec3 origin = caster.spawn(p.p, p.frame.z, d);
             const Vec3 segment = ep.p + ep.frame.z * (facing > 0 ? caster.offset() : -caster.offset()) - origin;
             const double stop = 1.0 - 2 * caster.offset() / length(segment);
-            if (stop > 0 && caster.transmittance(origin, segment, 0.0, stop) > 0) return true;
+            if (stop > 0 && max_component(caster.transmittance(origin, segment, 0.0, stop)) > 0) return true;
         }
     return false;
 }
@@ -295,7 +295,7 @@ int direct_light(const Scene& scene, const std::vector<int>& emitters, const Ray
     const std::vector<DistantLight>& distant = scene.distant_lights();
     for (size_t l = 0; l < distant.size(); ++l)
         if (dot(distant[l].direction, n) > 0 &&
-            caster.transmittance(caster.spawn(p.p, p.frame.z, distant[l].direction), distant[l].direction) > 0)
+            max_component(caster.transmittance(caster.spawn(p.p, p.frame.z, distant[l].direction), distant[l].direction)) > 0)
             return int(scene.size() + l);
     return kNoLight;
 }

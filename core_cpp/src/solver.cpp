@@ -1519,7 +1519,7 @@ int begin_solve(const Scene& scene, const SolverSettings& settings, Progress& pr
     if (!any_emitter && !scene.has_world() && scene.distant_lights().empty())
         throw std::invalid_argument("scene has no emitter: add a light, an emissive material or world light");
     // Form factors carry one scalar weight per coefficient: not the colour of albedo textures.
-    const int ff_stage = settings.form_factors && !scene.has_albedo_textures() && settings.max_bounces > 0 ? 1 : 0;
+    const int ff_stage = settings.form_factors && !scene.has_coloured_transport() && settings.max_bounces > 0 ? 1 : 0;
     const int stages = 2 + ff_stage + settings.max_bounces + (settings.final_gather ? settings.final_passes : 0) +
                        correction_stages(settings) + (settings.estimate_error ? 1 : 0);
     progress.begin_stage("building ray scene", 0, stages, 1);
@@ -1693,7 +1693,7 @@ struct SolveSteps::State {
     State(const Scene& scene_, const SolverSettings& settings_, Progress& progress, const std::vector<SurfaceSides>* probed)
         : scene(scene_), settings(settings_), stages(begin_solve(scene_, settings_, progress)), caster(ray_caster_of(scene_)),
           fine_settings(doubled_integration(settings_)) {
-        rows_possible = settings.form_factors && !scene.has_albedo_textures();
+        rows_possible = settings.form_factors && !scene.has_coloured_transport();
         ff_stage = rows_possible && settings.max_bounces > 0 ? 1 : 0;
         if (probed && probed->size() != scene.size())
             throw std::invalid_argument("solve steps: sides of " + std::to_string(probed->size()) + " surfaces given for a scene of " +

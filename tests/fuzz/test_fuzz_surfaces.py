@@ -139,7 +139,7 @@ def test_ray_caster(specs, origins, data, panes):
     assert np.isinf(hits["t"][~hit]).all()
     occluded = caster.occluded(origins, directions)
     t = caster.transmittance(origins, directions)
-    assert occluded.shape == (m,) and t.shape == (m,)
+    assert occluded.shape == (m,) and t.shape == (m, 3)
     assert ((t >= 0) & (t <= 1)).all()
     assert (occluded >= hit).all() or panes  # a hit blocks unless it is a pane
 

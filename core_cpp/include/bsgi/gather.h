@@ -247,10 +247,10 @@ private:
     // Follows a gathering ray through window panes (thin glass): visit(hit, direction, weight)
     // for each end of the ray tree, the ray straight on and the reflected one at each pane hit.
     template <typename Visit>
-    void through_panes(const Vec3& o, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const;
+    void through_panes(const Vec3& o, const Vec3& dir, const Vec3& weight, int depth, Visit&& visit, size_t& rays) const;
     // The same from the ray's first hit, already cast.
     template <typename Visit>
-    void past_panes(const SurfaceHit& hit, const Vec3& dir, double weight, int depth, Visit&& visit, size_t& rays) const;
+    void past_panes(const SurfaceHit& hit, const Vec3& dir, const Vec3& weight, int depth, Visit&& visit, size_t& rays) const;
     // Traces n rays leaving p along world directions dirs (each lifted to its side of p's
     // surface) in packets of neighbours (RayCaster::closest_hits_from), each followed through
     // window panes: visit(m, hit, direction, weight) for each end of ray m's tree.

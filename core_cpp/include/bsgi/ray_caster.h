@@ -86,11 +86,11 @@ public:
     // give neighbouring directions one after another), resolved like closest_hit's.
     void closest_hits_from(const Vec3& o, const Vec3* dirs, size_t n, SurfaceHit* hits) const;
     bool occluded(const Vec3& o, const Vec3& d, double tnear = 0, double tfar = std::numeric_limits<double>::infinity()) const;
-    // The fraction of light passing along the segment (tnear, tfar): the product of the panes'
-    // shadow transmittance over the panes crossed, 0 if anything opaque (or more than kMaxPanes
-    // panes) lies on it. Without panes in the way, as fast as occluded().
-    double transmittance(const Vec3& o, const Vec3& d, double tnear = 0,
-                         double tfar = std::numeric_limits<double>::infinity()) const;
+    // The fraction of light passing along the segment (tnear, tfar), per colour channel: the
+    // product of the panes' shadow transmittance over the panes crossed, 0 if anything opaque (or
+    // more than kMaxPanes panes) lies on it. Without panes in the way, as fast as occluded().
+    Vec3 transmittance(const Vec3& o, const Vec3& d, double tnear = 0,
+                       double tfar = std::numeric_limits<double>::infinity()) const;
     static constexpr int kMaxPanes = 8;
     // The pane surface i is, or null if it is opaque (or takes no part).
     const ThinGlass* pane(int surface) const {
@@ -102,7 +102,7 @@ public:
     // Batches on `threads` threads (0: all).
     void closest_hit_batch(const RayBatch& rays, const HitArrays& out, int threads = 0) const;
     void occluded_batch(const RayBatch& rays, uint8_t* occluded, int threads = 0) const;
-    void transmittance_batch(const RayBatch& rays, double* transmittance, int threads = 0) const;
+    void transmittance_batch(const RayBatch& rays, double* transmittance, int threads = 0) const;  // 3 per ray
 
     const RayScene& ray_scene() const { return rays_; }
     size_t triangle_count() const { return rays_.triangle_count(); }

@@ -122,8 +122,12 @@ public:
             if (!(std::isfinite(material.thin_glass->eta) && material.thin_glass->eta >= 1))
                 throw std::invalid_argument("surface '" + name + "': thin glass needs a finite index of refraction >= 1");
             if (material.emits()) throw std::invalid_argument("surface '" + name + "': thin glass cannot emit");
-            if (!(material.thin_glass->shadow <= 1))
-                throw std::invalid_argument("surface '" + name + "': thin glass shadow transmittance must be <= 1");
+            const ThinGlass& glass = *material.thin_glass;
+            for (const Vec3* c : {&glass.transmission_tint, &glass.reflection_tint, glass.shadow ? &*glass.shadow : nullptr})
+                for (int k = 0; c && k < 3; ++k)
+                    if (!((*c)[k] >= 0 && (*c)[k] <= 1))
+                        throw std::invalid_argument("surface '" + name + "': thin glass tints and shadow transmittance must be "
+                                                    "in [0, 1]");
             receiver = false;
         }
         surfaces_.push_back({std::move(surface), material, receiver, occluder, options});
@@ -234,10 +238,12 @@ public:
     // surfaces' radiance splines span the normals within it (one cap for all, so that an object's
     // surfaces bake on one disc).
     double bumped_tilt() const { return bumped_tilt_; }
-    // Albedo or specular textures: their colour cannot ride on scalar form-factor weights.
-    bool has_albedo_textures() const {
+    // Albedo or specular textures, or panes that colour the light crossing them: their colour
+    // cannot ride on scalar form-factor weights.
+    bool has_coloured_transport() const {
         for (const auto& s : surfaces_)
-            if (s.material.albedo_texture || s.material.specular_texture) return true;
+            if (s.material.albedo_texture || s.material.specular_texture || (s.material.thin_glass && s.material.thin_glass->coloured()))
+                return true;
         return false;
     }
     // Makes emitter i emit its radiance from its back side too, as Cycles' Emission shader does
