@@ -41,8 +41,8 @@ class SurfaceMaterial:
     albedo_textured: bool = False
     emission_textured: bool = False
     # Cycles' "Light Path" trick for windows (a Mix Shader whose Fac is Is Shadow Ray): what
-    # shadow rays get through the material (the Transparent BSDF's colour, as a mean), or None.
-    shadow: float | None = None
+    # shadow rays get through the material (the Transparent BSDF's colour), or None.
+    shadow: tuple | None = None
     # Glossy colour driven by nodes (a Glossy BSDF's Color, a metallic Principled BSDF's Base Color).
     specular_textured: bool = False
     # How the glossy lobe's reflectance rises towards grazing angles in Cycles: Schlick's Fresnel
@@ -295,11 +295,7 @@ def _shadow_ray_mix(node, material, warnings, depth) -> SurfaceMaterial:
     seen = _shader(linked_node(node.inputs[1]), material, warnings, depth + 1)
     shadow_node = linked_node(node.inputs[2])
     if shadow_node is not None and shadow_node.type == "BSDF_TRANSPARENT":
-        colour = socket_color(shadow_node, "Color", (1.0, 1.0, 1.0))
-        seen.shadow = sum(colour) / 3
-        if max(colour) - min(colour) > 1e-3:
-            warnings.append(f"material '{material.name}': {shadow_node.name}'s colour is solved as its mean grey "
-                            f"{seen.shadow:.3f} for the light passing")
+        seen.shadow = _unit_tint(socket_color(shadow_node, "Color", (1.0, 1.0, 1.0)), shadow_node, material, warnings)
     else:
         warnings.append(f"material '{material.name}': {node.name} shows shadow rays another shader than a "
                         "Transparent BSDF; lights are seen through it as through the first shader")
@@ -437,7 +433,7 @@ class SolverMaterial:
     # Glass ("rough_dielectric"): the user's roughness, what shadow rays get (the Light Path
     # trick, or None), and the warnings that hold only if it is solved as a rough dielectric.
     roughness: float = 0.0
-    shadow: float | None = None
+    shadow: tuple | None = None
     solid_notes: list = field(default_factory=list)
     # "lambert" under a normal map or bump (SurfaceMaterial.bumped), with the material's Bump Map
     # Correction (Cycles' bump shadowing term).
@@ -732,14 +728,13 @@ class ObjectMaterials:
                 "(Cycles bends the rays at each face; a pane offsets them by about its thickness)")
             if max(material.emission) > 0:
                 warnings.append(f"object '{self.label}': a thin pane does not emit; its glass's emission is dropped")
-            tint = material.bsdf.transmission_tint
-            if min(tint + material.bsdf.reflection_tint) < 1 - 1e-3:
-                warnings.append(f"object '{self.label}': a thin pane is solved clear; its glass's tint "
-                                f"({', '.join(f'{c:.2f}' for c in tint)} on the light through it) is not solved "
-                                "(solid glass is)")
+            # Its glass's tints per crossing, as Cycles tints each glass event (a Principled glass
+            # the square root of its base colour on the light through it).
             self.keywords[slot] = {**self.keywords[slot], "albedo": (0, 0, 0), "emission": (0, 0, 0), "bsdf": None,
                                    "thin_glass": material.eta, "one_interface": slab,
-                                   "shadow_transmittance": material.shadow}
+                                   "shadow_transmittance": material.shadow,
+                                   "transmission_tint": material.bsdf.transmission_tint,
+                                   "reflection_tint": material.bsdf.reflection_tint}
         return thin
 
     def add(self, scene, slot: int, surface) -> int:
