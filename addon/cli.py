@@ -74,6 +74,9 @@ def main(argv=None) -> int:
     parser.add_argument("--coats", choices=["quality", "all", "folded"],
                         help="Principled BSDF glossy coats: solved where the quality says (default), all of them, or "
                         "folded into the diffuse colour (the scene's Glossy Coats)")
+    parser.add_argument("--bumps", choices=["solved", "flat"],
+                        help="normal maps and bumps on diffuse surfaces: solved over the bumped normal (default) or the "
+                        "surfaces solved flat (the scene's Bumps)")
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="solve on a Ray cluster: 'auto' (the cluster this machine joined with `ray start`), "
                              "'ray://host:10001' or host:port (needs `pip install ray`, and bsgi on every node)")
@@ -116,6 +119,8 @@ def main(argv=None) -> int:
         context.scene.bsgi.refine_cost = args.refine_budget
     if args.coats:
         context.scene.bsgi.coats = args.coats.upper()
+    if args.bumps:
+        context.scene.bsgi.bumps = args.bumps.upper()
     if args.adaptive_coefficients is not None:
         context.scene.bsgi.adaptive_coefficients = "TOLERANCE" if args.adaptive_coefficients > 0 else "OFF"
         context.scene.bsgi.detail_tolerance = args.adaptive_coefficients

@@ -471,7 +471,10 @@ def solver_material(material, described: SurfaceMaterial, warnings) -> SolverMat
     named in a warning."""
     name = material.name if material is not None else "(none)"
     chosen = _solver_material(name, described, warnings)
-    if described.bumped:
+    if described.bumped and not bumps_solved():
+        warnings.append(f"material '{name}': its Normal input ({described.bumped}) is solved flat, with the surface's own "
+                        "normals (the scene's Bumps)")
+    elif described.bumped:
         chosen = _bumped_material(name, chosen, described.bumped, warnings)
         cycles = getattr(material, "cycles", None)
         chosen.bump_correction = bool(getattr(cycles, "use_bump_map_correction", True))
@@ -584,6 +587,12 @@ def _solver_material(name: str, described: SurfaceMaterial, warnings) -> SolverM
 # 162 s against 31 s). Draft and Preview fold up to 5% (about 3% off), Final and Reference up to
 # 1.5% (about 1%).
 COAT_THRESHOLDS = {"fast": 0.05, "accurate": 0.015}
+
+
+def bumps_solved() -> bool:
+    """Whether the current scene solves normal maps and bumps (its Bumps setting)."""
+    settings = getattr(bpy.context.scene, "bsgi", None) if bpy.context.scene is not None else None
+    return settings is None or settings.bumps == "SOLVED"
 
 
 def coat_threshold() -> float:

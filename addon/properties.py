@@ -52,6 +52,14 @@ REFINEMENTS = [
 # A Principled BSDF's glossy coat over its diffuse base (materials.py): solved as Cycles layers it
 # (2D base + 4D coat) where its highlight is strong enough for the quality, else folded into the
 # diffuse colour (2D); the thresholds and their measured errors are materials.COAT_THRESHOLDS'.
+BUMPS = [
+    ("SOLVED", "Solved", "Normal maps and bumps on diffuse surfaces are solved over the bumped normal, as Cycles "
+     "shades them (a 4D spline on each such surface: at Preview about 100x a flat surface's coefficients and 5-7x "
+     "its solve)", "NONE", 0),
+    ("FLAT", "Flat", "Solve bumped surfaces with their own normals: 2D, fastest; the bumps' shading is lost (a "
+     "bumped floor under a sun: 17% off per pixel)", "NONE", 1),
+]
+
 COATS = [
     ("QUALITY", "As the Quality", "Draft and Preview solve a Principled BSDF's glossy coat where its highlight "
      "reaches 5% of its base's light (the default material's: 20%) and fold weaker ones into the diffuse colour "
@@ -108,6 +116,10 @@ class BSGISceneSettings(bpy.types.PropertyGroup):
         description="With Refinement To Error: the solves after the first may trace at most this many times the "
         "first's rays; where refining every surface over Refine to Error would overrun it, those with the highest "
         "estimated errors are refined first. 0: no limit")
+    bumps: EnumProperty(
+        name="Bumps", items=BUMPS, default="SOLVED",
+        description="Whether normal maps and bumps (a diffuse shader's Normal input) are solved, as Cycles shades "
+        "them, or the surfaces solved flat")
     coats: EnumProperty(
         name="Glossy Coats", items=COATS, default="QUALITY",
         description="Which Principled BSDF coats (the highlight of a dielectric over its base colour) are solved "

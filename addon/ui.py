@@ -24,6 +24,7 @@ def draw_controls(layout, scene, obj=None):
     row.prop(settings, "refine_passes", text="Passes")
     row.prop(settings, "refine_cost", text="Budget")
     layout.prop(settings, "coats")
+    layout.prop(settings, "bumps")
     layout.prop(settings, "adaptive_coefficients")
     row = layout.row()
     row.enabled = settings.adaptive_coefficients == "TOLERANCE"  # shown for reference, used only by To Tolerance

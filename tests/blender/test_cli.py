@@ -60,15 +60,16 @@ def test_python_m_entry_refuses_a_budget_without_a_target(context, tmp_path):
     assert not (tmp_path / "solved.blend").exists()
 
 
-def test_python_m_entry_solves_with_adaptive_coefficients(context, tmp_path):
+def test_python_m_entry_solves_with_adaptive_coefficients_and_flat_bumps(context, tmp_path):
     scenes.floor_under_lamp()
     source, out = tmp_path / "scene.blend", tmp_path / "solved.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(source))
-    run = run_module(source, "--out", out, "--preset", "draft", "--adaptive-coefficients", "0.005")
+    run = run_module(source, "--out", out, "--preset", "draft", "--adaptive-coefficients", "0.005", "--bumps", "flat")
     assert run.returncode == 0, run.stdout + run.stderr
     bpy.ops.wm.open_mainfile(filepath=str(out))
     saved = bpy.context.scene.bsgi  # what the solve ran with
     assert saved.adaptive_coefficients == "TOLERANCE" and saved.detail_tolerance == pytest.approx(0.005)
+    assert saved.bumps == "FLAT"
 
 
 def test_python_m_entry_refuses_workers_of_no_threads():

@@ -116,6 +116,15 @@ def test_a_tilted_normal_map_is_a_tilted_plane_under_the_sun(context, principled
     assert off < 1e-4
 
 
+def test_the_scenes_bumps_setting_solves_them_flat(context):
+    # Bumps Flat: the surface with its own normals (2D), the choice named.
+    floor_under_sun(context, bumped_material("Washboard", washboard))
+    context.scene.bsgi.bumps = "FLAT"
+    job, floor = solve(context, "DRAFT")
+    assert floor.normals is None and floor.kind == "diffuse"
+    assert any("Normal input (normal map) is solved flat" in w for w in job.export.warnings), job.export.warnings
+
+
 def test_a_bump_on_a_glossy_shader_is_named(context):
     m = bumped_material("Shiny", constant([0.3, 0, 0.95]))
     tree = m.node_tree
