@@ -1,7 +1,7 @@
 """Generates textured_interior.blend beside this file: a room made the usual way in Blender, lit by
 an HDRI sky with a sun through a window. Everything issue-prone at once: the room is one mesh with
 outward normals (Add > Cube, scaled, and a window cut in one wall: it is seen and lit from inside,
-its back side), the floor has a Checker Texture, a painting on the wall an Image Texture, a ball is
+its back side), the floor has a Checker Texture and a bump, a painting on the wall an Image Texture, a ball is
 a rough metal, and the world is an Environment Texture (an HDR image with a bright sun spot) that
 lights the room only through the window. The images are written beside the scene, in textures/:
 
@@ -146,13 +146,23 @@ def textured_material(name, texture_type):
 
 
 def checker_material():
-    """A Checker Texture over the floor's UVs."""
+    """A Checker Texture over the floor's UVs, ribbed by a Bump node over a Wave Texture's bands
+    (a rug's weave)."""
     m, checker = textured_material("Checker Floor", "ShaderNodeTexChecker")
     checker.inputs["Color1"].default_value = (0.75, 0.72, 0.68, 1)
     checker.inputs["Color2"].default_value = (0.12, 0.1, 0.09, 1)
     checker.inputs["Scale"].default_value = 8.0
-    coords = m.node_tree.nodes.new("ShaderNodeTexCoord")
-    m.node_tree.links.new(coords.outputs["UV"], checker.inputs["Vector"])
+    tree = m.node_tree
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["UV"], checker.inputs["Vector"])
+    wave = tree.nodes.new("ShaderNodeTexWave")
+    wave.inputs["Scale"].default_value = 12.0
+    tree.links.new(coords.outputs["UV"], wave.inputs["Vector"])
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = 0.5
+    bump.inputs["Distance"].default_value = 0.005
+    tree.links.new(wave.outputs["Fac"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Normal"])
     return m
 
 

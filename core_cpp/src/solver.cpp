@@ -1619,6 +1619,14 @@ std::vector<Vec3> check_directions(size_t i) {
     return d;
 }
 
+// The directions a check compares values at, for viewers along `views`: a bumped receiver's
+// radiance is its map's normal's whatever the view (the values all at that normal: one gather's
+// rays, a BSDF evaluation each).
+std::vector<Vec3> value_directions(const Receiver& r, const std::vector<Vec3>& views, double u, double v) {
+    if (!r.normals) return views;
+    return std::vector<Vec3>(views.size(), bumped_normal(*r.normals, u, v));
+}
+
 // A receiver of r's material and sides whose one node is the check point (u, v) and whose angular
 // nodes are `directions` (if glossy): gathering at it is the phase's gather where no node sits.
 Receiver probe_of(const Receiver& r, double u, double v, const std::vector<Vec3>& directions) {
@@ -1630,6 +1638,7 @@ Receiver probe_of(const Receiver& r, double u, double v, const std::vector<Vec3>
     q.albedo = r.albedo;
     q.coat = r.coat;
     q.tint = r.tint;
+    q.normals = r.normals;
     q.sides = r.sides;
     q.live = r.live;
     q.map = r.map;
@@ -1976,7 +1985,7 @@ struct SolveSteps::State {
             if (i >= points[k].size()) return;
             const auto [u, v, weight] = points[k][i];
             const SurfacePoint p = scene[r.surface].surface->evaluate(u, v);
-            const std::vector<Vec3> dirs = check_directions(i);
+            const std::vector<Vec3> views = check_directions(i), dirs = value_directions(r, views, u, v);
             const std::vector<Vec3> G = values_of(r, u, v, dirs, gather_from(*gather, last_of, local));
             const std::vector<Vec3> S = values_of(r, u, v, dirs, spline_at(result_of, u, v));
             std::vector<Vec3> C, F, I;
@@ -1986,7 +1995,7 @@ struct SolveSteps::State {
                 // The doubled nodes' baseline: the gather at the phase's nodes of the same splines.
                 I = regathered || !settings.final_gather ? G : values_of(r, u, v, dirs, gather_from(*gather, result_of, local));
             }
-            const uint16_t visible = visible_values(r, p, dirs, local);
+            const uint16_t visible = visible_values(r, p, views, local);
             double* c = &records[at(k) + 1 + i * kCheckFields];
             c[U] = u, c[V] = v, c[Weight] = weight, c[Visible] = visible;
             for (size_t x = 0; x < 2 * dirs.size(); ++x) {
@@ -2059,7 +2068,7 @@ struct SolveSteps::State {
             const size_t record = record_at(begin + k);
             const double* c = &records[record + 1 + i * kCheckFields];
             if (i >= size_t(records[record]) || !input_check(i)) return;
-            const std::vector<Vec3> dirs = check_directions(i);
+            const std::vector<Vec3> dirs = value_directions(r, check_directions(i), c[U], c[V]);
             const std::vector<Vec3> E = values_of(r, c[U], c[V], dirs, [&](const Receiver& q, const Receiver&, std::vector<Vec3>& out) {
                 gather->indirect_change(q, 0, result_of, receiver_of, density_at(q), 0, out.data(), local, &input_scale);
             });
