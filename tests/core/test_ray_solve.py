@@ -221,6 +221,23 @@ def test_ray_solve_with_form_factors_equals_the_local_solve(ray_cluster):
 
 
 @pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
+def test_ray_solve_of_a_bumped_floor_and_a_green_pane_equals_the_local_solve(ray_cluster):
+    # The floor under a normal map (4D over its bumped normal) and a tinted pane hung in the room:
+    # the workers replay both, and the solution's floor keeps its map.
+    scene = room()
+    a = np.radians(30) * np.sin(2 * np.pi * (np.arange(8) + 0.5) / 8)
+    scene.set_normal_texture(0, np.tile(np.stack([np.sin(a), np.zeros_like(a), np.cos(a)], -1), (2, 1, 1)).astype(np.float32))
+    scene.add_surface(bsgi.BilinearPatch("pane", np.array([[1.2, 1.0, 0.2], [1.8, 1.0, 0.2], [1.8, 1.0, 0.8], [1.2, 1.0, 0.8]])),
+                      albedo=[0] * 3, emission=[0] * 3, thin_glass=1.5, transmission_tint=[0.6, 1.0, 0.7])
+    s = settings()
+    local = bsgi.solve(scene, s)
+    assert local.reports[0]["representation"].startswith("bumped 4D")
+    distributed = bsgi.solve(scene, s, executor=bsgi.RayExecutor(workers=2))
+    assert_same_coefficients(local, distributed)
+    np.testing.assert_array_equal(distributed.surfaces[0].normals, local.surfaces[0].normals)
+
+
+@pytest.mark.slow  # starts Ray workers (kept out of test-fast and of the sanitizer run: Ray is not built for it)
 def test_cancelled_ray_solve_returns_within_a_second(ray_cluster):
     scene = room()
     s = settings(spatial_coeffs=10, max_bounces=20, hemisphere_nodes_theta=12, hemisphere_nodes_phi=24)
