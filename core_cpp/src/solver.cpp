@@ -338,7 +338,6 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         constexpr double kCapMargin = 0.087;  // radians: 5 degrees
         const double cap = std::min(1.5 * scene.bumped_tilt() + kCapMargin, kPiD / 2 - s.angular_delta);
         p.map_delta = kPiD / 2 - cap;
-        why << " (normals within " << std::lround(cap * 180 / kPiD) << " degrees)";
     }
     if (p.kind != Representation::Diffuse) {
         // A bumped surface's irradiance over its normal has a kink along each small light's
@@ -359,7 +358,8 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
             p.na = material_view_dependence_count(p.bsdf, lobe, s, p.na);
         }
         if (ss.material.normal_texture)
-            why << ", " << p.na << " x " << p.na << " angular over its bumped normal";
+            why << ", " << p.na << " x " << p.na << " angular over its bumped normal (within "
+                << std::lround((kPiD / 2 - p.map_delta) * 180 / kPiD) << " degrees)";
         else
             why << ", " << p.na << " x " << p.na << " angular (lobe width " << p.bsdf->lobe_width() << " rad"
                 << (p.na > from_width ? "; its light's change with the view" : "") << ")";
