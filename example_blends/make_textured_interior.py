@@ -17,7 +17,7 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # scene_parts, also under runpy
-from scene_parts import HERE, camera, link, principled_material, render_settings, empty_scene, main  # noqa: E402
+from scene_parts import HERE, camera, link, principled_material, render_settings, empty_scene, main, wave_bump  # noqa: E402
 
 TEXTURES = HERE / "textures"
 HDRI = TEXTURES / "sky_with_sun.exr"
@@ -155,14 +155,7 @@ def checker_material():
     tree = m.node_tree
     coords = tree.nodes.new("ShaderNodeTexCoord")
     tree.links.new(coords.outputs["UV"], checker.inputs["Vector"])
-    wave = tree.nodes.new("ShaderNodeTexWave")
-    wave.inputs["Scale"].default_value = 12.0
-    tree.links.new(coords.outputs["UV"], wave.inputs["Vector"])
-    bump = tree.nodes.new("ShaderNodeBump")
-    bump.inputs["Strength"].default_value = 0.5
-    bump.inputs["Distance"].default_value = 0.005
-    tree.links.new(wave.outputs["Fac"], bump.inputs["Height"])
-    tree.links.new(bump.outputs["Normal"], next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Normal"])
+    wave_bump(tree, next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), scale=12.0, strength=0.5, distance=0.005)
     return m
 
 

@@ -55,6 +55,21 @@ def emission_material(name, rgb, strength):
     return _shader_material(name, "ShaderNodeEmission", rgb, {"Color": (*rgb, 1.0), "Strength": strength})
 
 
+def wave_bump(tree, shader, scale, strength, distance):
+    """Bumps `shader`'s normal by a Wave Texture's bands over the UVs (Bump node of that strength
+    and distance): ribs, a rug's weave, planks."""
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    wave = tree.nodes.new("ShaderNodeTexWave")
+    wave.inputs["Scale"].default_value = scale
+    tree.links.new(coords.outputs["UV"], wave.inputs["Vector"])
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = strength
+    bump.inputs["Distance"].default_value = distance
+    tree.links.new(wave.outputs["Fac"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], shader.inputs["Normal"])
+    return bump
+
+
 def link(obj):
     bpy.context.scene.collection.objects.link(obj)
     return obj

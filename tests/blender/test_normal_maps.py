@@ -3,6 +3,8 @@ Principled BSDF whose Normal input a Normal Map node drives is solved over its b
 Cycles shades it (its bump shadowing term included), and its bake looks the radiance up along the
 user's own normal nodes. Checked against the closed form of a tilted plane and Cycles' render."""
 import math
+import pathlib
+import sys
 
 import bpy
 import numpy as np
@@ -11,6 +13,9 @@ import pytest
 from bsgi_addon import pipeline
 from test_pipeline import render_exr, render_floor_from_above
 from test_textures import add_uv_quad, exported_object
+
+# The example scenes' builders (scene_parts.wave_bump: the textured interior's bumped floor's nodes).
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "example_blends"))
 
 ALBEDO, STRENGTH, COLOR, TILT = 0.6, 3.0, (1.0, 0.8, 0.6), 40.0
 
@@ -147,6 +152,17 @@ def test_a_coated_principled_folds_its_coat_under_a_bump(context):
     assert floor.normals is not None
 
 
+def cycles_and_bake(context, tmp_path):
+    """Cycles' render of the floor from above (direct light only, 256 samples), then the add-on's
+    solve at preview (direct light) and bake, and Cycles' render of the bake: (reference, baked,
+    the solve's report)."""
+    reference, _ = render_floor_from_above(context, tmp_path / "cycles.exr", samples=256)
+    context.scene.bsgi.preset = "PREVIEW"
+    context.scene.bsgi.max_bounces = 0
+    report = pipeline.solve_and_bake(context)
+    return reference, render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0), report
+
+
 @pytest.mark.slow
 def test_a_washboard_normal_map_baked_is_what_cycles_renders(context, tmp_path):
     # Ridges of +-35 degrees across the floor under a sun at 40 degrees and a grey world, seen from
@@ -158,12 +174,8 @@ def test_a_washboard_normal_map_baked_is_what_cycles_renders(context, tmp_path):
         world.use_nodes = True
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.3, 0.3, 1)
     context.scene.world = world
-    reference, _ = render_floor_from_above(context, tmp_path / "cycles.exr", samples=256)
-    context.scene.bsgi.preset = "PREVIEW"
-    context.scene.bsgi.max_bounces = 0
-    report = pipeline.solve_and_bake(context)
+    reference, baked, report = cycles_and_bake(context, tmp_path)
     assert not any("ignored" in w for w in report.get("warnings", [])), report.get("warnings")
-    baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
     columns_ref, columns_baked = reference.mean(axis=(0, 2)), baked.mean(axis=(0, 2))  # ridges run along v
     rel = np.abs(baked - reference).sum(axis=2) / reference.sum(axis=2)
     flat = ALBEDO / math.pi * (STRENGTH * np.mean(COLOR) * math.cos(math.radians(TILT)) + 0.3 * math.pi)
@@ -241,6 +253,7 @@ def test_a_bump_node_under_a_textured_colour_baked_is_what_cycles_renders(contex
     # A Principled BSDF (no specular) whose Base Color is a Checker and whose Normal is a Bump
     # node over a Wave texture's bands: Cycles' normal pass evaluates the bump for the solve, the
     # bake multiplies its atlas by the Checker and looks it up along the Bump node.
+    from scene_parts import wave_bump
     from test_textures import checker
 
     m = bpy.data.materials.new("Bumpy checker")
@@ -248,23 +261,11 @@ def test_a_bump_node_under_a_textured_colour_baked_is_what_cycles_renders(contex
     shader = tree.nodes["Principled BSDF"]
     shader.inputs["Specular IOR Level"].default_value = 0.0
     tree.links.new(checker(tree).outputs["Color"], shader.inputs["Base Color"])
-    coords = tree.nodes.new("ShaderNodeTexCoord")
-    wave = tree.nodes.new("ShaderNodeTexWave")
-    wave.inputs["Scale"].default_value = 3.0
-    tree.links.new(coords.outputs["UV"], wave.inputs["Vector"])
-    bump = tree.nodes.new("ShaderNodeBump")
-    bump.inputs["Strength"].default_value = 1.0
-    bump.inputs["Distance"].default_value = 0.02
-    tree.links.new(wave.outputs["Fac"], bump.inputs["Height"])
-    tree.links.new(bump.outputs["Normal"], shader.inputs["Normal"])
+    wave_bump(tree, shader, scale=3.0, strength=1.0, distance=0.02)
     floor_under_sun(context, m)
     context.scene.bsgi.texture_texels = 64
-    reference, _ = render_floor_from_above(context, tmp_path / "cycles.exr", samples=256)
-    context.scene.bsgi.preset = "PREVIEW"
-    context.scene.bsgi.max_bounces = 0
-    report = pipeline.solve_and_bake(context)
+    reference, baked, report = cycles_and_bake(context, tmp_path)
     assert not any("Normal input" in w for w in report.get("warnings", [])), report.get("warnings")
-    baked = render_exr(context.scene, tmp_path / "baked.exr", samples=16, bounces=0)
     rel = np.abs(baked - reference).sum(axis=2) / reference.sum(axis=2)
     spread = reference.mean(axis=2).std() / reference.mean()
     print(f"\nbumped checker: baked / Cycles mean {baked.mean() / reference.mean():.4f}, per pixel {rel.mean():.4f} "
