@@ -319,21 +319,23 @@ BUMPED_SHADERS = {"BSDF_DIFFUSE", "BSDF_PRINCIPLED"}
 
 def _bumped(node) -> str:
     """What drives a shader's Normal input where the solve models it, else ""."""
-    return normal_input_name(node) if node.type in BUMPED_SHADERS and linked_node(node.inputs["Normal"]) else ""
+    return _normal_input_name(node) if node.type in BUMPED_SHADERS else ""
 
 
-def normal_input_name(node) -> str:
-    """What drives a shader's Normal input, as the user made it: "normal map", "bump map" or the node's name."""
-    source = linked_node(node.inputs["Normal"])
-    return {"NORMAL_MAP": "normal map", "BUMP": "bump map"}.get(source.type, f"'{source.name}'")
+def _normal_input_name(node) -> str:
+    """What drives a shader's Normal input, as the user made it: "normal map", "bump map" or the
+    node's name; "" if nothing does."""
+    normal = node.inputs.get("Normal")
+    source = linked_node(normal) if normal is not None else None
+    return "" if source is None else {"NORMAL_MAP": "normal map", "BUMP": "bump map"}.get(source.type, f"'{source.name}'")
 
 
 def _warn_ignored_inputs(node, material, warnings):
     """Inputs that change how a surface looks but that the solve does not model, named as what
     the user made them (a normal map or a bump on a glossy or glass shader, a transparency mask)."""
-    normal = node.inputs.get("Normal")
-    if normal is not None and node.type not in BUMPED_SHADERS and linked_node(normal) is not None:
-        warnings.append(f"material '{material.name}': {node.name}'s Normal input ({normal_input_name(node)}) is "
+    what = _normal_input_name(node) if node.type not in BUMPED_SHADERS else ""
+    if what:
+        warnings.append(f"material '{material.name}': {node.name}'s Normal input ({what}) is "
                         "ignored; the surface's own normals are used (bumps are solved on diffuse reflection)")
     alpha = node.inputs.get("Alpha")
     if alpha is not None and alpha.is_linked:

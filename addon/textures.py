@@ -44,12 +44,21 @@ def has_textures(obj) -> bool:
 
 def _slot_flags(obj):
     for m in user_slots(obj):
-        solved = solver_material(m, describe_material(m, []), [])
-        yield solved.albedo_textured or solved.emission_textured or solved.specular_textured or solved.bumped
+        yield _baked(solver_material(m, describe_material(m, []), []))
+
+
+# What Cycles bakes for the solve, per slot that needs it (_flag): its colour, glossy colour,
+# emission and normal passes.
+PASSES = (("albedo", "DIFFUSE"), ("specular", "GLOSSY"), ("emission", "EMIT"), ("normal", "NORMAL"))
+
+
+def _flag(material, which) -> bool:
+    """Whether the slot's `which` pass is baked for it: its colour, glossy colour, emission or normal."""
+    return material.bumped if which == "normal" else getattr(material, f"{which}_textured")
 
 
 def _baked(material) -> bool:
-    return material.albedo_textured or material.emission_textured or material.specular_textured or material.bumped
+    return any(_flag(material, which) for which, _ in PASSES)
 
 
 def missing_images(material) -> list:
@@ -103,8 +112,7 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
             layout = _ChartLayout(4 * texels, uvs.reshape(-1, 2))
         else:
             layout = _TileLayout(mesh, [kind for kind, _, _ in exported.patches], texels)
-        for which, pass_type in (("albedo", "DIFFUSE"), ("specular", "GLOSSY"), ("emission", "EMIT"),
-                                 ("normal", "NORMAL")):
+        for which, pass_type in PASSES:
             if not any(_flag(m, which) for m in materials):
                 continue
             if which == "normal" and solved_diffuse(obj):
@@ -115,11 +123,6 @@ def _bake_object(depsgraph, scene, obj, exported, materials, texels, warnings) -
             _set_textures(scene, mesh, exported, layout, pixels, materials, which, warnings,
                           folded=solved_diffuse(obj), matrix=np.array(copy.matrix_world))
         return layout.width * layout.height
-
-
-def _flag(material, which) -> bool:
-    """Whether the slot's `which` pass is baked for it: its colour, glossy colour, emission or normal."""
-    return material.bumped if which == "normal" else getattr(material, f"{which}_textured")
 
 
 class _TileLayout:

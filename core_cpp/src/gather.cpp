@@ -644,9 +644,9 @@ void Gatherer::past_panes(const SurfaceHit& hit, const Vec3& dir, const Vec3& we
     // tints): one ray each, the reflected one only while it carries a noticeable share (a pane's
     // second reflection carries under 1% at normal incidence).
     const Vec3 n = hit.frame.z;
-    const double c = dot(dir, n);
-    through_panes(caster_.spawn(hit.p, n, dir), dir, weight * glass->transmittance(c), depth + 1, visit, rays);
-    const Vec3 reflected = weight * glass->reflected(c);
+    const double c = dot(dir, n), R = glass->reflectance(c);  // (once: both rays' factors)
+    through_panes(caster_.spawn(hit.p, n, dir), dir, weight * glass->transmission_tint * (1 - R), depth + 1, visit, rays);
+    const Vec3 reflected = weight * glass->reflection_tint * R;
     if (max_component(reflected) > kMinPaneReflection) {
         const Vec3 mirrored = dir - n * (2 * c);
         through_panes(caster_.spawn(hit.p, n, mirrored), mirrored, reflected, depth + 1, visit, rays);

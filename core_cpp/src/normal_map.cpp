@@ -8,6 +8,9 @@ namespace bsgi {
 
 namespace {
 
+// A stored texel's normal, (n + 1) / 2 back to n (not yet unit).
+Vec3 decoded(const Vec3& t) { return t * 2.0 - Vec3{1, 1, 1}; }
+
 Vec3 above(Vec3 n) {
     n = normalize(n);
     if (n.z >= kLeastBumpedCosine) return n;
@@ -41,15 +44,14 @@ double largest_tilt(const Texture& map) {
     double lowest = 1;
     const std::vector<float>& t = map.rgb();
     for (size_t i = 0; i < t.size(); i += 3) {
-        const Vec3 n{2.0 * t[i] - 1, 2.0 * t[i + 1] - 1, 2.0 * t[i + 2] - 1};
+        const Vec3 n = decoded({t[i], t[i + 1], t[i + 2]});
         if (length(n) > 1e-9) lowest = std::min(lowest, above(n).z);
     }
     return std::acos(std::clamp(lowest, -1.0, 1.0));
 }
 
 Vec3 bumped_normal(const Texture& map, double u, double v) {
-    const Vec3 t = map.at(u, v);
-    const Vec3 n{2 * t.x - 1, 2 * t.y - 1, 2 * t.z - 1};
+    const Vec3 n = decoded(map.at(u, v));
     return length(n) > 1e-9 ? above(n) : Vec3{0, 0, 1};
 }
 

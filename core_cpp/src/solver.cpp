@@ -260,7 +260,8 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     // the lobe reflects as much as the base (a strong coat), the full 4D spline is kept.
     const bool mild = sum && max_component(directional_albedo(*p.bsdf->glossy_part())) <= 0.5 * max_component(p.bsdf->diffuse_albedo());
     const bool textured = bool(ss.material.albedo_texture);
-    if (ss.material.normal_texture) {
+    const bool bumped = bool(ss.material.normal_texture);
+    if (bumped) {
         // Its radiance changes with its bumped normal, not with the view (Scene::set_normal_texture
         // has checked it is Lambertian).
         p.kind = Representation::Glossy;
@@ -332,7 +333,7 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
     if (from_size && !ss.options.spatial_coeffs)
         why << (detail[0] || detail[1] ? " (from its size and its light's detail)" : " (from its size)");
     p.map_delta = s.angular_delta;
-    if (ss.material.normal_texture) {
+    if (bumped) {
         // Its normals lie within the scene's largest tilt: the spline spans that cap alone (the
         // map pulls any normal beyond it to its rim).
         constexpr double kCapMargin = 0.087;  // radians: 5 degrees
@@ -346,7 +347,7 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
         // ridges of 35 degrees on a 57.5-degree cap under a sun: 11 x 11 angular 0.29% per pixel,
         // the lobe's 7 x 7 1.3%, 13 x 13 0.24% with Cycles' noise 0.2%).
         constexpr double kBumpedSpan = 0.52;
-        const double lobe = ss.material.normal_texture ? kBumpedSpan : lobe_in_disc(*p.bsdf);
+        const double lobe = bumped ? kBumpedSpan : lobe_in_disc(*p.bsdf);
         const double R = std::sqrt(1 - std::sin(p.map_delta));
         p.na = ss.options.angular_coeffs
                    ? std::max(ss.options.angular_coeffs, s.angular_degree + 1)
@@ -354,10 +355,10 @@ Plan plan_surface(const Scene& scene, int i, const SolverSettings& s, double ext
                                 s.angular_coeffs_min, s.angular_coeffs_max);
         const int from_width = p.na;
         if (!ss.options.angular_coeffs && s.angular_albedo_tolerance > 0 && !p.bsdf->transmits() &&
-            p.bsdf->lobe_width() >= kWideLobe && p.na < s.angular_coeffs_max && !ss.material.normal_texture) {
+            p.bsdf->lobe_width() >= kWideLobe && p.na < s.angular_coeffs_max && !bumped) {
             p.na = material_view_dependence_count(p.bsdf, lobe, s, p.na);
         }
-        if (ss.material.normal_texture)
+        if (bumped)
             why << ", " << p.na << " x " << p.na << " angular over its bumped normal (within "
                 << std::lround((kPiD / 2 - p.map_delta) * 180 / kPiD) << " degrees)";
         else
@@ -2666,11 +2667,12 @@ Solution SolveSteps::solve(Progress& progress, const Runner& run) {
             kind = "decomposed 2D + 4D (38)";
         } else {
             out = SurfaceRadiance{r.kind, r.map, front(r), back(r), std::nullopt, std::nullopt};
-            kind = r.kind == Representation::Diffuse ? "diffuse 2D" : (r.sides == 2 && r.bsdf->transmits() ? "glossy 4D + transmission" : "glossy 4D");
+            kind = r.kind == Representation::Diffuse ? "diffuse 2D"
+                   : r.normals                       ? "bumped 4D"
+                   : (r.sides == 2 && r.bsdf->transmits() ? "glossy 4D + transmission" : "glossy 4D");
         }
         out->albedo = m.albedo_texture;
         out->normals = m.normal_texture;
-        if (m.normal_texture) kind = "bumped 4D";
         out->coat = r.coat;
         out->emission = emission;
         out->two_sided_emission = m.two_sided_emission;

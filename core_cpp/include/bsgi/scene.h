@@ -299,8 +299,7 @@ private:
     }
 
     std::vector<SceneSurface> surfaces_;
-
-    double bumped_tilt_ = 0;
+    double bumped_tilt_ = 0;  // (kept as normal maps are set: largest_tilt reads every texel)
     Vec3 world_{0, 0, 0};
     std::shared_ptr<const EnvironmentMap> world_map_;
     std::vector<DistantLight> distant_;

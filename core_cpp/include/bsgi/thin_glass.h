@@ -44,9 +44,9 @@ struct ThinGlass {
         const double r = fresnel_dielectric(cos_i, eta);
         return one_interface ? r : 2 * r / (1 + r);
     }
-    // The straight pass-through, 1 - reflectance (no absorption) times the tint, and the reflection.
+    // The straight pass-through, 1 - reflectance (no absorption) times the tint (the reflected
+    // light is reflectance times reflection_tint).
     Vec3 transmittance(double cos_i) const { return transmission_tint * (1 - reflectance(cos_i)); }
-    Vec3 reflected(double cos_i) const { return reflection_tint * reflectance(cos_i); }
     Vec3 shadow_transmittance(double cos_i) const { return shadow ? *shadow : transmittance(cos_i); }
     // Whether it passes or reflects some colours more than others (light through it is then RGB).
     bool coloured() const {
