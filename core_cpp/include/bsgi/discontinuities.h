@@ -60,7 +60,8 @@ public:
 
     // The lines on receiver `surface` (its sides `live`): EV events (an emitter vertex and an
     // occluder edge), VE events (an occluder vertex and an emitter edge), contact lines (an
-    // occluder edge lying on the receiver) and the shadow edges of lights at infinity (an
+    // occluder edge lying on the receiver), near contacts (the outline of an occluder's face
+    // parallel to the receiver a little off it) and the shadow edges of lights at infinity (an
     // occluder edge seen along the disc's rim). A segment counts as the parameter line
     // u = const when its u varies by at most `tolerance[0]` over the part crossing the
     // surface (likewise v). `rays`: the shadow rays that checked the distant lights' edges.
@@ -75,6 +76,10 @@ public:
     // Contact lines' bands (the lift over the tangent of the wedge's angle, find()) stop growing
     // at wedges narrower than 0.6 degrees: a crevice, dark on both sides of its nodes.
     static constexpr double kMaxContactCot = 100;
+    // Near contacts (find()): a face within 2 degrees of parallel to the receiver, at a gap of at
+    // most a span (wider, the spline follows the fall of the light under it).
+    static constexpr double kNearContactCos = 0.99939;
+    static constexpr double kNearContactSpans = 1.0;
 
     static constexpr double kClusterAngle = 0.1;  // radians (5.7 degrees: a sun and its aureole)
     static constexpr double kMinShare = 0.01;
