@@ -22,6 +22,7 @@ def render_exr(scene, path, samples, bounces, seed=1):
     scene.cycles.diffuse_bounces = bounces
     scene.cycles.sample_clamp_direct = 0
     scene.cycles.sample_clamp_indirect = 0
+    scene.cycles.blur_glossy = 0.0  # Filter Glossy biases light reflected by glossy surfaces onto diffuse ones
     scene.cycles.seed = seed
     scene.render.resolution_x = scene.render.resolution_y = 96
     scene.render.resolution_percentage = 100
