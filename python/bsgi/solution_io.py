@@ -25,8 +25,12 @@ def spline_to_arrays(spline: _core.TensorSpline) -> dict:
 
 def spline_from_arrays(arrays) -> _core.TensorSpline:
     """Inverse of spline_to_arrays (any mapping of name -> array-like)."""
-    degrees = [int(d) for d in np.asarray(arrays["degrees"])]
-    axes = [_core.KnotVector(np.asarray(arrays[f"knots{k}"], np.float64), d) for k, d in enumerate(degrees)]
+    degrees = np.asarray(arrays["degrees"])
+    knots = [np.asarray(arrays[f"knots{k}"], np.float64) for k in range(degrees.size)]
+    if degrees.ndim != 1 or any(k.ndim != 1 for k in knots):
+        raise ValueError(f"spline arrays: degrees of shape {degrees.shape} and knots of shapes "
+                         f"{[k.shape for k in knots]}, not one degree and one knot row per axis")
+    axes = [_core.KnotVector(k, int(d)) for k, d in zip(knots, degrees)]
     coefficients = np.asarray(arrays["coefficients"], np.float64)
     if coefficients.ndim != len(axes) + 1:
         raise ValueError(f"spline arrays: coefficients of shape {coefficients.shape} for {len(axes)} axes and channels")
