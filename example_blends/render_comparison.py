@@ -20,10 +20,31 @@ sys.path.insert(0, str(ROOT / "addon"))
 import cli  # noqa: E402  (loads the add-on package)
 
 
+def written_render(scene, exr: pathlib.Path, color_mode: str, png: pathlib.Path | None = None) -> np.ndarray:
+    """Renders the scene camera to `exr` and reads it back: (rows from the top, columns, channels of
+    `color_mode`), scene-linear (the render result's own save_render applies the view transform
+    even to an EXR). With `png`, also saves there what the view transform displays. The EXR is
+    removed."""
+    settings = scene.render.image_settings
+    settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", color_mode
+    scene.render.filepath = str(exr)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(exr))
+    try:
+        w, h = image.size
+        pixels = np.array(image.pixels[:], np.float32).reshape(h, w, image.channels)[::-1]
+        if png is not None:
+            settings.file_format, settings.color_depth, settings.color_mode = "PNG", "8", "RGB"
+            image.save_render(filepath=str(png), scene=scene)
+    finally:
+        bpy.data.images.remove(image)
+        exr.unlink()
+    return pixels
+
+
 def render(scene, path: pathlib.Path, samples: int, bounces: int) -> np.ndarray:
-    """A Cycles render of the scene camera: its linear radiance (rows from the top, RGB), read from
-    the EXR the render writes (scene-linear: no view transform), and a PNG at path of what the view
-    transform displays."""
+    """A Cycles render of the scene camera: its linear radiance (rows from the top, RGB), and a PNG
+    at path of what the view transform displays."""
     scene.render.engine = "CYCLES"
     scene.cycles.samples = samples
     scene.cycles.use_denoising = False
@@ -35,47 +56,26 @@ def render(scene, path: pathlib.Path, samples: int, bounces: int) -> np.ndarray:
     # it biases the light a metal ball reflects onto the room (the textured interior 3% brighter
     # with it). The reference is the unbiased, converged path tracing of the scene.
     scene.cycles.blur_glossy = 0.0
-    settings = scene.render.image_settings
-    settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", "RGB"
-    exr = path.with_suffix(".exr")
-    scene.render.filepath = str(exr)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(exr))
-    w, h = image.size
-    pixels = np.array(image.pixels[:], np.float32).reshape(h, w, image.channels)[::-1, :, :3]
-    # The PNG through the scene's view transform (the render result's own save_render applies it to
-    # an EXR too, which is why the radiance is read from the written file instead).
-    settings.file_format, settings.color_depth, settings.color_mode = "PNG", "8", "RGB"
-    image.save_render(filepath=str(path), scene=scene)
-    bpy.data.images.remove(image)
-    exr.unlink()
-    return pixels
+    return written_render(scene, path.with_suffix(".exr"), "RGB", png=path)[:, :, :3]
 
 
-def object_masks(scene) -> dict:
+def object_masks(scene, folder: pathlib.Path) -> dict:
     """Per mesh object, the pixels it covers in the camera view: its alpha in a render where every
-    other mesh object is a holdout (they still hide what lies behind them)."""
+    other mesh object is a holdout (they still hide what lies behind them). The scene's holdouts,
+    transparency, bounces and samples are put back."""
     meshes = [o for o in scene.objects if o.type == "MESH"]
+    holdouts = [o.is_holdout for o in meshes]
     transparent, bounces, samples = scene.render.film_transparent, scene.cycles.max_bounces, scene.cycles.samples
     scene.render.film_transparent, scene.cycles.max_bounces, scene.cycles.samples = True, 0, 4
-    settings = scene.render.image_settings
-    settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", "RGBA"
     masks = {}
     try:
         for obj in meshes:
             for other in meshes:
                 other.is_holdout = other is not obj
-            path = pathlib.Path(bpy.app.tempdir or "/tmp") / "bsgi_mask.exr"
-            scene.render.filepath = str(path)
-            bpy.ops.render.render(write_still=True)
-            image = bpy.data.images.load(str(path))
-            w, h = image.size
-            masks[obj.name] = np.array(image.pixels[:], np.float32).reshape(h, w, 4)[::-1, :, 3] > 0.99
-            bpy.data.images.remove(image)
-            path.unlink()
+            masks[obj.name] = written_render(scene, folder / "mask.exr", "RGBA")[:, :, 3] > 0.99
     finally:
-        for obj in meshes:
-            obj.is_holdout = False
+        for obj, holdout in zip(meshes, holdouts):
+            obj.is_holdout = holdout
         scene.render.film_transparent, scene.cycles.max_bounces, scene.cycles.samples = transparent, bounces, samples
     return masks
 
@@ -103,7 +103,7 @@ def main(argv=None) -> int:
     scene = bpy.context.scene
     if args.resolution:
         scene.render.resolution_x, scene.render.resolution_y = args.resolution
-    masks = object_masks(scene)
+    masks = object_masks(scene, out)
     t0 = time.perf_counter()
     reference = render(scene, out / f"{stem}_cycles.png", args.samples, 32)
     cycles_seconds = time.perf_counter() - t0
