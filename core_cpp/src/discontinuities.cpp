@@ -298,8 +298,8 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
     };
     auto line_of = [&](const Vec3& a, const Vec3& b) { return line_of_uv(A.uv(a), A.uv(b)); };
     // Records what line_of found as a line of the given order, if it is one.
-    auto record = [&](const Segment& x, int order, double band = 0) {
-        if (x.k == 0 || x.k == 1) out.lines[x.k].push_back({x.position, order, band, x.length});
+    auto record = [&](const Segment& x, int order, double band = 0, double grade = 0) {
+        if (x.k == 0 || x.k == 1) out.lines[x.k].push_back({x.position, order, band, x.length, grade});
         out.oblique += x.k == 2;
     };
     // The rays leave the receiver lifted off it (RayCaster::spawn): a node closer to a jump than
@@ -318,16 +318,17 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
     // Near contacts: the edges of an occluder's face parallel to the receiver a little off it, on
     // a side solved (a painting hung 1 cm off a wall, a rug over a floor). Under it the receiver
     // sees the room only through the gap, so across the face's outline its light falls from the
-    // room's to the gap's within a few gap heights: a jump to spans wider than that, whose
-    // smoothing darkened a band around the outline (the textured interior's wall 26% dark two
-    // pixels from its painting). Each edge is a jump whose band, a gap height either side, keeps
-    // the nodes beside it where the face hides a little (a half-plane at height h hides
+    // room's to the gap's within a few gap heights h (a half-plane at height h hides
     // (1 - x / sqrt(x^2 + h^2)) / 2 of the cosine-weighted hemisphere at x: 50% at the edge,
-    // 15% at x = h, 5% at 2h). Only gaps up to a span: a wider fall the spline follows.
+    // 15% at h, 5% at 2h; as much more inside): smoothed by spans wider than that, it darkened a
+    // band around the outline (the textured interior's wall 26% dark two pixels from its
+    // painting). The fall is continuous: each edge is a graded line, knots a gap height apart
+    // across it (a jump there, its nodes a gap off the edge, read the fall's foot as the edge's
+    // light: 1.3x at the edge). Only gaps up to a span: a wider fall the spline follows.
     const double span = std::min(length(A.du) * 10 * tolerance[0], length(A.dv) * 10 * tolerance[1]);
-    auto gap_band = [&](double gap) -> std::array<double, 2> {
-        const double half = std::max(gap, caster_ ? 4 * caster_->offset() : 0.0);
-        return {2 * half / length(A.du), 2 * half / length(A.dv)};
+    auto fall_width = [&](double gap) -> std::array<double, 2> {  // the rays' lift blurs a narrower one
+        const double h = std::max(gap, caster_ ? 4 * caster_->offset() : 0.0);
+        return {h / length(A.du), h / length(A.dv)};
     };
     for (size_t o = 0; o < scene.size(); ++o) {
         const Poly& P = polys_[o];
@@ -356,7 +357,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             for (const Vec3& n : P.edge_faces[e]) covers = covers || std::abs(dot(n, A.n)) >= kNearContactCos;
             if (!covers) continue;
             const Segment line = line_of(a, b);
-            record(line, 0, line.k == 0 || line.k == 1 ? gap_band(gap)[line.k] : 0);
+            record(line, 0, 0, line.k == 0 || line.k == 1 ? fall_width(gap)[line.k] : 0);
         }
     }
     // Occluders that can stand between the receiver and an emitter, nearest first.
@@ -621,6 +622,7 @@ KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coe
             m.order = std::min(m.order, l.order);
             m.band = std::max(m.band, l.band);
             m.length = std::min(m.length + l.length, 1.0);
+            m.grade = m.grade > 0 && l.grade > 0 ? std::max(m.grade, l.grade) : 0;  // a jump among them stays one
         } else
             merged.push_back(l);
     }
@@ -632,13 +634,29 @@ KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coe
     });
     std::vector<std::pair<double, int>> fixed;  // position, multiplicity
     int used = 0;
+    auto taken = [&](double x, double within) {
+        return std::any_of(fixed.begin(), fixed.end(), [&](const auto& f) { return std::abs(f.first - x) <= within; });
+    };
     for (size_t k : by_order) {
+        const DiscontinuityLine& l = merged[k];
+        if (l.grade > 0) {  // its knots inside [a, b], apart from those placed
+            std::vector<double> xs;
+            for (const int o : {0, -1, 1, -2, 2}) {
+                const double x = l.position + o * l.grade;
+                if (x > a + 0.5 * l.grade && x < b - 0.5 * l.grade && !taken(x, 0.25 * l.grade)) xs.push_back(x);
+            }
+            if (used + int(xs.size()) > inner / 2) continue;
+            for (const double x : xs) fixed.emplace_back(x, 1);
+            used += int(xs.size());
+            placed.push_back(l);
+            continue;
+        }
         // Only where the light is less smooth than the spline between knots (C^(degree-1)): a
         // D2 line under a quadratic changes the error's constant, not its order, and its knot
         // is better spent by the probe.
-        const int m = degree + 1 - merged[k].order;
-        if (merged[k].order >= std::max(degree, 1) || used + m > inner / 2) continue;
-        fixed.emplace_back(merged[k].position, m);
+        const int m = degree + 1 - l.order;
+        if (l.order >= std::max(degree, 1) || used + m > inner / 2 || taken(l.position, 1e-9 * (b - a))) continue;
+        fixed.emplace_back(l.position, m);
         used += m;
         placed.push_back(merged[k]);
     }

@@ -27,6 +27,9 @@ struct DiscontinuityLine {
     // The part of the other parameter's range along which the light is discontinuous there
     // (a tensor-product knot spans all of it; a shadow edge of a small object a little).
     double length = 1;
+    // A steep but continuous fall of width `grade` in the parameter centred on the line (a near
+    // contact's): simple knots at position + grade x {-2, -1, 0, 1, 2} instead of a jump.
+    double grade = 0;
 };
 
 struct ReceiverDiscontinuities {
@@ -97,9 +100,9 @@ private:
 
 // Clamped knots on [a, b] with num_coeffs coefficients: each line of order below the degree
 // (where the light is less smooth than the spline, C^(degree-1)) gets a knot of multiplicity
-// degree + 1 - order (lines closer than a fifth of a uniform span merged, the lowest order
-// kept, their lengths added; at most half the inner knots go to lines, lowest orders first and
-// of an order the longest first), and the remaining inner
+// degree + 1 - order, a graded line its five simple knots (lines closer than a fifth of a uniform
+// span merged, the lowest order kept, their lengths added; at most half the inner knots go to
+// lines, lowest orders first and of an order the longest first), and the remaining inner
 // knots are spread between them, each gap getting its share of `density` (given on equal cells
 // of [a, b]; empty: uniform) equidistributed. `placed`: the lines that got knots.
 KnotVector discontinuity_knots(std::vector<DiscontinuityLine> lines, int num_coeffs, int degree, double a, double b,
