@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <sstream>
@@ -192,6 +193,77 @@ struct DiscontinuityFinder::Distant {
     }
 };
 
+// The occluders by cells of a grid over their boxes (each in the cells its box covers, about one
+// occluder a cell): a receiver asks for those near its plane, or between it and an emitter, not
+// for every occluder of an interior of thousands (the contact lines' loop over all of them was
+// O(receivers x occluders)).
+struct DiscontinuityFinder::Grid {
+    Vec3 lo{0, 0, 0}, step{1, 1, 1};
+    int cells[3]{1, 1, 1};
+    std::vector<std::vector<int>> occluders;      // per cell, scene indices
+    std::vector<std::array<Vec3, 2>> boxes;       // per scene index (of the occluders only)
+
+    Grid(const Scene& scene, const std::vector<Polygonal>& polys) : boxes(scene.size()) {
+        std::vector<int> kept;
+        Vec3 all_lo{1e300, 1e300, 1e300}, all_hi{-1e300, -1e300, -1e300};
+        for (size_t o = 0; o < scene.size(); ++o) {
+            if (!scene[o].occluder || polys[o].edges.empty()) continue;
+            Vec3 a{1e300, 1e300, 1e300}, b{-1e300, -1e300, -1e300};
+            for (const Vec3& v : polys[o].vertices)
+                a = Vec3{std::min(a.x, v.x), std::min(a.y, v.y), std::min(a.z, v.z)},
+                b = Vec3{std::max(b.x, v.x), std::max(b.y, v.y), std::max(b.z, v.z)};
+            boxes[o] = {a, b};
+            all_lo = Vec3{std::min(all_lo.x, a.x), std::min(all_lo.y, a.y), std::min(all_lo.z, a.z)};
+            all_hi = Vec3{std::max(all_hi.x, b.x), std::max(all_hi.y, b.y), std::max(all_hi.z, b.z)};
+            kept.push_back(int(o));
+        }
+        if (kept.empty()) return;
+        const double extent[3] = {all_hi.x - all_lo.x, all_hi.y - all_lo.y, all_hi.z - all_lo.z};
+        const double largest = std::max({extent[0], extent[1], extent[2], 1e-300});
+        double volume = 1;
+        for (double e : extent) volume *= std::max(e, 1e-3 * largest);
+        const double side = std::cbrt(volume / double(kept.size()));
+        double steps[3];
+        for (int k = 0; k < 3; ++k) {
+            cells[k] = std::clamp(int(std::ceil(extent[k] / side)), 1, 64);
+            steps[k] = std::max(extent[k], 1e-3 * largest) / cells[k];
+        }
+        lo = all_lo, step = Vec3{steps[0], steps[1], steps[2]};
+        occluders.resize(size_t(cells[0]) * cells[1] * cells[2]);
+        for (const int o : kept) {
+            int first[3], last[3];
+            range(boxes[o][0], boxes[o][1], first, last);
+            for (int i = first[0]; i <= last[0]; ++i)
+                for (int j = first[1]; j <= last[1]; ++j)
+                    for (int k = first[2]; k <= last[2]; ++k) occluders[(size_t(i) * cells[1] + j) * cells[2] + k].push_back(o);
+        }
+    }
+    void range(const Vec3& a, const Vec3& b, int first[3], int last[3]) const {
+        const double x0[3] = {a.x, a.y, a.z}, x1[3] = {b.x, b.y, b.z}, l[3] = {lo.x, lo.y, lo.z}, s[3] = {step.x, step.y, step.z};
+        for (int k = 0; k < 3; ++k) {
+            first[k] = std::clamp(int(std::floor((x0[k] - l[k]) / s[k])), 0, cells[k] - 1);
+            last[k] = std::clamp(int(std::floor((x1[k] - l[k]) / s[k])), 0, cells[k] - 1);
+        }
+    }
+    // The occluders whose boxes meet the box [a, b], by scene index.
+    std::vector<int> within(const Vec3& a, const Vec3& b) const {
+        std::vector<int> out;
+        if (occluders.empty()) return out;
+        int first[3], last[3];
+        range(a, b, first, last);
+        for (int i = first[0]; i <= last[0]; ++i)
+            for (int j = first[1]; j <= last[1]; ++j)
+                for (int k = first[2]; k <= last[2]; ++k)
+                    for (const int o : occluders[(size_t(i) * cells[1] + j) * cells[2] + k]) {
+                        const auto& [p, q] = boxes[o];
+                        if (p.x <= b.x && q.x >= a.x && p.y <= b.y && q.y >= a.y && p.z <= b.z && q.z >= a.z) out.push_back(o);
+                    }
+        std::sort(out.begin(), out.end());
+        out.erase(std::unique(out.begin(), out.end()), out.end());
+        return out;
+    }
+};
+
 std::vector<DistantSource> bright_world_sources(const std::vector<std::pair<Vec3, double>>& bright) {
     std::vector<size_t> order(bright.size());
     std::iota(order.begin(), order.end(), 0);
@@ -222,6 +294,7 @@ DiscontinuityFinder::DiscontinuityFinder(const Scene& scene, std::vector<Distant
     polys_.resize(scene.size());
     for (size_t i = 0; i < scene.size(); ++i)
         if (scene[i].occluder || scene[i].material.emits()) polys_[i] = polygonal_of(*scene[i].surface);
+    grid_ = std::make_unique<Grid>(scene, polys_);
     for (DistantSource& source : distant) {
         Distant D;
         const Frame f = Frame::from_normal(source.direction);
@@ -310,6 +383,31 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
         const double half = 4 * caster_->offset() * lifts;
         return {2 * half / length(A.du), 2 * half / length(A.dv)};
     };
+    // The part of the line a-b (in (u, v), clipped) along which it bounds the light arriving
+    // along `dir` from within `reach`: where one of the two points `offset` to either side is lit
+    // and the other is not. Without a ray caster, all of it.
+    auto bounds_light = [&](std::array<double, 2> a, std::array<double, 2> b, const Vec3& dir, double offset,
+                            double reach = std::numeric_limits<double>::infinity()) {
+        if (!caster_) return 1.0;
+        const double du = b[0] - a[0], dv = b[1] - a[1], len = std::hypot(du, dv);
+        const std::array<double, 2> across{-dv / len, du / len};
+        const double half_span = 5 * std::min(tolerance[0], tolerance[1]);
+        const int samples = std::clamp(int(std::ceil(len / half_span)) + 1, 3, 32);
+        int bounding = 0;
+        for (int i = 0; i < samples; ++i) {
+            const double t = (i + 0.5) / samples;
+            int lit = 0, seen = 0;
+            for (const double side : {-1.0, 1.0}) {
+                const double u = a[0] + t * du + side * offset * across[0], v = a[1] + t * dv + side * offset * across[1];
+                if (u < 0 || u > 1 || v < 0 || v > 1) break;
+                const Vec3 x = A.o + A.du * u + A.dv * v;
+                ++rays, ++seen;
+                lit += max_component(caster_->transmittance(caster_->spawn(x, A.n, dir), dir, 0, reach)) > 0;
+            }
+            bounding += seen == 2 && lit == 1;
+        }
+        return double(bounding) / samples;
+    };
     // Contact lines: an occluder's feature edge on the receiver's plane with a face leaving it.
     // A node beside one is lift / tan(wedge angle) from the leaving face: closer, its lifted
     // point lies beyond the face, on the other side's light (a board leaning at 60 degrees on a
@@ -326,13 +424,22 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
     // across it (a jump there, its nodes a gap off the edge, read the fall's foot as the edge's
     // light: 1.3x at the edge). Only gaps up to a span: a wider fall the spline follows.
     const double span = std::min(length(A.du) * 10 * tolerance[0], length(A.dv) * 10 * tolerance[1]);
-    auto fall_width = [&](double gap) -> std::array<double, 2> {  // the rays' lift blurs a narrower one
-        const double h = std::max(gap, caster_ ? 4 * caster_->offset() : 0.0);
-        return {h / length(A.du), h / length(A.dv)};
+
+    // The receiver's box, widened by `pad` (and its rounding).
+    auto box_with = [&](const std::vector<Vec3>& points, double pad) -> std::array<Vec3, 2> {
+        Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+        for (const Vec3& c : points) {
+            lo = Vec3{std::min(lo.x, c.x), std::min(lo.y, c.y), std::min(lo.z, c.z)};
+            hi = Vec3{std::max(hi.x, c.x), std::max(hi.y, c.y), std::max(hi.z, c.z)};
+        }
+        const double r = pad + flat;
+        return {lo - Vec3{r, r, r}, hi + Vec3{r, r, r}};
     };
-    for (size_t o = 0; o < scene.size(); ++o) {
+    const std::vector<Vec3> corners{A.o, A.o + A.du, A.o + A.dv, A.o + A.du + A.dv};
+    const auto [near_lo, near_hi] = box_with(corners, kNearContactSpans * span);
+    for (const int o : grid_->within(near_lo, near_hi)) {
         const Poly& P = polys_[o];
-        if (int(o) == surface || !scene[o].occluder || P.edges.empty()) continue;
+        if (o == surface) continue;
         for (size_t e = 0; e < P.edges.size(); ++e) {
             const Vec3 &a = P.vertices[P.edges[e][0]], &b = P.vertices[P.edges[e][1]];
             const double ha = height(a), hb = height(b), gap = std::max(std::abs(ha), std::abs(hb));
@@ -356,8 +463,18 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             bool covers = false;  // a face along the edge lies parallel to the receiver
             for (const Vec3& n : P.edge_faces[e]) covers = covers || std::abs(dot(n, A.n)) >= kNearContactCos;
             if (!covers) continue;
-            const Segment line = line_of(a, b);
-            record(line, 0, 0, line.k == 0 || line.k == 1 ? fall_width(gap)[line.k] : 0);
+            // Only where the face's outline bounds what covers the receiver: not between two books
+            // side by side, whose backs cover the wall on both sides of the edge they share.
+            std::array<double, 2> pa = A.uv(a), pb = A.uv(b);
+            if (!clip_unit(pa, pb)) continue;
+            Segment line = line_of_uv(pa, pb);
+            if (line.k == 0 || line.k == 1) {
+                const double fall = std::max(gap, caster_ ? 4 * caster_->offset() : 0.0);  // the rays' lift blurs a narrower one
+                const double grade = fall / length(line.k == 0 ? A.du : A.dv);
+                line.length *= bounds_light(pa, pb, ha > 0 ? A.n : -A.n, 2 * grade, 3 * fall);
+                if (line.length > 0) record(line, 0, 0, grade);
+            } else
+                record(line, 0);
         }
     }
     // Occluders that can stand between the receiver and an emitter, nearest first.
@@ -376,9 +493,13 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
         if (!(reach > 0)) continue;
         const bool one_sided = E.planar && !scene[em].material.two_sided_emission;
         std::vector<std::pair<double, size_t>> between;
-        for (size_t o = 0; o < scene.size(); ++o) {
+        // Only occluders within the box of the receiver and the emitter can stand between them.
+        std::vector<Vec3> both = corners;
+        both.insert(both.end(), E.vertices.begin(), E.vertices.end());
+        const auto [both_lo, both_hi] = box_with(both, 0);
+        for (const int o : grid_->within(both_lo, both_hi)) {
             const Poly& P = polys_[o];
-            if (int(o) == surface || int(o) == em || !scene[o].occluder || P.edges.empty()) continue;
+            if (o == surface || o == em) continue;
             bool near = false, front = !one_sided;
             double closest = 1e300;
             for (const Vec3& v : P.vertices) {
@@ -493,30 +614,6 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             if (closest < 1e300) between.emplace_back(closest, o);
         }
         std::sort(between.begin(), between.end());
-        // The part of the line a-b (in (u, v), clipped) along which it bounds the light arriving
-        // along `dir`: where one of the two points `offset` to either side is lit and the other
-        // is not. Without a ray caster, all of it.
-        auto bounds_light = [&](std::array<double, 2> a, std::array<double, 2> b, const Vec3& dir, double offset) {
-            if (!caster_) return 1.0;
-            const double du = b[0] - a[0], dv = b[1] - a[1], len = std::hypot(du, dv);
-            const std::array<double, 2> across{-dv / len, du / len};
-            const double half_span = 5 * std::min(tolerance[0], tolerance[1]);
-            const int samples = std::clamp(int(std::ceil(len / half_span)) + 1, 3, 32);
-            int bounding = 0;
-            for (int i = 0; i < samples; ++i) {
-                const double t = (i + 0.5) / samples;
-                int lit = 0, seen = 0;
-                for (const double side : {-1.0, 1.0}) {
-                    const double u = a[0] + t * du + side * offset * across[0], v = a[1] + t * dv + side * offset * across[1];
-                    if (u < 0 || u > 1 || v < 0 || v > 1) break;
-                    const Vec3 x = A.o + A.du * u + A.dv * v;
-                    ++rays, ++seen;
-                    lit += max_component(caster_->transmittance(caster_->spawn(x, A.n, dir), dir)) > 0;
-                }
-                bounding += seen == 2 && lit == 1;
-            }
-            return double(bounding) / samples;
-        };
         // The shadow rays' lift moves a sun's shadow edge by the lift times the tangent of its
         // incidence: nodes beside a jump closer than that took the other side's light (adaptive
         // knots put spans of millimetres there).

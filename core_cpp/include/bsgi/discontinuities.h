@@ -4,6 +4,7 @@
 // their order asks for keep a sharp shadow sharp in the spline.
 #pragma once
 #include <array>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -89,11 +90,13 @@ public:
 
     struct Polygonal;  // a surface's feature edges (discontinuities.cpp)
     struct Distant;    // a distant source and its occluders by cells across it (discontinuities.cpp)
+    struct Grid;       // the occluders by cells of their boxes (discontinuities.cpp)
 
 private:
     std::vector<Polygonal> polys_;  // by scene index; empty edges: not polygonal
     std::vector<int> emitters_;     // scene indices, found once: find() runs for every receiver
     std::vector<Distant> distant_;
+    std::unique_ptr<Grid> grid_;
     const Scene* scene_;
     const RayCaster* caster_;
 };
