@@ -289,8 +289,10 @@ std::vector<DistantSource> bright_world_sources(const std::vector<std::pair<Vec3
     return out;
 }
 
-DiscontinuityFinder::DiscontinuityFinder(const Scene& scene, std::vector<DistantSource> distant, const RayCaster* caster)
-    : emitters_(scene.emitters()), scene_(&scene), caster_(caster) {
+DiscontinuityFinder::DiscontinuityFinder(const Scene& scene, std::vector<DistantSource> distant, const RayCaster* caster,
+                                         DiscontinuityKinds kinds)
+    : emitters_(scene.emitters()), scene_(&scene), caster_(caster), kinds_(kinds) {
+    if (!kinds.events) distant.clear(), emitters_.clear();
     polys_.resize(scene.size());
     for (size_t i = 0; i < scene.size(); ++i)
         if (scene[i].occluder || scene[i].material.emits()) polys_[i] = polygonal_of(*scene[i].surface);
@@ -444,6 +446,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
             const Vec3 &a = P.vertices[P.edges[e][0]], &b = P.vertices[P.edges[e][1]];
             const double ha = height(a), hb = height(b), gap = std::max(std::abs(ha), std::abs(hb));
             if (gap <= flat) {
+                if (!kinds_.events) continue;
                 bool leaves = false;
                 double cot = 0;  // of the narrower wedge between a leaving face and the receiver
                 for (const Vec3& n : P.edge_faces[e]) {
@@ -457,8 +460,8 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
                 record(line, 0, line.k == 0 || line.k == 1 ? lift_band(std::max(1.0, std::min(cot, kMaxContactCot)))[line.k] : 0);
                 continue;
             }
-            if (std::min(std::abs(ha), std::abs(hb)) <= flat || (ha > 0) != (hb > 0) || !on_live_side(ha) ||
-                gap > kNearContactSpans * span)
+            if (!kinds_.near_contacts || std::min(std::abs(ha), std::abs(hb)) <= flat || (ha > 0) != (hb > 0) ||
+                !on_live_side(ha) || gap > kNearContactSpans * span)
                 continue;
             bool covers = false;  // a face along the edge lies parallel to the receiver
             for (const Vec3& n : P.edge_faces[e]) covers = covers || std::abs(dot(n, A.n)) >= kNearContactCos;

@@ -402,7 +402,9 @@ size_t layout_bytes(const Plan& p, const SolverSettings& s) {
 }
 
 // The layouts of these plans' receivers: one per distinct knots. Without adaptive or
-// discontinuity knots a plan's knots follow from its counts; with them, each its own.
+// discontinuity knots a plan's knots follow from its counts; with them, each its own. (Near-
+// contact knots alone give their own layout only to the few receivers beside a near contact,
+// about a kilobyte and a half each, left out.)
 size_t layouts_bytes(const std::vector<Plan>& plans, const SolverSettings& s) {
     const bool by_counts = !s.adaptive_knots && !s.discontinuity_knots;
     std::set<std::array<int, 3>> seen;
@@ -558,7 +560,7 @@ SpatialKnots knots_at_discontinuities(const DiscontinuityFinder& finder, const G
         for (const DiscontinuityLine& line : placed[k])
             if (line.order == 0 && line.band > 0) out.bands[k].push_back(line);
     std::ostringstream why;
-    why << "; discontinuity knots: ";
+    why << (finder.kinds().events ? "; discontinuity knots: " : "; near-contact knots: ");
     if (!found.planar) why << found.note;
     else {
         why << placed[0].size() << " lines in u, " << placed[1].size() << " in v";
@@ -938,10 +940,14 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
         knots.push_back({KnotVector::clamped_uniform(p.nu, settings.spatial_degree, a, b),
                          KnotVector::clamped_uniform(p.nv, settings.spatial_degree, a, b), {}});
     std::optional<DiscontinuityFinder> finder;
-    if (settings.discontinuity_knots) {
-        std::vector<DistantSource> distant = bright_world_sources(gather.world_bright());
-        for (const DistantLight& light : scene.distant_lights()) distant.push_back({light.direction, light.angle});
-        finder.emplace(scene, std::move(distant), &gather.caster());
+    if (settings.discontinuity_knots || settings.near_contact_knots) {
+        std::vector<DistantSource> distant;
+        if (settings.discontinuity_knots) {
+            distant = bright_world_sources(gather.world_bright());
+            for (const DistantLight& light : scene.distant_lights()) distant.push_back({light.direction, light.angle});
+        }
+        finder.emplace(scene, std::move(distant), &gather.caster(),
+                       DiscontinuityKinds{settings.discontinuity_knots, settings.near_contact_knots});
     }
     if (adaptive || finder) {
         std::atomic<size_t> probe_rays{0};
@@ -1214,6 +1220,7 @@ SolverSettings SolverSettings::preset(const std::string& name) {
         // at tolerance 0.001). README, "Effort where the light needs it".
         s.coeffs_from_size = true;
         s.detail_tolerance = 0.005;
+        s.near_contact_knots = true;
     } else if (name == "final" || name == "reference") {
         s.spatial_coeffs = 16;
         // Four final gathers: the later two carry the finals' light two bounces further into
@@ -1238,6 +1245,7 @@ SolverSettings SolverSettings::preset(const std::string& name) {
         // scene changed by more than 0.05 points but the glass sheet's floor (9.5% -> 9.1%).
         // At preview it cost as much as it gained (knots spent on lines finer than its spans).
         s.discontinuity_knots = true;
+        s.near_contact_knots = true;
         s.angular_resolution = 4.0;
         // A roughness-1 metal's 8 x 8 angular coefficients left its light 8% off at 75 degrees
         // (Cycles' shadowing); its albedo's fit within 0.5% takes 24 x 24 (tests/core/test_solver_glossy.py).

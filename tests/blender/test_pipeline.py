@@ -305,7 +305,8 @@ def test_quality_preset_is_the_cores_preset(context, preset):
     settings.spatial_coeffs = 5  # the individual settings are used by Custom only
     got, expected = settings.solver_settings(), bsgi.SolverSettings.preset(preset.lower())
     for name in ("spatial_coeffs", "adaptive_knots", "angular_resolution", "hemisphere_nodes_theta", "tolerance",
-                 "final_gather", "max_bounces", "discontinuity_knots", "final_spatial_factor", "final_integration_factor"):
+                 "final_gather", "max_bounces", "discontinuity_knots", "near_contact_knots", "final_spatial_factor",
+                 "final_integration_factor"):
         assert getattr(got, name) == getattr(expected, name), name
 
 

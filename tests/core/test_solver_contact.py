@@ -136,14 +136,14 @@ def board_corners(x0, x1, y0, y1):
     return [np.array([x, y, PAINTING_GAP]) for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
 
 
-def solve_wall(boards):
-    """The wall under black boards (x0, x1, y0, y1) a gap off it, final preset, one solve."""
+def solve_wall(boards, preset="final"):
+    """The wall under black boards (x0, x1, y0, y1) a gap off it, one solve."""
     s = bsgi.Scene()
     s.add_bilinear_patch("wall", quad([0, 0, 0], [1, 0, 0], [0, 1, 0]), albedo=[ALBEDO] * 3, emission=[0, 0, 0])
     for k, board in enumerate(boards):
         s.add_bilinear_patch(f"board {k}", np.array(board_corners(*board)), albedo=[0, 0, 0], emission=[0, 0, 0])
     s.world_radiance = WORLD
-    settings = bsgi.SolverSettings.preset("final")
+    settings = bsgi.SolverSettings.preset(preset)
     settings.refine_to_error = 0  # one solve: the spline's count fixed
     solution = bsgi.solve(s, settings)
     reason = next(r["reason"] for r in solution.reports if r["name"] == "wall")
@@ -172,8 +172,9 @@ def wall_errors(solution, outline, boards):
     return rms(near), rms(edge), rms(far)
 
 
-def test_wall_around_a_painting_hung_off_it_keeps_its_light():
-    solution, reason = solve_wall([PAINTING])
+@pytest.mark.parametrize("preset", ["preview", "final"])
+def test_wall_around_a_painting_hung_off_it_keeps_its_light(preset):
+    solution, reason = solve_wall([PAINTING], preset)
     assert "2 lines in u, 2 in v" in reason, reason
     x0, x1, y0, y1 = PAINTING
     # Each edge's fall is graded: simple knots at the edge and one and two gaps either side (the
@@ -185,10 +186,12 @@ def test_wall_around_a_painting_hung_off_it_keeps_its_light():
                 at = (edge + 1) / 2 + offset * PAINTING_GAP / 2
                 assert np.sum(np.abs(knots - at) < 1e-9) == 1, (axis, edge, offset, knots)
     near, edge, far = wall_errors(solution, PAINTING, [PAINTING])
-    # Measured: 1-15 cm 0.0084 (mean ratio 0.996), within 1 cm 0.021 (0.981), beyond 15 cm 0.0001.
-    # Without the near-contact lines: 0.104 (0.951), 0.23 (0.79), 0.0001; with each edge a jump
-    # whose nodes kept a gap off it: 0.013 (0.995), 0.29 (1.21).
-    assert near < 0.017 and edge < 0.045 and far < 0.0003
+    # Measured, final: 1-15 cm 0.0084 (mean ratio 0.996), within 1 cm 0.021 (0.981), beyond 15 cm
+    # 0.0001; without the near-contact lines 0.104 (0.951), 0.23 (0.79), 0.0001; with each edge a
+    # jump whose nodes kept a gap off it 0.013 (0.995), 0.29 (1.21). Preview (24 x 24, spans of
+    # 9 cm): 0.015 (0.989), 0.021 (0.982), 0.0002; without them 0.082 (0.964), 0.24 (0.999), 0.0001.
+    bounds = {"final": (0.017, 0.045, 0.0003), "preview": (0.03, 0.045, 0.0004)}[preset]
+    assert near < bounds[0] and edge < bounds[1] and far < bounds[2]
 
 
 def test_two_boards_side_by_side_fall_only_at_their_outline():

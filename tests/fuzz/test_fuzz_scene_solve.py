@@ -145,15 +145,16 @@ def solve_or_refuse(scene, s):
 
 @settings(max_examples=examples(700))
 @given(scene_spec=scenes(), bounces=st.integers(0, 2), form_factors=st.booleans(), adaptive=st.booleans(),
-       discontinuity=st.booleans())
-def test_random_scenes_solve_or_are_refused(scene_spec, bounces, form_factors, adaptive, discontinuity):
+       discontinuity=st.booleans(), near_contacts=st.booleans())
+def test_random_scenes_solve_or_are_refused(scene_spec, bounces, form_factors, adaptive, discontinuity, near_contacts):
     entries, extras = scene_spec
     case(entries=entries, extras=extras, bounces=bounces, form_factors=form_factors, adaptive=adaptive,
-         discontinuity=discontinuity)
+         discontinuity=discontinuity, near_contacts=near_contacts)
     scene = bsgi.Scene()
     add_all(scene, entries, extras)
     solution = solve_or_refuse(scene, tiny_settings(max_bounces=bounces, form_factors=form_factors,
                                                     adaptive_knots=adaptive, discontinuity_knots=discontinuity,
+                                                    near_contact_knots=near_contacts,
                                                     emitter_shadow_depth=3 if discontinuity else 0))
     if solution is not None:
         check_solution(scene, solution)
@@ -162,7 +163,7 @@ def test_random_scenes_solve_or_are_refused(scene_spec, bounces, form_factors, a
 FIELDS = {
     "spatial_coeffs": st.integers(-2, 6), "spatial_degree": st.integers(-1, 6), "epsilon": any_float,
     "coeffs_from_size": st.booleans(), "spatial_coeffs_min": st.integers(-1, 4), "adaptive_knots": st.booleans(),
-    "discontinuity_knots": st.booleans(), "emitter_shadow_depth": st.integers(-1, 13),
+    "discontinuity_knots": st.booleans(), "near_contact_knots": st.booleans(), "emitter_shadow_depth": st.integers(-1, 13),
     "detail_tolerance": any_float,
     "angular_degree": st.integers(-1, 6), "angular_delta": any_float, "angular_resolution": any_float,
     "angular_coeffs_min": st.integers(-1, 4), "angular_coeffs_max": st.integers(-1, 5),

@@ -52,13 +52,21 @@ struct DistantSource {
 // under kMinShare of the bright part's irradiance cast no line worth a knot.
 std::vector<DistantSource> bright_world_sources(const std::vector<std::pair<Vec3, double>>& bright);
 
+// What DiscontinuityFinder::find searches: the direct light's events (EV, VE, contact lines, the
+// distant lights' shadow edges) and near contacts.
+struct DiscontinuityKinds {
+    bool events = true, near_contacts = true;
+};
+
 // The polygonal emitters and occluders of a scene, their feature edges extracted once.
 class DiscontinuityFinder {
 public:
     // `distant`: the lights at infinity whose shadow edges count (the scene's distant lights
     // and the world's bright part); `caster`: keeps an edge of theirs only where it bounds light
     // on the receiver (an edge in another's shadow, a window wall's outer edges, bounds none).
-    DiscontinuityFinder(const Scene& scene, std::vector<DistantSource> distant = {}, const RayCaster* caster = nullptr);
+    DiscontinuityFinder(const Scene& scene, std::vector<DistantSource> distant = {}, const RayCaster* caster = nullptr,
+                        DiscontinuityKinds kinds = {});
+    const DiscontinuityKinds& kinds() const { return kinds_; }
     ~DiscontinuityFinder();
     DiscontinuityFinder(DiscontinuityFinder&&) noexcept;
 
@@ -99,6 +107,7 @@ private:
     std::unique_ptr<Grid> grid_;
     const Scene* scene_;
     const RayCaster* caster_;
+    DiscontinuityKinds kinds_;
 };
 
 // Clamped knots on [a, b] with num_coeffs coefficients: each line of order below the degree

@@ -59,6 +59,11 @@ struct SolverSettings {
     // knots spread between them (by the probe's density with adaptive_knots). On in the final
     // and reference presets.
     bool discontinuity_knots = false;
+    // Knots graded across the outlines of occluders' faces parallel to a planar receiver a little
+    // off it (discontinuities.h: near contacts, a painting hung off a wall), where its light falls
+    // within a few gap heights; alone where discontinuity_knots is off. On in the preview, final
+    // and reference presets.
+    bool near_contact_knots = false;
     // Diffuse NURBS surfaces that other surfaces pass through are split along those lines into
     // pieces (split_piece.h), each with its own spline, so the light's jump there is not smoothed
     // (paper section 5.1). Done by bsgi.solve in Python (bsgi/split.py), which answers for the
