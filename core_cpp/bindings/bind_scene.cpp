@@ -376,6 +376,7 @@ void bind_scene(py::module_& m) {
         .def_readwrite("hidden_nodes_to_contact", &SolverSettings::hidden_nodes_to_contact)
         .def_readwrite("discontinuity_knots", &SolverSettings::discontinuity_knots)
         .def_readwrite("near_contact_knots", &SolverSettings::near_contact_knots)
+        .def_readwrite("knot_detail_share", &SolverSettings::knot_detail_share)
         .def_readwrite("split_crossings", &SolverSettings::split_crossings)
         .def_readwrite("distant_support_means", &SolverSettings::distant_support_means)
         .def_readwrite("sharpen_fit", &SolverSettings::sharpen_fit)

@@ -43,6 +43,7 @@ void validate(const SolverSettings& s) {
     need(s.spatial_coeffs_min >= s.spatial_degree + 1, "spatial_coeffs_min must be at least spatial_degree + 1");
     need(s.detail_tolerance >= 0, "detail_tolerance must be >= 0");
     need(s.detail_density_max >= 1, "detail_density_max must be >= 1");
+    need(s.knot_detail_share >= 0 && s.knot_detail_share <= 1, "knot_detail_share must be in [0, 1]");
     need(s.epsilon >= 0 && s.epsilon < 0.5, "epsilon must be in [0, 0.5)");
     need(s.angular_degree >= 0 && s.angular_degree <= 5, "angular_degree must be in 0..5");
     need(s.angular_coeffs_min >= s.angular_degree + 1 && s.angular_coeffs_max >= s.angular_coeffs_min,
@@ -409,9 +410,12 @@ size_t layouts_bytes(const std::vector<Plan>& plans, const SolverSettings& s) {
     const bool by_counts = !s.adaptive_knots && !s.discontinuity_knots;
     std::set<std::array<int, 3>> seen;
     size_t bytes = 0;
-    for (const Plan& p : plans)
-        if (!by_counts || seen.insert({p.nu, p.nv, p.kind == Representation::Glossy ? p.na : 0}).second)
-            bytes += layout_bytes(p, s);
+    for (const Plan& p : plans) {
+        // (Without inner knots the knots are the counts' whatever the light: the small faces of
+        // an interior, most of its surfaces.)
+        const bool own = !by_counts && (p.nu > s.spatial_degree + 1 || p.nv > s.spatial_degree + 1);
+        if (own || seen.insert({p.nu, p.nv, p.kind == Representation::Glossy ? p.na : 0}).second) bytes += layout_bytes(p, s);
+    }
     return bytes;
 }
 
@@ -483,11 +487,9 @@ KnotVector equidistributed_knots(const std::vector<double>& density, int num_coe
 // Knots where detail is (paper 3.1: "if there is extra detail in one part of the surface the
 // knots can be clustered there"): the direct light is probed on a grid twice as fine as the
 // coefficients, and knots in u (v) are equidistributed by the square root of the light's second
-// differences along u (v), which concentrates them at shadow edges and contact lines. Half of
-// the density stays uniform, so no span is wider than twice the uniform one: the final gather's
-// spans stay within the coarse ones where only the indirect light has detail (with a quarter
-// uniform, the Cornell box's short box face beside the other's contact line had 7.3% error at
-// the final preset instead of 2.3%). No span gets narrower than about an eighth of it.
+// differences along u (v), which concentrates them at shadow edges and contact lines. Of the
+// density, 1 - knot_detail_share stays uniform (solver.h), so no span is wider than 1 / that of
+// the uniform one. No span gets narrower than about an eighth of it.
 // detail_density: the probe's densities along u and v on equal cells of [eps, 1 - eps] (empty
 // where the light is flat or dark: uniform), which adaptive_knots equidistributes.
 std::array<std::vector<double>, 2> detail_density(const Gatherer& gather, const Scene& scene, const Plan& p,
@@ -518,7 +520,8 @@ std::array<std::vector<double>, 2> detail_density(const Gatherer& gather, const 
         for (int k = 0; k + 1 < n; ++k) mean += density[k] = std::sqrt(0.5 * (second[k] + second[k + 1]));
         mean /= n - 1;
         if (!(mean > 1e-6)) return std::vector<double>{};
-        for (double& x : density) x = std::min(0.5 + 0.5 * x / mean, 8.0);
+        const double share = settings.knot_detail_share;
+        for (double& x : density) x = std::min((1 - share) + share * x / mean, 8.0);
         return density;
     };
     return {density_along(true), density_along(false)};
@@ -1221,6 +1224,14 @@ SolverSettings SolverSettings::preset(const std::string& name) {
         s.coeffs_from_size = true;
         s.detail_tolerance = 0.005;
         s.near_contact_knots = true;
+        // Knots clustered at the direct light's detail, a quarter of their density: the study's
+        // scenes against Mitsuba 3 at preview (bench/study/compare_preview.py) Bezier patches
+        // 3.95% -> 2.13%, glossy spheres 2.92% -> 1.99%, contact shadows 3.77% -> 2.90%, Cornell
+        // box 1.54% -> 1.23%, glossy-wall box 1.53% -> 1.20%, for 5-40% more CPU time (half
+        // their density, as at final, took the Cornell boxes' knots from the indirect light's
+        // detail: 1.84%, 1.70%).
+        s.adaptive_knots = true;
+        s.knot_detail_share = 0.25;
     } else if (name == "final" || name == "reference") {
         s.spatial_coeffs = 16;
         // Four final gathers: the later two carry the finals' light two bounces further into

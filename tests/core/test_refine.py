@@ -27,6 +27,9 @@ def coarse_settings(**overrides):
     """Too few coefficients for the shadow (6 per direction), no bounces, no final gather."""
     s = bsgi.SolverSettings.preset("preview")
     s.spatial_coeffs = 6
+    # Uniform knots: the blur refinement is to remove (the preview's adaptive knots cluster at the
+    # shadow; with them the refined floor's estimate was 2.08x its error, 0.034 against 0.016).
+    s.adaptive_knots = False
     s.max_bounces = 0
     s.final_gather = False
     s.refine_factor = 2.0

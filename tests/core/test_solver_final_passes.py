@@ -45,11 +45,12 @@ def test_second_final_gather_lights_the_face_beside_a_narrow_shadow():
     for name in figures[1]:
         (r1, e1), (r2, e2) = figures[1][name], figures[2][name]
         print(f"  {name:12s} mean ratio {r1:.4f} -> {r2:.4f}, rel RMSE {e1:.4f} -> {e2:.4f}")
-    # The short box's face away from the lamp (measured 1.179 -> 1.065, RMSE 25.0% -> 16.8%) and
-    # the tall box's face over the floor's contact line (5.4% -> 2.5%).
+    # The short box's face away from the lamp (measured 1.138 -> 1.035, RMSE 20.7% -> 9.4%; 1.179 ->
+    # 1.065 and 25.0% -> 16.8% before the preview's adaptive knots). The tall box's face over the
+    # floor's contact line took 5.4% -> 2.5% from the regather before them; they bring it to 2.5%
+    # in the first pass (2.48% -> 2.49%).
     assert figures[2]["short box 2"][0] < 1.10 < figures[1]["short box 2"][0]
-    assert figures[2]["short box 2"][1] <= 0.8 * figures[1]["short box 2"][1]
-    assert figures[2]["tall box 2"][1] <= 0.7 * figures[1]["tall box 2"][1]
+    assert figures[2]["short box 2"][1] <= 0.6 * figures[1]["short box 2"][1]
     # No surface loses (all gained: the walls 2-16%, the other box faces up to 66%).
     for name in figures[1]:
         assert figures[2][name][1] <= 1.05 * figures[1][name][1], name

@@ -136,8 +136,9 @@ def test_the_reference_preset_resolves_the_patch():
 ROOM = ("back wall", "left wall", "right wall", "ceiling", "sill wall", "lintel wall", "window left", "window right")
 
 
-# Measured (5 December): the walls' and ceiling's means without the support means, with them.
-MEANS_MEASURED = {"draft": ((0.735, 0.834), (0.965, 1.044)), "preview": ((0.868, 0.943), (0.954, 1.045))}
+# Measured: the walls' and ceiling's means without the support means, with them (draft 5 December;
+# preview 8 December, with its adaptive knots: before them (0.868, 0.943), (0.954, 1.045)).
+MEANS_MEASURED = {"draft": ((0.735, 0.834), (0.965, 1.044)), "preview": ((0.820, 0.915), (0.953, 1.006))}
 
 
 @pytest.mark.slow
@@ -159,7 +160,7 @@ def test_the_coarse_floor_carries_the_patchs_light(preset):
     spread = np.sqrt(np.mean([(objects[n][0] - 1) ** 2 for n in ROOM]))
     spread_before = np.sqrt(np.mean([(before[n][0] - 1) ** 2 for n in ROOM]))
     print(f"the room's means off Mitsuba's by {100 * spread_before:.1f}% -> {100 * spread:.1f}% (RMS)")
-    assert spread < 0.5 * spread_before  # measured 21.3% -> 2.6% at draft, 9.2% -> 2.9% at preview
+    assert spread < 0.5 * spread_before  # measured 21.3% -> 2.6% at draft, 12.7% -> 2.5% at preview
     low, high = MEANS_MEASURED[preset][1]
     for name in ROOM:
         assert 0.93 < objects[name][0] < 1.08, (name, objects[name])  # measured low to high

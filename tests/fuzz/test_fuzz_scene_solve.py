@@ -164,7 +164,7 @@ FIELDS = {
     "spatial_coeffs": st.integers(-2, 6), "spatial_degree": st.integers(-1, 6), "epsilon": any_float,
     "coeffs_from_size": st.booleans(), "spatial_coeffs_min": st.integers(-1, 4), "adaptive_knots": st.booleans(),
     "discontinuity_knots": st.booleans(), "near_contact_knots": st.booleans(), "emitter_shadow_depth": st.integers(-1, 13),
-    "detail_tolerance": any_float,
+    "detail_tolerance": any_float, "knot_detail_share": any_float,
     "angular_degree": st.integers(-1, 6), "angular_delta": any_float, "angular_resolution": any_float,
     "angular_coeffs_min": st.integers(-1, 4), "angular_coeffs_max": st.integers(-1, 5),
     "emitter_coeffs": st.integers(-1, 4), "emitter_degree": st.integers(-1, 4), "emitter_cell_ratio": any_float,
