@@ -24,6 +24,16 @@ namespace {
 
 using Poly = DiscontinuityFinder::Polygonal;
 
+// The box (lo, hi) of the points, widened by `pad` on every side.
+std::array<Vec3, 2> box_of(const std::vector<Vec3>& points, double pad = 0) {
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    for (const Vec3& p : points) {
+        lo = Vec3{std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+        hi = Vec3{std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+    }
+    return {lo - Vec3{pad, pad, pad}, hi + Vec3{pad, pad, pad}};
+}
+
 bool parallel(const Vec3& a, const Vec3& b) {
     return length(cross(a, b)) <= 1e-6 * length(a) * length(b);
 }
@@ -205,19 +215,15 @@ struct DiscontinuityFinder::Grid {
 
     Grid(const Scene& scene, const std::vector<Polygonal>& polys) : boxes(scene.size()) {
         std::vector<int> kept;
-        Vec3 all_lo{1e300, 1e300, 1e300}, all_hi{-1e300, -1e300, -1e300};
+        std::vector<Vec3> corners;  // of the occluders' boxes
         for (size_t o = 0; o < scene.size(); ++o) {
             if (!scene[o].occluder || polys[o].edges.empty()) continue;
-            Vec3 a{1e300, 1e300, 1e300}, b{-1e300, -1e300, -1e300};
-            for (const Vec3& v : polys[o].vertices)
-                a = Vec3{std::min(a.x, v.x), std::min(a.y, v.y), std::min(a.z, v.z)},
-                b = Vec3{std::max(b.x, v.x), std::max(b.y, v.y), std::max(b.z, v.z)};
-            boxes[o] = {a, b};
-            all_lo = Vec3{std::min(all_lo.x, a.x), std::min(all_lo.y, a.y), std::min(all_lo.z, a.z)};
-            all_hi = Vec3{std::max(all_hi.x, b.x), std::max(all_hi.y, b.y), std::max(all_hi.z, b.z)};
+            boxes[o] = box_of(polys[o].vertices);
+            corners.insert(corners.end(), boxes[o].begin(), boxes[o].end());
             kept.push_back(int(o));
         }
         if (kept.empty()) return;
+        const auto [all_lo, all_hi] = box_of(corners);
         const double extent[3] = {all_hi.x - all_lo.x, all_hi.y - all_lo.y, all_hi.z - all_lo.z};
         const double largest = std::max({extent[0], extent[1], extent[2], 1e-300});
         double volume = 1;
@@ -239,10 +245,9 @@ struct DiscontinuityFinder::Grid {
         }
     }
     void range(const Vec3& a, const Vec3& b, int first[3], int last[3]) const {
-        const double x0[3] = {a.x, a.y, a.z}, x1[3] = {b.x, b.y, b.z}, l[3] = {lo.x, lo.y, lo.z}, s[3] = {step.x, step.y, step.z};
         for (int k = 0; k < 3; ++k) {
-            first[k] = std::clamp(int(std::floor((x0[k] - l[k]) / s[k])), 0, cells[k] - 1);
-            last[k] = std::clamp(int(std::floor((x1[k] - l[k]) / s[k])), 0, cells[k] - 1);
+            first[k] = std::clamp(int(std::floor((a[k] - lo[k]) / step[k])), 0, cells[k] - 1);
+            last[k] = std::clamp(int(std::floor((b[k] - lo[k]) / step[k])), 0, cells[k] - 1);
         }
     }
     // The occluders whose boxes meet the box [a, b], by scene index.
@@ -426,19 +431,9 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
     // across it (a jump there, its nodes a gap off the edge, read the fall's foot as the edge's
     // light: 1.3x at the edge). Only gaps up to a span: a wider fall the spline follows.
     const double span = std::min(length(A.du) * 10 * tolerance[0], length(A.dv) * 10 * tolerance[1]);
-
-    // The receiver's box, widened by `pad` (and its rounding).
-    auto box_with = [&](const std::vector<Vec3>& points, double pad) -> std::array<Vec3, 2> {
-        Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-        for (const Vec3& c : points) {
-            lo = Vec3{std::min(lo.x, c.x), std::min(lo.y, c.y), std::min(lo.z, c.z)};
-            hi = Vec3{std::max(hi.x, c.x), std::max(hi.y, c.y), std::max(hi.z, c.z)};
-        }
-        const double r = pad + flat;
-        return {lo - Vec3{r, r, r}, hi + Vec3{r, r, r}};
-    };
+    // (The boxes asked of the grid are widened by the flat tolerance too.)
     const std::vector<Vec3> corners{A.o, A.o + A.du, A.o + A.dv, A.o + A.du + A.dv};
-    const auto [near_lo, near_hi] = box_with(corners, kNearContactSpans * span);
+    const auto [near_lo, near_hi] = box_of(corners, kNearContactSpans * span + flat);
     for (const int o : grid_->within(near_lo, near_hi)) {
         const Poly& P = polys_[o];
         if (o == surface) continue;
@@ -499,7 +494,7 @@ ReceiverDiscontinuities DiscontinuityFinder::find(int surface, std::array<bool, 
         // Only occluders within the box of the receiver and the emitter can stand between them.
         std::vector<Vec3> both = corners;
         both.insert(both.end(), E.vertices.begin(), E.vertices.end());
-        const auto [both_lo, both_hi] = box_with(both, 0);
+        const auto [both_lo, both_hi] = box_of(both, flat);
         for (const int o : grid_->within(both_lo, both_hi)) {
             const Poly& P = polys_[o];
             if (o == surface || o == em) continue;

@@ -935,7 +935,7 @@ size_t node_count(const std::vector<Receiver>& receivers) {
 }
 
 std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& plans, const Gatherer& gather,
-                                      const SolverSettings& settings, bool adaptive, Progress& progress, size_t& rays,
+                                      const SolverSettings& settings, Progress& progress, size_t& rays,
                                       bool bounces = true) {
     const double a = settings.epsilon, b = 1 - settings.epsilon;
     std::vector<SpatialKnots> knots;
@@ -952,7 +952,7 @@ std::vector<Receiver> build_receivers(const Scene& scene, std::vector<Plan>& pla
         finder.emplace(scene, std::move(distant), &gather.caster(),
                        DiscontinuityKinds{settings.discontinuity_knots, settings.near_contact_knots});
     }
-    if (adaptive || finder) {
+    if (settings.adaptive_knots || finder) {
         std::atomic<size_t> probe_rays{0};
         parallel_for(plans.size(), 1, settings.threads, [&](size_t begin, size_t end) {
             size_t local = 0;
@@ -1749,7 +1749,7 @@ struct SolveSteps::State {
                                             "give it a roughness");
 
         progress.begin_stage("placing knots", 0, stages, 1);
-        receivers = build_receivers(scene, plans, *gather, settings, settings.adaptive_knots, progress, knot_rays);
+        receivers = build_receivers(scene, plans, *gather, settings, progress, knot_rays);
         receiver_of = index_by_surface(scene, receivers);
         move_hidden_nodes(receivers, scene, *gather, receiver_of, settings, progress, knot_rays);
         rows.resize(receivers.size());
@@ -1817,7 +1817,7 @@ struct SolveSteps::State {
             bytes = estimate_bytes(scene, settings, plans, final_plans);
             check_budget(final_plans);
         }
-        finals = build_receivers(scene, final_plans, *gather, settings, settings.adaptive_knots, progress, knot_rays, false);
+        finals = build_receivers(scene, final_plans, *gather, settings, progress, knot_rays, false);
         move_hidden_nodes(finals, scene, *gather, receiver_of, settings, progress, knot_rays);
         final_of = index_by_surface(scene, finals);
         finals_built = true;
